@@ -1,0 +1,1 @@
+"""Benchmarks: speed and quality against named anchors, run with ``uavloc bench ...``."""

@@ -1,0 +1,108 @@
+"""Scenario files: the examples load, and every kind of bad value names its key."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from uavloc_gcs.errors import ConfigError
+from uavloc_gcs.scenario import load_scenario, loads_scenario
+
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
+
+RECT = """
+[area]
+origin_lat_deg = 42.625
+origin_lon_deg = 13.283
+width_m = 1120
+height_m = 640
+"""
+
+
+def test_paper_scenario_matches_the_paper():
+    sc = load_scenario(EXAMPLES / "paper.toml")
+    assert sc.fleet.vehicles == 4
+    assert sc.fleet.altitude_m == 100 and sc.fleet.speed_m_s == 25 and sc.fleet.comm_range_m == 150
+    assert sc.people.max_speed_m_s == 1.5
+    assert sc.channel.path_loss_exponent == 2 and sc.channel.shadowing_sigma_db == 4
+    assert sc.channel.log_range_sigma == pytest.approx(0.4605, abs=1e-4)
+    assert sc.horizontal_range_m == pytest.approx(111.80, abs=0.01)
+    xy = sc.area_xy_m()
+    assert np.ptp(xy[:, 0]) == pytest.approx(1120, abs=0.05)
+    assert np.ptp(xy[:, 1]) == pytest.approx(640, abs=0.05)
+
+
+@pytest.mark.parametrize("name", sorted(p.name for p in EXAMPLES.glob("*.toml")))
+def test_every_example_loads(name):
+    sc = load_scenario(EXAMPLES / name)
+    assert len(sc.area_xy_m()) >= 3
+
+
+def test_heading_rotates_the_rectangle():
+    sc = loads_scenario(RECT + "heading_deg = 0\n")
+    xy = sc.area_xy_m()
+    # Width side due north, height side due west.
+    assert np.ptp(xy[:, 1]) == pytest.approx(1120, abs=0.1)
+    assert np.ptp(xy[:, 0]) == pytest.approx(640, abs=0.1)
+    assert xy[:, 0].max() < 1e-6
+
+
+@pytest.mark.parametrize(
+    "extra, key, fragment",
+    [
+        ("[fleet]\nvehicles = 0\n", "fleet.vehicles", "at least 1"),
+        ("[fleet]\nvehicles = 2.5\n", "fleet.vehicles", "whole number"),
+        ("[fleet]\naltitude_m = 'high'\n", "fleet.altitude_m", "number"),
+        ("[fleet]\ncomm_range_m = 90\n", "fleet.comm_range_m", "must exceed the altitude"),
+        ("[fleet]\nautopilot = 'inav'\n", "fleet.autopilot", "expected one of"),
+        ("[fleet]\nspeeed_m_s = 3\n", "fleet.speeed_m_s", "unknown key"),
+        ("[fleet]\nenergy_reserve_fraction = 1.5\n", "fleet.energy_reserve_fraction", "[0, 1)"),
+        ("[people]\nmax_speed_m_s = 30\n", "people.max_speed_m_s", "slower than the vehicles"),
+        ("[channel]\nshadowing_sigma_db = -1\n", "channel.shadowing_sigma_db", "positive"),
+        ("[wind]\nspeed = 3\n", "wind", "unknown section"),
+    ],
+)
+def test_bad_values_name_the_key(extra, key, fragment):
+    with pytest.raises(ConfigError) as ei:
+        loads_scenario(RECT + extra, source="mission.toml")
+    msg = str(ei.value)
+    assert msg.startswith("mission.toml")
+    assert f"'{key}'" in msg
+    assert fragment in msg
+
+
+def test_area_errors():
+    with pytest.raises(ConfigError, match="missing \\[area\\]"):
+        loads_scenario("[fleet]\nvehicles = 2\n")
+    with pytest.raises(ConfigError, match="exactly one of"):
+        loads_scenario(RECT + "polygon_deg = [[1,1],[1,2],[2,2]]\n")
+    with pytest.raises(ConfigError, match="area.width_m"):
+        loads_scenario(RECT.replace("width_m = 1120", "width_m = -5"))
+    with pytest.raises(ConfigError, match="crosses itself"):
+        loads_scenario("[area]\npolygon_deg = [[0,0],[0.01,0.01],[0,0.01],[0.01,0]]\n")
+    with pytest.raises(ConfigError, match="at least 3"):
+        loads_scenario("[area]\npolygon_deg = [[0,0],[0.01,0.01]]\n")
+    with pytest.raises(ConfigError, match="latitude"):
+        loads_scenario("[area]\npolygon_deg = [[95,0],[0.01,0.01],[0,0.01]]\n")
+
+
+def test_not_toml_and_missing_file(tmp_path):
+    with pytest.raises(ConfigError, match="not valid TOML"):
+        loads_scenario("[area\n")
+    with pytest.raises(ConfigError, match="file not found"):
+        load_scenario(tmp_path / "nope.toml")
+
+
+def test_replace_revalidates():
+    sc = loads_scenario(RECT)
+    assert sc.replace(fleet={"vehicles": 2}).fleet.vehicles == 2
+    with pytest.raises(ConfigError):
+        sc.replace(fleet={"vehicles": 0})
+
+
+def test_polygon_is_counter_clockwise_and_launch_defaults_to_first_corner():
+    sc = loads_scenario("[area]\npolygon_deg = [[0,0],[0.01,0],[0.01,0.01],[0,0.01]]\n")  # clockwise
+    xy = sc.area_xy_m()
+    area2 = np.sum(xy[:, 0] * np.roll(xy[:, 1], -1) - np.roll(xy[:, 0], -1) * xy[:, 1])
+    assert area2 > 0
+    assert sc.launch_latlon_deg == (0.0, 0.0)

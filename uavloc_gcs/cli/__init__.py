@@ -1,0 +1,80 @@
+"""The ``uavloc`` command line. Each subcommand lives in its own module in this package.
+
+A command module defines ``register(subparsers)`` which adds its parser and sets
+``func=run``; ``run(args) -> int`` returns the exit code. Heavy imports stay inside ``run`` so
+``uavloc --help`` is quick. This is the only place errors are turned into text and exit codes.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import importlib.util
+import logging
+import sys
+
+from ..errors import ConfigError, FileFormatError, InfeasibleError, LinkError, UavlocError
+
+# Command modules, in the order ``uavloc --help`` lists them.
+COMMANDS = [
+    "demo",
+    "plan",
+    "preview",
+    "localize",
+    "route",
+    "sim",
+    "upload",
+    "download",
+    "daemon",
+    "experiment",
+    "bench",
+]
+
+EXIT_BAD_INPUT = 2
+EXIT_LINK = 3
+EXIT_FAILED = 1
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="uavloc",
+        description="Find people from the RSSI of their phones with a UAV fleet over MAVLink.",
+    )
+    parser.add_argument("-v", "--verbose", action="count", default=0, help="more log output (-vv for debug)")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for name in COMMANDS:
+        modname = f"{__name__}.{name}"
+        if importlib.util.find_spec(modname) is None:
+            continue
+        importlib.import_module(modname).register(sub)
+    return parser
+
+
+def exit_code_for(err: UavlocError) -> int:
+    if isinstance(err, (ConfigError, FileFormatError, InfeasibleError)):
+        return EXIT_BAD_INPUT
+    if isinstance(err, LinkError):
+        return EXIT_LINK
+    return EXIT_FAILED
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    level = logging.WARNING - 10 * min(args.verbose, 2)
+    logging.basicConfig(level=level, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
+    if not getattr(args, "func", None):
+        parser.print_help()
+        return EXIT_BAD_INPUT
+    try:
+        return int(args.func(args) or 0)
+    except UavlocError as err:
+        print(f"uavloc {args.command}: error: {err}", file=sys.stderr)
+        return exit_code_for(err)
+    except KeyboardInterrupt:
+        print(f"uavloc {args.command}: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,463 @@
+"""Scenario / mission configuration: a TOML file with units in the key names.
+
+A scenario says where to search (area), with what (fleet), how phones are heard (channel), what
+the people do (people), how to scan and plan, and, for simulations, how the simulated world
+behaves. Every section is a small frozen dataclass; :func:`load_scenario` reads a TOML file,
+checks every key (unknown keys, wrong types, impossible values) and raises :class:`ConfigError`
+naming the file and the dotted key.
+
+Example (see ``examples/paper.toml``)::
+
+    [area]
+    origin_lat_deg = 47.397742
+    origin_lon_deg = 8.545594
+    width_m = 1120
+    height_m = 640
+    heading_deg = 90          # compass bearing of the width side from the origin corner
+
+    [fleet]
+    vehicles = 4
+    altitude_m = 100
+    ...
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import sys
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+from typing import Any, Literal, get_args, get_origin, get_type_hints
+
+import numpy as np
+
+from .energy import RotorcraftPower
+from .errors import ConfigError, UavlocError
+from .geo import LocalFrame
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+
+# ---------------------------------------------------------------------------------------------
+# Sections. Field names carry units; every field has a default unless the scenario must say it.
+
+
+@dataclass(frozen=True)
+class AreaSpec:
+    """The search area: a rectangle (origin corner, size, heading) or a lat/lon polygon.
+
+    Rectangle: ``origin_lat_deg``/``origin_lon_deg`` is one corner; the "width" side leaves it at
+    compass bearing ``heading_deg`` (90 = due east) and the "height" side at ``heading_deg - 90``
+    (i.e. to the left of the width side, due north for heading 90).
+    Polygon: ``polygon_deg = [[lat, lon], ...]`` (3+ vertices, not closed) or ``polygon_file``
+    (a GeoJSON Polygon/Feature or a QGroundControl ``.plan`` whose geofence has an inclusion polygon).
+    """
+
+    origin_lat_deg: float | None = None
+    origin_lon_deg: float | None = None
+    width_m: float | None = None
+    height_m: float | None = None
+    heading_deg: float = 90.0
+    polygon_deg: list | None = None
+    polygon_file: str | None = None
+
+
+@dataclass(frozen=True)
+class LaunchSpec:
+    """Where every vehicle takes off and returns. Defaults to the area's first corner."""
+
+    lat_deg: float | None = None
+    lon_deg: float | None = None
+
+
+@dataclass(frozen=True)
+class FleetSpec:
+    vehicles: int = 4
+    altitude_m: float = 100.0
+    speed_m_s: float = 25.0
+    comm_range_m: float = 150.0
+    autopilot: Literal["ardupilot", "px4"] = "ardupilot"
+    energy_budget_j: float = 250_000.0
+    energy_reserve_fraction: float = 0.15
+    max_acceleration_m_s2: float = 5.0
+
+
+@dataclass(frozen=True)
+class ChannelSpec:
+    """Log-distance path loss: P = P0 - 10 eta log10(d/d0) + N(0, sigma^2) [dBm]."""
+
+    path_loss_exponent: float = 2.0
+    shadowing_sigma_db: float = 4.0
+    reference_power_dbm: float = -40.0
+    reference_distance_m: float = 1.0
+    slot_s: float = 0.025
+    samples_per_slot: int = 10
+    estimate_tx_power: bool = False
+
+    @property
+    def log_range_sigma(self) -> float:
+        """Std of ln(range) per sample: s = sigma ln10 / (10 eta) (0.4605 for the paper)."""
+        return self.shadowing_sigma_db * math.log(10.0) / (10.0 * self.path_loss_exponent)
+
+
+@dataclass(frozen=True)
+class PeopleSpec:
+    max_speed_m_s: float = 1.5
+    required_accuracy_m: float = 15.0
+
+
+@dataclass(frozen=True)
+class ScanSpec:
+    """Initial scan. ``lane_spacing_m`` None means the documented default (double coverage)."""
+
+    lane_spacing_m: float | None = None
+    coverage: Literal["double", "single"] = "double"
+
+
+@dataclass(frozen=True)
+class PlannerSpec:
+    optimizer: Literal["epso", "pso", "ga"] = "epso"
+    particles: int = 40
+    iterations: int = 200
+    time_limit_s: float = 1.0
+    local_search: bool = True
+    warm_start: bool = True
+    seed: int = 0
+
+
+@dataclass(frozen=True)
+class SimulationSpec:
+    """The simulated world (fake vehicles, demo, experiments); ignored against real vehicles."""
+
+    people: int = 10
+    seed: int = 1
+    motion: Literal["static", "constant_velocity", "random_waypoint"] = "random_waypoint"
+    correlated_shadowing: bool = False
+    shadowing_decorrelation_m: float = 20.0
+    tx_power_spread_db: float = 0.0
+    speedup: float = 20.0
+
+
+@dataclass(frozen=True)
+class Scenario:
+    area: AreaSpec
+    launch: LaunchSpec = field(default_factory=LaunchSpec)
+    fleet: FleetSpec = field(default_factory=FleetSpec)
+    channel: ChannelSpec = field(default_factory=ChannelSpec)
+    people: PeopleSpec = field(default_factory=PeopleSpec)
+    scan: ScanSpec = field(default_factory=ScanSpec)
+    planner: PlannerSpec = field(default_factory=PlannerSpec)
+    simulation: SimulationSpec = field(default_factory=SimulationSpec)
+    name: str = "scenario"
+    source: str = "<string>"
+    # Resolved geometry (filled by load/validate): polygon vertices as [[lat, lon], ...].
+    polygon_latlon_deg: tuple = ()
+    launch_latlon_deg: tuple = ()
+
+    # -- derived geometry -----------------------------------------------------------------
+    @property
+    def frame(self) -> LocalFrame:
+        """The local ENU frame, centred on the launch point."""
+        return _frame_cache(self.launch_latlon_deg[0], self.launch_latlon_deg[1])
+
+    def area_xy_m(self) -> np.ndarray:
+        """Area polygon vertices (N, 2) in local metres, counter-clockwise, not closed."""
+        xy = self.frame.to_local_xy(np.array(self.polygon_latlon_deg))
+        return _ccw(xy)
+
+    def launch_xy_m(self) -> np.ndarray:
+        return np.zeros(2)
+
+    @property
+    def horizontal_range_m(self) -> float:
+        """R = sqrt(D^2 - h^2): ground radius within which a phone is heard."""
+        d, h = self.fleet.comm_range_m, self.fleet.altitude_m
+        return math.sqrt(d * d - h * h)
+
+    @property
+    def power_model(self) -> RotorcraftPower:
+        return RotorcraftPower()
+
+    @property
+    def usable_energy_j(self) -> float:
+        return self.fleet.energy_budget_j * (1.0 - self.fleet.energy_reserve_fraction)
+
+    def replace(self, **sections: Any) -> "Scenario":
+        """A copy with whole sections or section fields replaced, re-validated.
+
+        ``sc.replace(fleet={"vehicles": 2})`` or ``sc.replace(fleet=FleetSpec(...))``.
+        """
+        changes = {}
+        for name, value in sections.items():
+            if isinstance(value, dict):
+                value = dataclasses.replace(getattr(self, name), **value)
+            changes[name] = value
+        return _resolve(dataclasses.replace(self, **changes))
+
+
+_FRAMES: dict = {}
+
+
+def _frame_cache(lat: float, lon: float) -> LocalFrame:
+    key = (lat, lon)
+    if key not in _FRAMES:
+        _FRAMES[key] = LocalFrame(lat, lon)
+    return _FRAMES[key]
+
+
+def _ccw(xy: np.ndarray) -> np.ndarray:
+    x, y = xy[:, 0], xy[:, 1]
+    area2 = np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y)
+    return xy if area2 > 0 else xy[::-1].copy()
+
+
+# ---------------------------------------------------------------------------------------------
+# Loading and validation
+
+_SECTIONS = {
+    "area": AreaSpec,
+    "launch": LaunchSpec,
+    "fleet": FleetSpec,
+    "channel": ChannelSpec,
+    "people": PeopleSpec,
+    "scan": ScanSpec,
+    "planner": PlannerSpec,
+    "simulation": SimulationSpec,
+}
+
+
+def load_scenario(path: str | Path) -> Scenario:
+    """Read and validate a scenario TOML file. Raises ConfigError naming the file and key."""
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ConfigError("file not found", source=str(p)) from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"cannot read file ({exc})", source=str(p)) from None
+    return loads_scenario(text, source=str(p), base_dir=p.parent)
+
+
+def loads_scenario(text: str, *, source: str = "<string>", base_dir: Path | None = None) -> Scenario:
+    try:
+        raw = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"not valid TOML ({exc})", source=source) from None
+    return scenario_from_dict(raw, source=source, base_dir=base_dir)
+
+
+def scenario_from_dict(raw: dict, *, source: str = "<string>", base_dir: Path | None = None) -> Scenario:
+    unknown = set(raw) - set(_SECTIONS) - {"name"}
+    if unknown:
+        k = sorted(unknown)[0]
+        raise ConfigError(
+            f"unknown section or key (expected one of: name, {', '.join(_SECTIONS)})", source=source, key=k
+        )
+    if "area" not in raw:
+        raise ConfigError("missing [area] section", source=source, key="area")
+    kwargs: dict[str, Any] = {}
+    for sec_name, cls in _SECTIONS.items():
+        sec_raw = raw.get(sec_name, {})
+        if not isinstance(sec_raw, dict):
+            raise ConfigError("must be a table", source=source, key=sec_name)
+        kwargs[sec_name] = _build_section(cls, sec_raw, sec_name, source)
+    name = raw.get("name", Path(source).stem if source != "<string>" else "scenario")
+    if not isinstance(name, str):
+        raise ConfigError("must be a string", source=source, key="name")
+    sc = Scenario(name=name, source=source, **kwargs)
+    return _resolve(sc, base_dir=base_dir)
+
+
+def _build_section(cls, sec_raw: dict, sec_name: str, source: str):
+    hints = get_type_hints(cls)
+    names = {f.name for f in fields(cls)}
+    values = {}
+    for key, value in sec_raw.items():
+        dotted = f"{sec_name}.{key}"
+        if key not in names:
+            raise ConfigError(
+                f"unknown key (known keys: {', '.join(sorted(names))})", source=source, key=dotted
+            )
+        values[key] = _coerce(value, hints[key], dotted, source)
+    return cls(**values)
+
+
+def _coerce(value: Any, hint: Any, dotted: str, source: str) -> Any:
+    origin = get_origin(hint)
+    args = get_args(hint)
+    if origin is Literal:
+        if value not in args:
+            raise ConfigError(
+                f"is {value!r}; expected one of {', '.join(repr(a) for a in args)}", source=source, key=dotted
+            )
+        return value
+    if type(None) in args:  # Optional[...]
+        inner = [a for a in args if a is not type(None)]
+        return _coerce(value, inner[0], dotted, source)
+    if hint is bool:
+        if not isinstance(value, bool):
+            raise ConfigError(f"must be true or false, got {value!r}", source=source, key=dotted)
+        return value
+    if hint is int:
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise ConfigError(f"must be a whole number, got {value!r}", source=source, key=dotted)
+        return value
+    if hint is float:
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise ConfigError(f"must be a number, got {value!r}", source=source, key=dotted)
+        if not math.isfinite(value):
+            raise ConfigError(f"must be finite, got {value!r}", source=source, key=dotted)
+        return float(value)
+    if hint is str:
+        if not isinstance(value, str):
+            raise ConfigError(f"must be a string, got {value!r}", source=source, key=dotted)
+        return value
+    if hint is list or origin is list:
+        if not isinstance(value, list):
+            raise ConfigError(f"must be a list, got {value!r}", source=source, key=dotted)
+        return value
+    return value
+
+
+def _check(cond: bool, message: str, sc: Scenario, key: str) -> None:
+    if not cond:
+        raise ConfigError(message, source=sc.source, key=key)
+
+
+def _resolve(sc: Scenario, base_dir: Path | None = None) -> Scenario:
+    """Validate values and resolve the area polygon and launch point."""
+    f, ch, pe, sim, pl, scan = sc.fleet, sc.channel, sc.people, sc.simulation, sc.planner, sc.scan
+    _check(f.vehicles >= 1, f"must be at least 1, got {f.vehicles}", sc, "fleet.vehicles")
+    _check(f.vehicles <= 64, f"at most 64 vehicles are supported, got {f.vehicles}", sc, "fleet.vehicles")
+    _check(f.altitude_m > 0, f"must be positive, got {f.altitude_m} m", sc, "fleet.altitude_m")
+    _check(f.speed_m_s > 0, f"must be positive, got {f.speed_m_s} m/s", sc, "fleet.speed_m_s")
+    _check(f.speed_m_s <= 60, f"{f.speed_m_s} m/s is beyond any multirotor (max 60)", sc, "fleet.speed_m_s")
+    _check(
+        f.comm_range_m > f.altitude_m,
+        f"communication range {f.comm_range_m} m must exceed the altitude {f.altitude_m} m, "
+        "or no phone on the ground is ever heard",
+        sc,
+        "fleet.comm_range_m",
+    )
+    _check(f.energy_budget_j > 0, f"must be positive, got {f.energy_budget_j} J", sc, "fleet.energy_budget_j")
+    _check(
+        0.0 <= f.energy_reserve_fraction < 1.0,
+        f"must be in [0, 1), got {f.energy_reserve_fraction}",
+        sc,
+        "fleet.energy_reserve_fraction",
+    )
+    _check(f.max_acceleration_m_s2 > 0, "must be positive", sc, "fleet.max_acceleration_m_s2")
+    _check(ch.path_loss_exponent > 0, "must be positive", sc, "channel.path_loss_exponent")
+    _check(ch.shadowing_sigma_db > 0, "must be positive", sc, "channel.shadowing_sigma_db")
+    _check(ch.reference_distance_m > 0, "must be positive", sc, "channel.reference_distance_m")
+    _check(ch.slot_s > 0, "must be positive", sc, "channel.slot_s")
+    _check(ch.samples_per_slot >= 1, "must be at least 1", sc, "channel.samples_per_slot")
+    _check(pe.max_speed_m_s >= 0, "must not be negative", sc, "people.max_speed_m_s")
+    _check(
+        pe.max_speed_m_s < f.speed_m_s,
+        f"people ({pe.max_speed_m_s} m/s) must be slower than the vehicles ({f.speed_m_s} m/s)",
+        sc,
+        "people.max_speed_m_s",
+    )
+    _check(pe.required_accuracy_m > 0, "must be positive", sc, "people.required_accuracy_m")
+    if scan.lane_spacing_m is not None:
+        _check(scan.lane_spacing_m > 0, "must be positive", sc, "scan.lane_spacing_m")
+    _check(pl.particles >= 2, "must be at least 2", sc, "planner.particles")
+    _check(pl.iterations >= 1, "must be at least 1", sc, "planner.iterations")
+    _check(pl.time_limit_s > 0, "must be positive", sc, "planner.time_limit_s")
+    _check(sim.people >= 0, "must not be negative", sc, "simulation.people")
+    _check(sim.shadowing_decorrelation_m > 0, "must be positive", sc, "simulation.shadowing_decorrelation_m")
+    _check(sim.tx_power_spread_db >= 0, "must not be negative", sc, "simulation.tx_power_spread_db")
+    _check(sim.speedup > 0, "must be positive", sc, "simulation.speedup")
+
+    poly = _resolve_polygon(sc, base_dir)
+    if sc.launch.lat_deg is None and sc.launch.lon_deg is None:
+        launch = (float(poly[0][0]), float(poly[0][1]))
+    else:
+        _check(
+            sc.launch.lat_deg is not None and sc.launch.lon_deg is not None,
+            "give both lat_deg and lon_deg",
+            sc,
+            "launch",
+        )
+        _check_latlon(sc, sc.launch.lat_deg, sc.launch.lon_deg, "launch")
+        launch = (sc.launch.lat_deg, sc.launch.lon_deg)
+    sc = dataclasses.replace(
+        sc, polygon_latlon_deg=tuple(tuple(map(float, v)) for v in poly), launch_latlon_deg=launch
+    )
+    xy = sc.area_xy_m()
+    _check_polygon_simple(sc, xy)
+    return sc
+
+
+def _check_latlon(sc: Scenario, lat: float, lon: float, key: str) -> None:
+    _check(-90.0 < lat < 90.0, f"latitude {lat} is outside -90..90 degrees", sc, key)
+    _check(-180.0 <= lon <= 180.0, f"longitude {lon} is outside -180..180 degrees", sc, key)
+
+
+def _resolve_polygon(sc: Scenario, base_dir: Path | None) -> list:
+    a = sc.area
+    given = [
+        name
+        for name, present in (
+            ("rectangle (origin_lat_deg, origin_lon_deg, width_m, height_m)", a.origin_lat_deg is not None),
+            ("polygon_deg", a.polygon_deg is not None),
+            ("polygon_file", a.polygon_file is not None),
+        )
+        if present
+    ]
+    _check(len(given) == 1, "give exactly one of: a rectangle (origin_lat_deg, origin_lon_deg, width_m, "
+           f"height_m), polygon_deg, or polygon_file; got {len(given)}", sc, "area")
+    if a.origin_lat_deg is not None:
+        for k in ("origin_lon_deg", "width_m", "height_m"):
+            _check(getattr(a, k) is not None, "is required for a rectangular area", sc, f"area.{k}")
+        _check_latlon(sc, a.origin_lat_deg, a.origin_lon_deg, "area.origin_lat_deg")
+        _check(a.width_m > 0, f"must be positive, got {a.width_m}", sc, "area.width_m")
+        _check(a.height_m > 0, f"must be positive, got {a.height_m}", sc, "area.height_m")
+        _check(a.width_m <= 50_000 and a.height_m <= 50_000, "areas larger than 50 km are not supported",
+               sc, "area.width_m")
+        return rectangle_latlon(a.origin_lat_deg, a.origin_lon_deg, a.width_m, a.height_m, a.heading_deg)
+    if a.polygon_deg is not None:
+        poly = a.polygon_deg
+        for i, v in enumerate(poly):
+            ok = (isinstance(v, list) and len(v) == 2
+                  and all(isinstance(c, (int, float)) and not isinstance(c, bool) for c in v))
+            _check(ok, f"vertex {i} must be [lat, lon] numbers, got {v!r}", sc, "area.polygon_deg")
+            _check_latlon(sc, float(v[0]), float(v[1]), f"area.polygon_deg[{i}]")
+        if len(poly) >= 2 and poly[0] == poly[-1]:
+            poly = poly[:-1]
+        _check(len(poly) >= 3, f"needs at least 3 distinct vertices, got {len(poly)}", sc, "area.polygon_deg")
+        return [[float(v[0]), float(v[1])] for v in poly]
+    path = Path(a.polygon_file)
+    if not path.is_absolute() and base_dir is not None:
+        path = base_dir / path
+    from mission_io.area import read_area_polygon  # file formats live in mission_io
+
+    try:
+        poly = read_area_polygon(path)
+    except UavlocError as exc:
+        raise ConfigError(f"cannot use the area file: {exc}", source=sc.source, key="area.polygon_file") from None
+    _check(len(poly) >= 3, "the area file's polygon has fewer than 3 vertices", sc, "area.polygon_file")
+    return [[float(v[0]), float(v[1])] for v in poly]
+
+
+def rectangle_latlon(lat0: float, lon0: float, width_m: float, height_m: float, heading_deg: float) -> list:
+    """Corners [[lat, lon]] x4 of a rectangle whose width side leaves (lat0, lon0) at ``heading_deg``."""
+    frame = LocalFrame(lat0, lon0)
+    th = math.radians(heading_deg)
+    u = np.array([math.sin(th), math.cos(th)])  # along width (compass bearing -> east/north)
+    w = np.array([-u[1], u[0]])  # 90 degrees to the left of u
+    corners = np.array([[0.0, 0.0], width_m * u, width_m * u + height_m * w, height_m * w])
+    return frame.to_wgs84_latlon(corners).tolist()
+
+
+def _check_polygon_simple(sc: Scenario, xy: np.ndarray) -> None:
+    from shapely.geometry import Polygon
+
+    poly = Polygon(xy)
+    _check(poly.is_valid, "the area polygon crosses itself", sc, "area")
+    _check(poly.area > 1.0, "the area polygon has no area", sc, "area")
