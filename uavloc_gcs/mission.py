@@ -1,0 +1,304 @@
+"""Mission model and its MAVLink encoding, with the ArduPilot/PX4 differences in one place.
+
+Two levels:
+
+* :class:`MissionPlan` -- what the operator means: an optional planned home and a list of
+  :class:`MissionItem` (command, frame, params, lat/lon in degrees, alt in metres). This is what
+  ``mission_io`` reads and writes (``.plan`` keeps home separately; ``.waypoints`` puts it on line 0).
+* :class:`WireItem` -- exactly the fields of MISSION_ITEM_INT as sent to a given autopilot
+  (seq, current, degE7 integers). :func:`to_wire` / :func:`from_wire` convert, applying the
+  autopilot flavour rules:
+
+  - ArduPilot: seq 0 is home (a NAV_WAYPOINT at the planned home, frame GLOBAL); real items from 1.
+  - PX4: no home item; items start at seq 0; non-positional items (DO_CHANGE_SPEED, RTL, ...)
+    must use MAV_FRAME_MISSION or PX4 answers MAV_MISSION_UNSUPPORTED.
+  - Both: non-positional items use MAV_FRAME_MISSION with zero x/y/z; the first sent item has
+    current = 1 (MAVSDK and QGC do the same).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Iterable, Literal, Sequence
+
+from .errors import UavlocError
+
+Autopilot = Literal["ardupilot", "px4"]
+
+# MAV_CMD
+NAV_WAYPOINT = 16
+NAV_LOITER_TIME = 19
+NAV_RETURN_TO_LAUNCH = 20
+NAV_LAND = 21
+NAV_TAKEOFF = 22
+DO_JUMP = 177
+DO_CHANGE_SPEED = 178
+DO_SET_MISSION_CURRENT = 224
+
+# MAV_FRAME
+FRAME_GLOBAL = 0
+FRAME_MISSION = 2
+FRAME_GLOBAL_RELATIVE_ALT = 3
+FRAME_GLOBAL_INT = 5
+FRAME_GLOBAL_RELATIVE_ALT_INT = 6
+FRAME_GLOBAL_TERRAIN_ALT = 10
+FRAME_GLOBAL_TERRAIN_ALT_INT = 11
+GLOBAL_FRAMES = frozenset(
+    {FRAME_GLOBAL, FRAME_GLOBAL_RELATIVE_ALT, FRAME_GLOBAL_INT, FRAME_GLOBAL_RELATIVE_ALT_INT,
+     FRAME_GLOBAL_TERRAIN_ALT, FRAME_GLOBAL_TERRAIN_ALT_INT}
+)
+
+# MAV_MISSION_TYPE
+MISSION_TYPE_MISSION = 0
+
+# Commands whose x/y/z are a position (encoded as degE7 lat/lon).
+POSITIONAL_COMMANDS = frozenset({NAV_WAYPOINT, NAV_LOITER_TIME, NAV_LAND, NAV_TAKEOFF, 17, 18, 31, 82})
+
+# MAV_AUTOPILOT values used in .plan files
+AUTOPILOT_ARDUPILOTMEGA = 3
+AUTOPILOT_PX4 = 12
+MAV_TYPE_QUADROTOR = 2
+
+SPEED_TYPE_GROUNDSPEED = 1
+
+
+@dataclass(frozen=True)
+class MissionItem:
+    """One mission item in operator units. ``params`` is param1..param4 (NaN allowed where the
+    autopilot allows it); ``lat_deg``/``lon_deg``/``alt_m`` are param5..7 (zero for
+    non-positional items)."""
+
+    command: int
+    frame: int = FRAME_GLOBAL_RELATIVE_ALT
+    params: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)
+    lat_deg: float = 0.0
+    lon_deg: float = 0.0
+    alt_m: float = 0.0
+    autocontinue: bool = True
+
+    @property
+    def is_positional(self) -> bool:
+        return self.frame in GLOBAL_FRAMES
+
+    def same_as(self, other: "MissionItem", *, latlon_tol_deg: float = 1.5e-7, tol: float = 1e-4) -> bool:
+        """Equal to the precision of the wire/file encodings (degE7, float32 params)."""
+        if (self.command, self.frame, self.autocontinue) != (other.command, other.frame, other.autocontinue):
+            return False
+        for a, b in zip(self.params, other.params):
+            if math.isnan(a) != math.isnan(b):
+                return False
+            if not math.isnan(a) and abs(a - b) > tol * max(1.0, abs(a)):
+                return False
+        return (
+            abs(self.lat_deg - other.lat_deg) <= latlon_tol_deg
+            and abs(self.lon_deg - other.lon_deg) <= latlon_tol_deg
+            and abs(self.alt_m - other.alt_m) <= tol * max(1.0, abs(self.alt_m))
+        )
+
+
+@dataclass(frozen=True)
+class MissionPlan:
+    """A mission as the operator sees it: planned home (lat, lon, alt AMSL or NaN) and items."""
+
+    items: tuple[MissionItem, ...]
+    home_lat_deg: float = math.nan
+    home_lon_deg: float = math.nan
+    home_alt_m: float = math.nan
+    autopilot: Autopilot = "ardupilot"
+    cruise_speed_m_s: float | None = None
+    hover_speed_m_s: float | None = None
+    geofence_polygons: tuple = ()  # tuple of (inclusion: bool, ((lat, lon), ...))
+    rally_points: tuple = ()  # tuple of (lat, lon, alt_rel_m)
+
+    def waypoints(self) -> list[MissionItem]:
+        return [it for it in self.items if it.command == NAV_WAYPOINT]
+
+    def same_as(self, other: "MissionPlan") -> bool:
+        return len(self.items) == len(other.items) and all(
+            a.same_as(b) for a, b in zip(self.items, other.items)
+        )
+
+
+@dataclass(frozen=True)
+class WireItem:
+    """The fields of MISSION_ITEM_INT exactly as on the wire (x/y degE7 for global frames)."""
+
+    seq: int
+    frame: int
+    command: int
+    current: int
+    autocontinue: int
+    param1: float
+    param2: float
+    param3: float
+    param4: float
+    x: int
+    y: int
+    z: float
+    mission_type: int = MISSION_TYPE_MISSION
+
+    def same_as(self, other: "WireItem") -> bool:
+        """Equal as the autopilot stores it (float32 params, NaN == NaN; seq and current ignored
+        because autopilots renumber and reset them)."""
+        def feq(a: float, b: float) -> bool:
+            if math.isnan(a) or math.isnan(b):
+                return math.isnan(a) and math.isnan(b)
+            return abs(a - b) <= 1e-5 * max(1.0, abs(a))
+
+        frames_equal = self.frame == other.frame or {self.frame, other.frame} in (
+            {FRAME_GLOBAL, FRAME_GLOBAL_INT},
+            {FRAME_GLOBAL_RELATIVE_ALT, FRAME_GLOBAL_RELATIVE_ALT_INT},
+            {FRAME_GLOBAL_TERRAIN_ALT, FRAME_GLOBAL_TERRAIN_ALT_INT},
+        )
+        return (
+            frames_equal
+            and self.command == other.command
+            and self.autocontinue == other.autocontinue
+            and all(feq(a, b) for a, b in zip(
+                (self.param1, self.param2, self.param3, self.param4, self.z),
+                (other.param1, other.param2, other.param3, other.param4, other.z)))
+            and self.x == other.x
+            and self.y == other.y
+        )
+
+
+class MissionEncodingError(UavlocError):
+    """A mission cannot be encoded for the chosen autopilot."""
+
+
+def deg_to_e7(value_deg: float) -> int:
+    return int(round(value_deg * 1e7))
+
+
+def e7_to_deg(value: int) -> float:
+    return value / 1e7
+
+
+def to_wire(plan: MissionPlan, autopilot: Autopilot | None = None) -> list[WireItem]:
+    """Encode ``plan`` as the MISSION_ITEM_INT list to upload to ``autopilot``."""
+    ap = autopilot or plan.autopilot
+    out: list[WireItem] = []
+    if ap == "ardupilot":
+        if math.isnan(plan.home_lat_deg) or math.isnan(plan.home_lon_deg):
+            # ArduPilot overwrites item 0 with its own home; a zero placeholder is what MAVProxy sends.
+            hx, hy, hz = 0, 0, 0.0
+        else:
+            hx, hy = deg_to_e7(plan.home_lat_deg), deg_to_e7(plan.home_lon_deg)
+            hz = 0.0 if math.isnan(plan.home_alt_m) else float(plan.home_alt_m)
+        out.append(WireItem(0, FRAME_GLOBAL, NAV_WAYPOINT, 0, 1, 0.0, 0.0, 0.0, 0.0, hx, hy, hz))
+    elif ap != "px4":
+        raise MissionEncodingError(f"unknown autopilot {ap!r} (expected 'ardupilot' or 'px4')")
+    for i, it in enumerate(plan.items):
+        seq = len(out)
+        out.append(_item_to_wire(it, seq, ap, index=i))
+    if out:
+        first = out[0]
+        out[0] = WireItem(**{**first.__dict__, "current": 1})
+    return out
+
+
+def _item_to_wire(it: MissionItem, seq: int, ap: Autopilot, *, index: int) -> WireItem:
+    for k, p in enumerate(it.params, start=1):
+        if math.isinf(p):
+            raise MissionEncodingError(f"item {index + 1}: param{k} is infinite")
+    if it.is_positional:
+        if not (-90.0 <= it.lat_deg <= 90.0) or not (-180.0 <= it.lon_deg <= 180.0):
+            raise MissionEncodingError(
+                f"item {index + 1}: position ({it.lat_deg}, {it.lon_deg}) is not a valid lat/lon"
+            )
+        if not math.isfinite(it.alt_m):
+            raise MissionEncodingError(f"item {index + 1}: altitude {it.alt_m} is not finite")
+        x, y, z = deg_to_e7(it.lat_deg), deg_to_e7(it.lon_deg), float(it.alt_m)
+        frame = it.frame
+    else:
+        frame = FRAME_MISSION if ap == "px4" or it.frame == FRAME_MISSION else it.frame
+        x, y, z = int(round(it.lat_deg)), int(round(it.lon_deg)), float(it.alt_m)
+    p = it.params
+    return WireItem(seq, frame, it.command, 0, int(bool(it.autocontinue)), p[0], p[1], p[2], p[3], x, y, z)
+
+
+def from_wire(items: Sequence[WireItem], autopilot: Autopilot) -> MissionPlan:
+    """Decode a downloaded MISSION_ITEM_INT list back into a :class:`MissionPlan`."""
+    items = list(items)
+    home = (math.nan, math.nan, math.nan)
+    if autopilot == "ardupilot" and items:
+        h = items[0]
+        home = (e7_to_deg(h.x), e7_to_deg(h.y), float(h.z))
+        items = items[1:]
+    out = []
+    for w in items:
+        positional = w.frame in GLOBAL_FRAMES
+        if positional:
+            lat, lon = e7_to_deg(w.x), e7_to_deg(w.y)
+        else:
+            lat, lon = float(w.x), float(w.y)
+        out.append(
+            MissionItem(
+                command=w.command,
+                frame=w.frame,
+                params=(w.param1, w.param2, w.param3, w.param4),
+                lat_deg=lat,
+                lon_deg=lon,
+                alt_m=float(w.z),
+                autocontinue=bool(w.autocontinue),
+            )
+        )
+    return MissionPlan(tuple(out), *home, autopilot=autopilot)
+
+
+# ---------------------------------------------------------------------------------------------
+# Building the missions uavloc flies
+
+
+def takeoff(alt_m: float, lat_deg: float = 0.0, lon_deg: float = 0.0) -> MissionItem:
+    """NAV_TAKEOFF to ``alt_m`` above home (yaw NaN = keep)."""
+    return MissionItem(NAV_TAKEOFF, FRAME_GLOBAL_RELATIVE_ALT, (0.0, 0.0, 0.0, math.nan), lat_deg, lon_deg, alt_m)
+
+
+def change_speed(speed_m_s: float) -> MissionItem:
+    """DO_CHANGE_SPEED: ground speed ``speed_m_s``, throttle unchanged (-1)."""
+    return MissionItem(DO_CHANGE_SPEED, FRAME_MISSION, (float(SPEED_TYPE_GROUNDSPEED), speed_m_s, -1.0, 0.0))
+
+
+def pass_through_waypoint(lat_deg: float, lon_deg: float, alt_m: float) -> MissionItem:
+    """NAV_WAYPOINT with hold 0 (fly through, no stop), default acceptance radius, yaw unchanged."""
+    return MissionItem(NAV_WAYPOINT, FRAME_GLOBAL_RELATIVE_ALT, (0.0, 0.0, 0.0, math.nan), lat_deg, lon_deg, alt_m)
+
+
+def return_to_launch() -> MissionItem:
+    return MissionItem(NAV_RETURN_TO_LAUNCH, FRAME_MISSION)
+
+
+def flight_mission(
+    waypoints_latlon_deg: Iterable[Sequence[float]],
+    *,
+    alt_m: float,
+    speed_m_s: float,
+    autopilot: Autopilot,
+    home_latlon_deg: Sequence[float] | None = None,
+    home_alt_amsl_m: float = math.nan,
+    include_takeoff: bool = True,
+    return_home: bool = True,
+    cruise_speed_m_s: float | None = None,
+) -> MissionPlan:
+    """Takeoff (when on the ground), speed change to ``speed_m_s``, pass-through waypoints, RTL."""
+    items: list[MissionItem] = []
+    if include_takeoff:
+        lat, lon = (home_latlon_deg if home_latlon_deg is not None else (0.0, 0.0))
+        items.append(takeoff(alt_m, lat, lon))
+    items.append(change_speed(speed_m_s))
+    for lat, lon in waypoints_latlon_deg:
+        items.append(pass_through_waypoint(float(lat), float(lon), alt_m))
+    if return_home:
+        items.append(return_to_launch())
+    hl = home_latlon_deg if home_latlon_deg is not None else (math.nan, math.nan)
+    return MissionPlan(
+        tuple(items),
+        float(hl[0]),
+        float(hl[1]),
+        home_alt_amsl_m,
+        autopilot=autopilot,
+        cruise_speed_m_s=cruise_speed_m_s if cruise_speed_m_s is not None else speed_m_s,
+        hover_speed_m_s=5.0,
+    )
