@@ -1,0 +1,87 @@
+"""RSSI observations: per-slot aggregates of the samples a vehicle heard from one emitter.
+
+Within one time slot the UAV-phone distance is constant, so the slot's mean RSSI (in dBm) and its
+sample count are a sufficient statistic for the log-normal ranging model. Everything between
+the channel and the estimator (the simulator, the MAVLink dialect, the CSV/.tlog readers, the
+store) passes these around in columnar form as a :class:`SlotBatch`.
+
+Frames: ``xyz_m`` is the vehicle position in the scenario's local ENU frame (east, north, up),
+with z the height above the launch point; times are seconds on one clock shared by all vehicles.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class SlotBatch:
+    """N slots, column-wise. ``vehicle`` is a small integer (e.g. the MAVLink system id)."""
+
+    t_s: np.ndarray  # (N,) slot start time [s]
+    vehicle: np.ndarray  # (N,) int
+    xyz_m: np.ndarray  # (N, 3) vehicle position, local ENU [m]
+    emitter_id: np.ndarray  # (N,) int64
+    rssi_dbm: np.ndarray  # (N,) mean of the slot's samples [dBm]
+    n_samples: np.ndarray  # (N,) int, >= 1
+
+    def __post_init__(self) -> None:
+        n = len(self.t_s)
+        for name in ("vehicle", "emitter_id", "rssi_dbm", "n_samples"):
+            if len(getattr(self, name)) != n:
+                raise ValueError(f"SlotBatch.{name} has {len(getattr(self, name))} rows, t_s has {n}")
+        if np.shape(self.xyz_m) != (n, 3):
+            raise ValueError(f"SlotBatch.xyz_m must be ({n}, 3), got {np.shape(self.xyz_m)}")
+
+    def __len__(self) -> int:
+        return len(self.t_s)
+
+    @staticmethod
+    def empty() -> "SlotBatch":
+        return SlotBatch(
+            np.zeros(0), np.zeros(0, dtype=int), np.zeros((0, 3)), np.zeros(0, dtype=np.int64),
+            np.zeros(0), np.zeros(0, dtype=int),
+        )
+
+    @staticmethod
+    def from_columns(t_s, vehicle, xyz_m, emitter_id, rssi_dbm, n_samples) -> "SlotBatch":
+        return SlotBatch(
+            np.asarray(t_s, dtype=float).reshape(-1),
+            np.asarray(vehicle, dtype=int).reshape(-1),
+            np.asarray(xyz_m, dtype=float).reshape(-1, 3),
+            np.asarray(emitter_id, dtype=np.int64).reshape(-1),
+            np.asarray(rssi_dbm, dtype=float).reshape(-1),
+            np.asarray(n_samples, dtype=int).reshape(-1),
+        )
+
+    @staticmethod
+    def concat(batches: "list[SlotBatch]") -> "SlotBatch":
+        batches = [b for b in batches if len(b)]
+        if not batches:
+            return SlotBatch.empty()
+        return SlotBatch(
+            np.concatenate([b.t_s for b in batches]),
+            np.concatenate([b.vehicle for b in batches]),
+            np.concatenate([b.xyz_m for b in batches]),
+            np.concatenate([b.emitter_id for b in batches]),
+            np.concatenate([b.rssi_dbm for b in batches]),
+            np.concatenate([b.n_samples for b in batches]),
+        )
+
+    def take(self, index) -> "SlotBatch":
+        """Rows selected by a boolean mask or integer index array."""
+        return SlotBatch(
+            self.t_s[index], self.vehicle[index], self.xyz_m[index], self.emitter_id[index],
+            self.rssi_dbm[index], self.n_samples[index],
+        )
+
+    def for_emitter(self, emitter_id: int) -> "SlotBatch":
+        return self.take(self.emitter_id == emitter_id)
+
+    def emitters(self) -> np.ndarray:
+        return np.unique(self.emitter_id)
+
+    def sorted_by_time(self) -> "SlotBatch":
+        return self.take(np.argsort(self.t_s, kind="stable"))
