@@ -143,6 +143,25 @@ class SimulationSpec:
 
 
 @dataclass(frozen=True)
+class LinkSpec:
+    """How ``uavloc daemon`` reaches the fleet; ignored by offline commands.
+
+    ``connections[i]`` is the MAVLink connection of vehicle i+1 (its system id), e.g.
+    ``"udpout:127.0.0.1:14561"``, ``"udpin:127.0.0.1:14550"``, ``"tcp:127.0.0.1:5760"`` or
+    ``"/dev/ttyUSB0:57600"``. ``signing_key_hex`` is the fleet's 32-byte MAVLink 2 signing key as
+    64 hex digits (empty = no signing). ``start = "operator"`` uploads the scan and waits for the
+    operator to start each vehicle by hand. A vehicle silent for ``lost_timeout_s`` is lost.
+    """
+
+    connections: list | None = None
+    signing_key_hex: str = ""
+    tlog_path: str = ""
+    start: Literal["auto", "operator"] = "auto"
+    lost_timeout_s: float = 5.0
+    source_system: int = 255
+
+
+@dataclass(frozen=True)
 class Scenario:
     area: AreaSpec
     launch: LaunchSpec = field(default_factory=LaunchSpec)
@@ -152,6 +171,7 @@ class Scenario:
     scan: ScanSpec = field(default_factory=ScanSpec)
     planner: PlannerSpec = field(default_factory=PlannerSpec)
     simulation: SimulationSpec = field(default_factory=SimulationSpec)
+    link: LinkSpec = field(default_factory=LinkSpec)
     name: str = "scenario"
     source: str = "<string>"
     # Resolved geometry (filled by load/validate): polygon vertices as [[lat, lon], ...].
@@ -227,6 +247,7 @@ _SECTIONS = {
     "scan": ScanSpec,
     "planner": PlannerSpec,
     "simulation": SimulationSpec,
+    "link": LinkSpec,
 }
 
 
@@ -373,6 +394,7 @@ def _resolve(sc: Scenario, base_dir: Path | None = None) -> Scenario:
     _check(sim.shadowing_decorrelation_m > 0, "must be positive", sc, "simulation.shadowing_decorrelation_m")
     _check(sim.tx_power_spread_db >= 0, "must not be negative", sc, "simulation.tx_power_spread_db")
     _check(sim.speedup > 0, "must be positive", sc, "simulation.speedup")
+    _check_link(sc)
 
     poly = _resolve_polygon(sc, base_dir)
     if sc.launch.lat_deg is None and sc.launch.lon_deg is None:
@@ -392,6 +414,26 @@ def _resolve(sc: Scenario, base_dir: Path | None = None) -> Scenario:
     xy = sc.area_xy_m()
     _check_polygon_simple(sc, xy)
     return sc
+
+
+def _check_link(sc: Scenario) -> None:
+    lk = sc.link
+    if lk.connections is not None:
+        for i, c in enumerate(lk.connections):
+            _check(isinstance(c, str) and c.strip() != "",
+                   f"entry {i} must be a connection string such as \"udpout:127.0.0.1:14561\", got {c!r}",
+                   sc, "link.connections")
+        _check(len(lk.connections) == sc.fleet.vehicles,
+               f"lists {len(lk.connections)} connections for {sc.fleet.vehicles} vehicles (fleet.vehicles); "
+               "give one per vehicle", sc, "link.connections")
+    if lk.signing_key_hex:
+        try:
+            ok = len(bytes.fromhex(lk.signing_key_hex)) == 32
+        except ValueError:
+            ok = False
+        _check(ok, "must be 64 hexadecimal digits (a 32-byte key)", sc, "link.signing_key_hex")
+    _check(lk.lost_timeout_s > 0, f"must be positive, got {lk.lost_timeout_s}", sc, "link.lost_timeout_s")
+    _check(1 <= lk.source_system <= 255, f"must be 1..255, got {lk.source_system}", sc, "link.source_system")
 
 
 def _check_latlon(sc: Scenario, lat: float, lon: float, key: str) -> None:
