@@ -1,0 +1,124 @@
+"""The operator's live status: vehicles (mode, battery, mission progress, lost) and people found.
+
+One renderer, two outputs: on a terminal the view is redrawn in place with ANSI escapes a few
+times a second; into a file or log it becomes one plain status line every ``period_s`` seconds
+(events are always printed as they happen, one line each, in both modes).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Callable, Sequence, TextIO
+
+
+@dataclass(frozen=True)
+class VehicleStatus:
+    vehicle: int
+    phase: str  # connecting, uploading, waiting for operator, scanning, localizing, returning, landed, lost
+    mode: str = "?"
+    battery_pct: float | None = None
+    mission_seq: int | None = None
+    mission_total: int | None = None
+    lost: bool = False
+
+
+@dataclass(frozen=True)
+class PersonStatusView:
+    emitter_id: int
+    radius95_m: float
+    located: bool
+    reason: str = ""
+
+
+@dataclass(frozen=True)
+class StatusSnapshot:
+    """What the view shows at one moment. ``elapsed_s`` is mission time since the search began."""
+
+    elapsed_s: float
+    vehicles: Sequence[VehicleStatus]
+    people: Sequence[PersonStatusView]
+    slots: int
+    required_accuracy_m: float
+    replans: int = 0
+    note: str = ""
+    extra: dict = field(default_factory=dict)
+
+
+def _vehicle_text(v: VehicleStatus) -> str:
+    batt = "--" if v.battery_pct is None else f"{v.battery_pct:3.0f}%"
+    prog = ""
+    if v.mission_seq is not None and v.mission_total:
+        prog = f" item {v.mission_seq}/{v.mission_total}"
+    state = "LOST" if v.lost else v.phase
+    return f"UAV{v.vehicle} {v.mode:<6} {batt} {state}{prog}"
+
+
+def render_lines(s: StatusSnapshot) -> list[str]:
+    """The multi-line view (terminal mode)."""
+    located = sum(p.located for p in s.people)
+    lines = [f"uavloc  t = {s.elapsed_s:7.1f} s   slots {s.slots:>7}   replans {s.replans:>3}   "
+             f"people located {located}/{len(s.people)} (within {s.required_accuracy_m:g} m)"]
+    if s.note:
+        lines.append(s.note)
+    lines.append("")
+    for v in s.vehicles:
+        lines.append("  " + _vehicle_text(v))
+    lines.append("")
+    row = []
+    for p in sorted(s.people, key=lambda p: p.emitter_id):
+        r = "  ?  " if not math.isfinite(p.radius95_m) else f"{p.radius95_m:5.1f}"
+        row.append(f"#{p.emitter_id:<3} {r} m {'ok' if p.located else '..'}")
+        if len(row) == 4:
+            lines.append("  " + "   ".join(row))
+            row = []
+    if row:
+        lines.append("  " + "   ".join(row))
+    return lines
+
+
+def render_line(s: StatusSnapshot) -> str:
+    """The one-line view (log mode)."""
+    located = sum(p.located for p in s.people)
+    vs = " | ".join(_vehicle_text(v) for v in s.vehicles)
+    return (f"t={s.elapsed_s:7.1f}s slots={s.slots} located={located}/{len(s.people)} "
+            f"replans={s.replans} | {vs}")
+
+
+class LiveView:
+    """Feed it snapshots (``update``) and events (``event``); it decides when and how to draw."""
+
+    def __init__(self, stream: TextIO, *, tty: bool | None = None, period_s: float = 5.0,
+                 redraw_s: float = 0.25, clock: Callable[[], float] = time.monotonic):
+        self.stream = stream
+        self.tty = stream.isatty() if tty is None else tty
+        self.period_s = period_s if not self.tty else redraw_s
+        self.clock = clock
+        self._last_draw = -math.inf
+        self._drawn_lines = 0
+
+    def update(self, snapshot: StatusSnapshot, *, force: bool = False) -> None:
+        now = self.clock()
+        if not force and now - self._last_draw < self.period_s:
+            return
+        self._last_draw = now
+        if self.tty:
+            lines = render_lines(snapshot)
+            # move to the top of the previous drawing and clear to the end of the screen
+            up = f"\x1b[{self._drawn_lines}F" if self._drawn_lines else ""
+            self.stream.write(up + "\x1b[J" + "\n".join(lines) + "\n")
+            self._drawn_lines = len(lines)
+        else:
+            self.stream.write(render_line(snapshot) + "\n")
+        self.stream.flush()
+
+    def event(self, text: str, elapsed_s: float | None = None) -> None:
+        stamp = "" if elapsed_s is None else f"[{elapsed_s:7.1f} s] "
+        if self.tty and self._drawn_lines:
+            # print above the status block: clear it, print, and let the next update redraw it
+            self.stream.write(f"\x1b[{self._drawn_lines}F\x1b[J")
+            self._drawn_lines = 0
+            self._last_draw = -math.inf
+        self.stream.write(stamp + text + "\n")
+        self.stream.flush()
