@@ -1,0 +1,237 @@
+"""Estimate one emitter (a phone) from its RSSI slots: position, velocity and honest radii.
+
+:func:`estimate_emitter` is a pure function of the slots (any vehicles, any legs). It fits the
+constant-velocity model by MAP (see :mod:`.fit`) from several starts, including the mirror image
+across the slots' principal line, keeps the distinct local optima as candidates, and reports:
+
+- ``radius95_m``: the radius of the circle about the estimate holding 95 % of the posterior
+  (Laplace approximation, information deflated when the residuals show correlated shadowing or a
+  misfit). When a mirror candidate holds more than 5 % of the posterior mass the estimate is
+  ``ambiguous`` and the radius reaches over the mirror, because a 95 % circle must.
+  ``mode_radius95_m`` is the radius of the best candidate alone.
+- ``annulus_bound_m``: the paper's annulus-intersection bound (:mod:`.annulus`).
+
+Why not trust one pass: a constant-velocity person seen from one straight leg is unobservable
+(SPEC §3.1); only the speed prior bounds the error, and the radius says so.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import EstimationError
+from ..observations import SlotBatch
+from .annulus import annulus_bound_m
+from .fit import Problem, inflation_factor, prepare, principal_line, start_points
+from .model import ChannelModel, radius_of_probability
+
+MIN_SLOTS = 3
+AMBIGUITY_MASS = 0.05
+TX_PRIOR_SIGMA_DB = 6.0
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """An alternative solution (the mirror image) at the estimate's reference time."""
+
+    position_xy_m: np.ndarray
+    velocity_m_s: np.ndarray
+    relative_likelihood: float  # posterior mass relative to the estimate (Laplace)
+    radius95_m: float
+    covariance: np.ndarray = field(repr=False)  # 4x4 (x, y, vx, vy)
+
+
+@dataclass(frozen=True)
+class Estimate:
+    emitter_id: int
+    status: str  # "ok" | "not_enough_data"
+    t_ref_s: float
+    position_xy_m: np.ndarray  # (2,) local ENU at t_ref_s [m]
+    velocity_m_s: np.ndarray  # (2,) [m/s]
+    covariance: np.ndarray = field(repr=False)  # 4x4 over (x, y, vx, vy) at t_ref_s
+    radius95_m: float = math.inf  # calibrated, includes the mirror when ambiguous [m]
+    annulus_bound_m: float = math.inf  # the paper's bound [m]; NaN when the rings do not intersect
+    ambiguous: bool = False
+    mirror: Candidate | None = None
+    n_slots: int = 0
+    last_slot_t_s: float = math.nan
+    tx_offset_db: float = 0.0
+    mode_radius95_m: float = math.inf
+    max_speed_m_s: float = 0.0
+    model_motion: bool = True
+    inflation: float = 1.0  # information deflation applied (1 = i.i.d. model held)
+
+    @property
+    def ok(self) -> bool:
+        return self.status == "ok"
+
+    def predict(self, t_s: float) -> tuple[np.ndarray, float]:
+        """Predicted position (2,) and 95 % radius [m] at time t_s.
+
+        Moving model: the constant-velocity extrapolation with its covariance, but never more
+        than the reach of the speed bound (the current radius + (|v| + v_max) |dt|), which holds
+        whatever the person does. Static model: the radius grows by v_max |dt|.
+        """
+        pos, r = _predict_mode(self.position_xy_m, self.velocity_m_s, self.covariance, self.mode_radius95_m,
+                               t_s - self.t_ref_s, self.max_speed_m_s, self.model_motion)
+        if self.ambiguous and self.mirror is not None:
+            mpos, mr = _predict_mode(self.mirror.position_xy_m, self.mirror.velocity_m_s, self.mirror.covariance,
+                                     self.mirror.radius95_m, t_s - self.t_ref_s, self.max_speed_m_s,
+                                     self.model_motion)
+            r = max(r, float(np.linalg.norm(mpos - pos)) + mr)
+        return pos, r
+
+
+def _predict_mode(p, v, cov, r0, dt, vmax, moving) -> tuple[np.ndarray, float]:
+    if not math.isfinite(r0):
+        return p + v * dt, math.inf
+    if not moving:
+        return p.copy(), r0 + vmax * abs(dt)
+    a = np.eye(4)
+    a[0, 2] = a[1, 3] = dt
+    c = a @ cov @ a.T
+    r = min(radius_of_probability(c[:2, :2]), r0 + (float(np.hypot(*v)) + vmax) * abs(dt))
+    return p + v * dt, max(r, r0 if dt == 0 else 0.0)
+
+
+def estimate_emitter(
+    slots: SlotBatch,
+    channel: ChannelModel,
+    *,
+    max_speed_m_s: float,
+    t_ref_s: float | None = None,
+    model_motion: bool = True,
+    estimate_tx_power: bool = False,
+    previous: "Estimate | None" = None,
+) -> Estimate:
+    """Estimate one emitter from its slots (all rows must carry the same emitter id).
+
+    ``t_ref_s`` defaults to the last slot's time. ``model_motion=False`` is the paper's NM variant
+    (static person). ``previous`` is used as an extra start point (warm start); the answer never
+    depends on it otherwise. Too few slots give ``status="not_enough_data"``, not an exception.
+    """
+    if max_speed_m_s < 0 or not math.isfinite(max_speed_m_s):
+        raise EstimationError(f"max_speed_m_s must be a finite non-negative number, got {max_speed_m_s}")
+    ids = np.unique(slots.emitter_id)
+    if len(ids) > 1:
+        raise EstimationError(f"estimate_emitter got slots of {len(ids)} emitters; use estimate_all")
+    good = np.isfinite(slots.rssi_dbm) & np.isfinite(slots.t_s) & np.all(np.isfinite(slots.xyz_m), axis=1)
+    slots = slots.take(good)
+    emitter = int(ids[0]) if len(ids) else -1
+    last = float(slots.t_s.max()) if len(slots) else math.nan
+    t_ref = last if t_ref_s is None else float(t_ref_s)
+    moving = bool(model_motion) and max_speed_m_s > 0
+    if len(slots) < MIN_SLOTS:
+        return _not_enough(emitter, slots, t_ref, last, max_speed_m_s, moving)
+    data = prepare(slots, channel)
+    problem = Problem(data, moving, bool(estimate_tx_power), float(max_speed_m_s),
+                      TX_PRIOR_SIGMA_DB * channel.nepers_per_db)
+    starts = start_points(problem)
+    if previous is not None and previous.ok:
+        warm = np.zeros(problem.size)
+        warm[:2] = previous.position_xy_m + previous.velocity_m_s * (data.t_c - previous.t_ref_s)
+        if moving:
+            warm[2:4] = previous.velocity_m_s
+        if problem.tx:
+            warm[-1] = previous.tx_offset_db * channel.nepers_per_db
+        starts.insert(0, warm)
+    modes = _distinct_modes(problem, starts)
+    best = modes[0]
+    factor = inflation_factor(problem, best[0])
+    laplace = [_laplace(problem, theta, cost, factor) for theta, cost in modes]
+    order = np.argsort([-lm for _, lm in laplace])
+    modes = [modes[i] for i in order]
+    laplace = [laplace[i] for i in order]
+    (theta, _), (cov_c, logmass) = modes[0], laplace[0]
+    pos, vel, cov = _at(theta, cov_c, moving, t_ref - data.t_c)
+    beta = theta[-1] if problem.tx else 0.0
+    mode_r = _mode_radius(cov, moving, max_speed_m_s, t_ref - data.t_c)
+    mirror = None
+    if len(modes) > 1:
+        (m_theta, _), (m_cov_c, m_logmass) = modes[1], laplace[1]
+        m_pos, m_vel, m_cov = _at(m_theta, m_cov_c, moving, t_ref - data.t_c)
+        rel = float(math.exp(min(m_logmass - logmass, 0.0)))
+        mirror = Candidate(m_pos, m_vel, rel, _mode_radius(m_cov, moving, max_speed_m_s, t_ref - data.t_c), m_cov)
+    ambiguous = mirror is not None and mirror.relative_likelihood / (1 + mirror.relative_likelihood) > AMBIGUITY_MASS
+    radius = mode_r
+    if ambiguous:
+        radius = max(mode_r, float(np.linalg.norm(mirror.position_xy_m - pos)) + mirror.radius95_m)
+    bound = annulus_bound_m(pos, t_ref, data.t_s, data.a_xy, data.h_m, data.y + beta, data.n_samples,
+                            channel.log_range_sigma, max_speed_m_s)
+    return Estimate(
+        emitter, "ok", t_ref, pos, vel, cov, radius, bound, ambiguous, mirror, len(slots), last,
+        beta / channel.nepers_per_db, mode_r, float(max_speed_m_s), moving, factor,
+    )
+
+
+def estimate_all(slots: SlotBatch, channel: ChannelModel, *, max_speed_m_s: float,
+                 previous: "dict[int, Estimate] | None" = None, **options) -> dict[int, Estimate]:
+    """:func:`estimate_emitter` for every emitter id in ``slots``, keyed by id."""
+    previous = previous or {}
+    out = {}
+    for e in slots.emitters():
+        out[int(e)] = estimate_emitter(slots.for_emitter(e), channel, max_speed_m_s=max_speed_m_s,
+                                       previous=previous.get(int(e)), **options)
+    return out
+
+
+# ---------------------------------------------------------------------------------------------
+
+
+def _distinct_modes(problem: Problem, starts: list[np.ndarray]) -> list[tuple[np.ndarray, float]]:
+    """Local optima from all starts, best first, duplicates (< 1 m apart) removed."""
+    fits = sorted((problem.fit(s) for s in starts), key=lambda f: f[1])
+    modes: list[tuple[np.ndarray, float]] = []
+    for theta, cost in fits:
+        if np.all(np.isfinite(theta)) and all(np.linalg.norm(theta[:2] - m[0][:2]) > 1.0 for m in modes):
+            modes.append((theta, cost))
+    if not modes:
+        raise EstimationError("the fit diverged from every start point")
+    center, direction, _ = principal_line(problem.data)
+    return modes
+
+
+def _laplace(problem: Problem, theta: np.ndarray, cost: float, factor: float) -> tuple[np.ndarray, float]:
+    """Posterior covariance (deflated data information) and log mass of a mode."""
+    info = problem.data_information(theta) / factor + problem.prior_information()
+    cov = _inverse(info)
+    data_cost = float(np.sum(problem.data_residuals(theta) ** 2))
+    prior_cost = cost - data_cost
+    sign, logdet = np.linalg.slogdet(cov)
+    return cov, -0.5 * (data_cost / factor + prior_cost) + 0.5 * (logdet if sign > 0 else -np.inf)
+
+
+def _inverse(info: np.ndarray) -> np.ndarray:
+    info = 0.5 * (info + info.T)
+    try:
+        return np.linalg.inv(info)
+    except np.linalg.LinAlgError:
+        return np.linalg.pinv(info)
+
+
+def _at(theta, cov_c, moving: bool, dt: float):
+    """State and 4x4 covariance moved from the fit's reference time by dt."""
+    cov = np.zeros((4, 4))
+    if moving:
+        a = np.eye(4)
+        a[0, 2] = a[1, 3] = dt
+        pos = theta[:2] + theta[2:4] * dt
+        cov = a @ cov_c[:4, :4] @ a.T
+        return pos, theta[2:4].copy(), cov
+    cov[:2, :2] = cov_c[:2, :2]
+    return theta[:2].copy(), np.zeros(2), cov
+
+
+def _mode_radius(cov: np.ndarray, moving: bool, vmax: float, dt: float) -> float:
+    r = radius_of_probability(cov[:2, :2])
+    # static model: the person may have walked since the data's centre time
+    return r if moving else r + vmax * abs(dt)
+
+
+def _not_enough(emitter, slots, t_ref, last, vmax, moving) -> Estimate:
+    pos = np.mean(slots.xyz_m[:, :2], axis=0) if len(slots) else np.full(2, np.nan)
+    return Estimate(emitter, "not_enough_data", t_ref, pos, np.zeros(2), np.full((4, 4), np.nan),
+                    math.inf, math.inf, False, None, len(slots), last, 0.0, math.inf, float(vmax), moving)

@@ -1,0 +1,226 @@
+"""The numerical core: MAP fit of one emitter's slots, start points, and the noise inflation.
+
+Objective (negative log posterior x 2) over theta = (x, y[, vx, vy][, beta]) at time t_c:
+
+    sum_i w_i (y_i - ln d_i(theta) + beta)^2           data, w_i = n_i / s^2
+  + |v|^2 / sigma_v^2                                   velocity prior, sigma_v = v_max / 2 per axis
+  + ((|v| - v_max)+ / 0.01 m/s)^2                       the speed bound, hard in practice
+  + (beta / sigma_beta)^2                               transmit-offset prior (when estimated)
+  + |p - c|^2 / (10 km)^2                               a vague position prior: keeps degenerate
+                                                        geometry (a hovering vehicle) finite
+
+sigma_v = v_max / 2 per axis is the second moment of a velocity uniform over the disk |v| <= v_max.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from .model import ChannelModel, geometry, log_range_jacobian
+
+SPEED_BOUND_SOFTNESS_M_S = 0.01
+POSITION_PRIOR_SIGMA_M = 1.0e4
+GRID_SLOTS = 150
+GRID_SIDE = 21
+
+
+@dataclass(frozen=True)
+class Prepared:
+    """One emitter's slots in estimator form, time-sorted."""
+
+    t_s: np.ndarray
+    tau_s: np.ndarray  # t - t_c
+    t_c: float  # information-weighted mean time (the fit's reference)
+    a_xy: np.ndarray  # vehicle ground position (N, 2)
+    h_m: np.ndarray  # vehicle height above the person (N,)
+    vehicle: np.ndarray
+    y: np.ndarray  # observed ln range at nominal power
+    w: np.ndarray  # precision n / s^2
+    n_samples: np.ndarray
+    center: np.ndarray  # weighted mean vehicle ground position
+
+
+def prepare(slots, channel: ChannelModel) -> Prepared:
+    order = np.argsort(slots.t_s, kind="stable")
+    t = slots.t_s[order]
+    n = np.maximum(slots.n_samples[order], 1).astype(float)
+    w = n / channel.log_range_sigma**2
+    t_c = float(np.sum(w * t) / np.sum(w))
+    a = slots.xyz_m[order]
+    return Prepared(t, t - t_c, t_c, a[:, :2].copy(), np.maximum(a[:, 2], 0.0), slots.vehicle[order],
+                    channel.log_range(slots.rssi_dbm[order]), w, n, np.average(a[:, :2], axis=0, weights=w))
+
+
+@dataclass(frozen=True)
+class Problem:
+    data: Prepared
+    moving: bool
+    tx: bool
+    max_speed_m_s: float
+    tx_sigma_nepers: float
+
+    @property
+    def size(self) -> int:
+        return 2 + 2 * self.moving + self.tx
+
+    @property
+    def sigma_v(self) -> float:
+        return max(self.max_speed_m_s, 1e-3) / 2.0
+
+    def residuals(self, theta: np.ndarray) -> np.ndarray:
+        d = self.data
+        g, d2 = geometry(theta, d.tau_s, d.a_xy, d.h_m, self.moving)
+        beta = theta[-1] if self.tx else 0.0
+        sw = np.sqrt(d.w)
+        parts = [sw * (d.y - 0.5 * np.log(d2) + beta)]
+        if self.moving:
+            v = theta[2:4]
+            speed = math.hypot(v[0], v[1])
+            parts += [v / self.sigma_v, [max(speed - self.max_speed_m_s, 0.0) / SPEED_BOUND_SOFTNESS_M_S]]
+        if self.tx:
+            parts.append([beta / self.tx_sigma_nepers])
+        parts.append((theta[:2] - d.center) / POSITION_PRIOR_SIGMA_M)
+        return np.concatenate([np.asarray(p, float).ravel() for p in parts])
+
+    def jacobian(self, theta: np.ndarray) -> np.ndarray:
+        d = self.data
+        g, d2 = geometry(theta, d.tau_s, d.a_xy, d.h_m, self.moving)
+        rows = [-np.sqrt(d.w)[:, None] * log_range_jacobian(g, d2, d.tau_s, self.moving, self.tx)]
+        p = self.size
+        if self.moving:
+            prior = np.zeros((3, p))
+            prior[0, 2] = prior[1, 3] = 1.0 / self.sigma_v
+            v = theta[2:4]
+            speed = math.hypot(v[0], v[1])
+            if speed > self.max_speed_m_s:
+                prior[2, 2:4] = v / speed / SPEED_BOUND_SOFTNESS_M_S
+            rows.append(prior)
+        if self.tx:
+            row = np.zeros((1, p))
+            row[0, -1] = 1.0 / self.tx_sigma_nepers
+            rows.append(row)
+        pos = np.zeros((2, p))
+        pos[0, 0] = pos[1, 1] = 1.0 / POSITION_PRIOR_SIGMA_M
+        rows.append(pos)
+        return np.vstack(rows)
+
+    def prior_information(self) -> np.ndarray:
+        j = np.zeros((self.size, self.size))
+        j[0, 0] = j[1, 1] = POSITION_PRIOR_SIGMA_M**-2
+        if self.moving:
+            j[2, 2] = j[3, 3] = self.sigma_v**-2
+        if self.tx:
+            j[-1, -1] = self.tx_sigma_nepers**-2
+        return j
+
+    def data_information(self, theta: np.ndarray) -> np.ndarray:
+        d = self.data
+        g, d2 = geometry(theta, d.tau_s, d.a_xy, d.h_m, self.moving)
+        jac = log_range_jacobian(g, d2, d.tau_s, self.moving, self.tx)
+        return (jac * d.w[:, None]).T @ jac
+
+    def data_residuals(self, theta: np.ndarray) -> np.ndarray:
+        """Normalised data residuals (unit variance under the model)."""
+        return self.residuals(theta)[: len(self.data.t_s)]
+
+    def fit(self, theta0: np.ndarray) -> tuple[np.ndarray, float]:
+        """Local MAP fit from theta0: (theta, 2 x negative log posterior)."""
+        sol = least_squares(self.residuals, theta0, jac=self.jacobian, method="lm", xtol=1e-10, ftol=1e-10,
+                            max_nfev=200)
+        return sol.x, float(2.0 * sol.cost)
+
+
+def principal_line(data: Prepared) -> tuple[np.ndarray, np.ndarray, float]:
+    """Weighted centre, unit direction and straightness (minor/major spread ratio) of the slots."""
+    dev = data.a_xy - data.center
+    cov = (dev * data.w[:, None]).T @ dev / np.sum(data.w)
+    ev, vec = np.linalg.eigh(cov)
+    ratio = math.sqrt(max(ev[0], 0.0) / ev[1]) if ev[1] > 0 else 1.0
+    return data.center, vec[:, 1], ratio
+
+
+def mirror_point(p: np.ndarray, center: np.ndarray, direction: np.ndarray) -> np.ndarray:
+    """Reflection of p across the line through center along direction."""
+    normal = np.array([-direction[1], direction[0]])
+    return p - 2.0 * np.dot(p - center, normal) * normal
+
+
+def start_points(problem: Problem) -> list[np.ndarray]:
+    """Static grid search on a subsample, then: the best cell, its mirror across the slots'
+    principal line, and the best cell on the other side of that line."""
+    d = problem.data
+    sub = np.linspace(0, len(d.t_s) - 1, min(GRID_SLOTS, len(d.t_s))).astype(int)
+    rng_h = np.sqrt(np.maximum(np.exp(2.0 * d.y[sub]) - d.h_m[sub] ** 2, 0.0))
+    reach = float(np.clip(np.percentile(rng_h, 75), 10.0, 2000.0))
+    lo = d.a_xy[sub].min(axis=0) - reach
+    hi = d.a_xy[sub].max(axis=0) + reach
+    gx, gy = np.meshgrid(np.linspace(lo[0], hi[0], GRID_SIDE), np.linspace(lo[1], hi[1], GRID_SIDE))
+    cells = np.column_stack([gx.ravel(), gy.ravel()])
+    diff = cells[:, None, :] - d.a_xy[sub][None]
+    lnd = 0.5 * np.log(np.einsum("ijk,ijk->ij", diff, diff) + d.h_m[sub] ** 2)
+    res = d.y[sub] - lnd
+    w = d.w[sub]
+    if problem.tx:
+        res = res - (res @ w / w.sum())[:, None]
+    cost = (res * res) @ w
+    center, direction, _ = principal_line(d)
+    normal = np.array([-direction[1], direction[0]])
+    side = (cells - center) @ normal
+    best = cells[int(np.argmin(cost))]
+    starts = [best, mirror_point(best, center, direction)]
+    other = side * np.sign(np.dot(best - center, normal) or 1.0) < 0
+    if other.any():
+        starts.append(cells[other][int(np.argmin(cost[other]))])
+    out = []
+    for p in starts:
+        theta = np.zeros(problem.size)
+        theta[:2] = p
+        if problem.tx:
+            lnd_p = 0.5 * np.log(np.sum((p - d.a_xy) ** 2, axis=1) + d.h_m**2)
+            theta[-1] = float(np.average(lnd_p - d.y, weights=d.w))
+        if not any(np.linalg.norm(theta[:2] - q[:2]) < 1.0 for q in out):
+            out.append(theta)
+    return out
+
+
+def inflation_factor(problem: Problem, theta: np.ndarray) -> float:
+    """How much less information the data hold than the i.i.d. model says (>= 1).
+
+    (1 + rho) / (1 - rho) for the lag-1 autocorrelation rho of the residuals of consecutive slots
+    of one vehicle (spatially correlated shadowing, or a person who turned), times the residual
+    variance ratio when it is clearly above 1. Both are applied only when significant, so the
+    i.i.d. case keeps its full information.
+    """
+    d = problem.data
+    r = problem.data_residuals(theta)
+    n = len(r)
+    factor = 1.0
+    dof = n - problem.size
+    if dof >= 5:
+        ratio = float(r @ r) / dof
+        if ratio > 1.0 + 3.0 * math.sqrt(2.0 / dof):
+            factor *= ratio
+    if n >= 8:
+        dt = np.diff(d.t_s)
+        positive = dt[dt > 0]
+        step = float(np.median(positive)) if positive.size else 0.0
+        pair = (d.vehicle[1:] == d.vehicle[:-1]) & (dt <= 3.0 * step) & (dt > 0)
+        # several vehicles interleave in time: pair each slot with the next one of its own vehicle
+        if pair.sum() < n // 2:
+            order = np.lexsort((d.t_s, d.vehicle))
+            rv, tv, vv = r[order], d.t_s[order], d.vehicle[order]
+            dtv = np.diff(tv)
+            pair = (vv[1:] == vv[:-1]) & (dtv > 0) & (dtv <= 3.0 * max(step, 1e-9))
+            r = rv
+        m = int(pair.sum())
+        if m >= 8:
+            a, b = r[:-1][pair], r[1:][pair]
+            rho = float(np.dot(a, b) / math.sqrt(np.dot(a, a) * np.dot(b, b) + 1e-300))
+            if rho > 2.0 / math.sqrt(m):
+                rho = min(rho, 0.995)
+                factor *= (1.0 + rho) / (1.0 - rho)
+    return factor

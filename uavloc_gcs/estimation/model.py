@@ -1,0 +1,123 @@
+"""The ranging model in log-range form, its Jacobian and Fisher information, and 95 % radii.
+
+A slot of n samples with mean RSSI ``rssi`` [dBm] becomes one log-range observation
+``y = ln d0 + (P0 - rssi) ln10 / (10 eta)`` [nepers] with ``y = ln d - beta + e``,
+``e ~ N(0, s^2 / n)``, ``s = sigma ln10 / (10 eta)``, d the 3-D distance and
+``beta = tx_offset_db ln10 / (10 eta)`` the phone's unknown transmit offset (0 unless estimated).
+
+The state is ``theta = (x, y, vx, vy[, beta])`` at a reference time t_c (metres, m/s) for the
+moving model, ``(x, y[, beta])`` for the static one. The person is at ``p + v (t - t_c)``, z = 0.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class ChannelModel:
+    """Calibrated log-distance channel: P = P0 - 10 eta log10(d/d0) + N(0, sigma^2) [dBm]."""
+
+    reference_power_dbm: float = -40.0
+    path_loss_exponent: float = 2.0
+    shadowing_sigma_db: float = 4.0
+    reference_distance_m: float = 1.0
+
+    @staticmethod
+    def from_scenario(sc) -> "ChannelModel":
+        ch = sc.channel
+        return ChannelModel(ch.reference_power_dbm, ch.path_loss_exponent, ch.shadowing_sigma_db,
+                            ch.reference_distance_m)
+
+    @property
+    def nepers_per_db(self) -> float:
+        """d(ln range)/d(RSSI dB) = ln10 / (10 eta)."""
+        return math.log(10.0) / (10.0 * self.path_loss_exponent)
+
+    @property
+    def log_range_sigma(self) -> float:
+        """Std of ln(range) per sample, s = sigma ln10 / (10 eta) (0.4605 for the paper)."""
+        return self.shadowing_sigma_db * self.nepers_per_db
+
+    def log_range(self, rssi_dbm) -> np.ndarray:
+        """Observed ln(range) [ln m] from RSSI [dBm] (the phone at its nominal power)."""
+        return math.log(self.reference_distance_m) + (self.reference_power_dbm - np.asarray(rssi_dbm)) \
+            * self.nepers_per_db
+
+    def rssi_dbm(self, d_m) -> np.ndarray:
+        """Median RSSI [dBm] at 3-D distance d_m."""
+        return self.reference_power_dbm - 10.0 * self.path_loss_exponent * np.log10(
+            np.asarray(d_m) / self.reference_distance_m)
+
+
+def geometry(theta: np.ndarray, tau_s: np.ndarray, a_xy: np.ndarray, h_m: np.ndarray, moving: bool):
+    """Horizontal offsets g (N, 2) person - vehicle and squared 3-D distances (N,)."""
+    p = theta[:2]
+    if moving:
+        pos = p + np.outer(tau_s, theta[2:4])
+    else:
+        pos = np.broadcast_to(p, a_xy.shape)
+    g = pos - a_xy
+    d2 = np.einsum("ij,ij->i", g, g) + h_m * h_m
+    return g, d2
+
+
+def log_range_jacobian(g: np.ndarray, d2: np.ndarray, tau_s: np.ndarray, moving: bool, tx: bool) -> np.ndarray:
+    """d(ln d - beta)/d theta, (N, P)."""
+    gx, gy = g[:, 0] / d2, g[:, 1] / d2
+    cols = [gx, gy]
+    if moving:
+        cols += [tau_s * gx, tau_s * gy]
+    if tx:
+        cols.append(-np.ones_like(gx))
+    return np.column_stack(cols)
+
+
+def fisher_information(theta, tau_s, a_xy, h_m, weight, moving: bool, tx: bool) -> np.ndarray:
+    """Data Fisher information sum_i w_i grad grad^T (P, P) for log-range observations with
+    precision w_i = n_i / s^2."""
+    g, d2 = geometry(np.asarray(theta, float), tau_s, a_xy, h_m, moving)
+    jac = log_range_jacobian(g, d2, tau_s, moving, tx)
+    return (jac * weight[:, None]).T @ jac
+
+
+_Z = np.linspace(-6.0, 6.0, 241)
+_PHI_Z = np.exp(-0.5 * _Z**2) / math.sqrt(2.0 * math.pi) * (_Z[1] - _Z[0])
+
+
+def circle_probability(cov2: np.ndarray, r_m) -> np.ndarray:
+    """P(|X| <= r) for X ~ N(0, cov2) in 2-D, for an array of radii r_m [m].
+
+    With eigenvalues l1 >= l2: P = E_z2[ erf( sqrt((r^2 - l2 z2^2)+ / (2 l1)) ) ], integrated over z2
+    on a fine grid (accurate to ~1e-4 for any anisotropy).
+    """
+    from scipy.special import erf
+
+    ev = np.linalg.eigvalsh(0.5 * (cov2 + cov2.T))
+    l2, l1 = max(ev[0], 0.0), ev[1]
+    r = np.asarray(r_m, float)[..., None]
+    rest = np.maximum(r * r - l2 * _Z * _Z, 0.0)
+    return np.sum(erf(np.sqrt(rest / (2.0 * l1))) * _PHI_Z, axis=-1)
+
+
+def radius_of_probability(cov2: np.ndarray, prob: float = 0.95) -> float:
+    """Radius [m] of the centred circle holding ``prob`` of a 2-D Gaussian with covariance cov2."""
+    cov2 = 0.5 * (np.asarray(cov2, float) + np.asarray(cov2, float).T)
+    ev = np.linalg.eigvalsh(cov2)
+    if not np.all(np.isfinite(ev)):
+        return math.inf
+    if ev[-1] <= 0:
+        return 0.0
+    from scipy.stats import norm
+
+    lo = float(norm.ppf(0.5 + prob / 2.0) * math.sqrt(ev[-1]))  # the 1-D (degenerate) answer
+    hi = float(math.sqrt(-2.0 * math.log(1.0 - prob) * ev[-1]))  # the isotropic answer
+    if hi - lo < 1e-9 * hi:
+        return hi
+    grid = np.linspace(lo, hi, 33)
+    p = circle_probability(cov2, grid)
+    k = int(np.clip(np.searchsorted(p, prob), 1, len(grid) - 1))
+    return float(grid[k - 1] + (prob - p[k - 1]) * (grid[k] - grid[k - 1]) / max(p[k] - p[k - 1], 1e-300))
