@@ -1,0 +1,63 @@
+"""Shared map helpers: every helper draws, output is deterministic, PNG/SVG by suffix."""
+
+import numpy as np
+import pytest
+from matplotlib.image import imread
+
+from uavloc_gcs.render import maps
+
+
+def _figure():
+    fig, ax = maps.new_map("Test map", subtitle=maps.origin_caption(-33.9, -70.1))
+    maps.draw_area(ax, np.array([[0, 0], [500, 0], [500, 300], [0, 300]]))
+    maps.draw_polygons(ax, [np.array([[0, 0], [250, 0], [250, 300], [0, 300]])], labels=["part 1"])
+    maps.draw_polylines(ax, [np.array([[0, 10], [490, 10], [490, 120], [0, 120]]),
+                             np.array([[0, 200], [490, 200]])], labels=["uav1", "uav2"])
+    maps.draw_points(ax, np.array([[100, 100], [300, 250]]), label="people", annotations=["p1", "p2"])
+    maps.draw_circles(ax, np.array([[100, 100], [300, 250]]), [20.0, 35.0], label="95 % radius")
+    maps.draw_circles(ax, np.array([[50, 50]]), 15.0, label="95 % radius")  # duplicate label
+    maps.draw_launch(ax)
+    length = maps.add_scale_bar(ax)
+    maps.add_north_arrow(ax)
+    maps.add_legend(ax)
+    return fig, ax, length
+
+
+def test_helpers_draw_everything_and_dedupe_the_legend():
+    fig, ax, length = _figure()
+    labels = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert labels.count("95 % radius") == 1
+    assert {"search area", "uav1", "uav2", "people", "launch / home", "part 1"} <= set(labels)
+    assert length in (100.0, 200.0)
+    x0, x1 = ax.get_xlim()
+    y0, y1 = ax.get_ylim()
+    assert x0 <= -20 and x1 >= 500 and y0 <= -5 and y1 >= 300  # circles, area and launch in view
+    assert "33.90000° S, 70.10000° W" in maps.origin_caption(-33.9, -70.1)
+
+
+@pytest.mark.parametrize("suffix", [".png", ".svg"])
+def test_save_is_deterministic(tmp_path, suffix):
+    a, b = tmp_path / f"a{suffix}", tmp_path / f"b{suffix}"
+    maps.save_figure(_figure()[0], a)
+    maps.save_figure(_figure()[0], b)
+    assert a.read_bytes() == b.read_bytes()
+    assert a.stat().st_size > 10_000
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([a.name, b.name])  # no temp files left
+
+
+def test_png_is_a_real_picture(tmp_path):
+    p = maps.save_figure(_figure()[0], tmp_path / "m.png")
+    img = imread(p)
+    assert img.shape[0] > 500 and img.shape[1] > 800
+    assert img[..., :3].std() > 0.05  # not blank
+
+
+def test_bad_suffix_writes_nothing(tmp_path):
+    with pytest.raises(ValueError, match=".png or .svg"):
+        maps.save_figure(_figure()[0], tmp_path / "m.jpg")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_many_vehicles_get_distinct_colors():
+    cols = maps.vehicle_colors(20)
+    assert len(cols) == 20 and len({str(c) for c in cols}) == 20

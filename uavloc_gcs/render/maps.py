@@ -1,0 +1,253 @@
+"""Map pictures on a local-metre axes (east/north of the scenario frame), matplotlib Agg.
+
+Typical use::
+
+    fig, ax = new_map("Scan plan: paper", subtitle=origin_caption(42.625, 13.283))
+    draw_area(ax, area_xy)
+    draw_polylines(ax, routes, labels=["uav1", "uav2"], colors=vehicle_colors(2))
+    draw_circles(ax, estimates_xy, radii_m, label="95 % radius")
+    draw_launch(ax)
+    add_scale_bar(ax); add_north_arrow(ax); add_legend(ax)
+    save_figure(fig, "preview.png")
+
+No pyplot: figures are plain :class:`matplotlib.figure.Figure` objects, so nothing touches global
+state and nothing opens a window. Output is deterministic (no timestamps, fixed SVG ids) and
+written atomically.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import os
+import tempfile
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+from matplotlib.axes import Axes
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+from matplotlib.patches import Circle, Polygon as MplPolygon
+
+__all__ = [
+    "new_map", "origin_caption", "vehicle_colors", "draw_area", "draw_polygons", "draw_polylines",
+    "draw_points", "draw_circles", "draw_launch", "add_scale_bar", "add_north_arrow", "add_legend",
+    "save_figure",
+]
+
+AREA_COLOR = "#444444"
+LAUNCH_COLOR = "#d62728"
+# Colour-blind-safe (Okabe-Ito) first, then tab20 for large fleets.
+_PALETTE = ["#0072B2", "#E69F00", "#009E73", "#CC79A7", "#56B4E9", "#D55E00", "#F0E442", "#000000"]
+
+
+def vehicle_colors(n: int) -> list[str]:
+    """``n`` distinct colours, one per vehicle (stable: vehicle k always gets the same one)."""
+    if n <= len(_PALETTE):
+        return _PALETTE[:n]
+    from matplotlib import colormaps
+
+    cmap = colormaps["tab20"]
+    return _PALETTE + [cmap(k % 20) for k in range(n - len(_PALETTE))]
+
+
+def origin_caption(lat_deg: float, lon_deg: float) -> str:
+    """'x/y in metres from 42.62500° N, 13.28300° E' -- to put the local frame on the map."""
+    ns = "N" if lat_deg >= 0 else "S"
+    ew = "E" if lon_deg >= 0 else "W"
+    return f"east/north in metres from the launch point {abs(lat_deg):.5f}° {ns}, {abs(lon_deg):.5f}° {ew}"
+
+
+def new_map(title: str, *, subtitle: str | None = None, size_in: tuple[float, float] = (10.0, 7.0),
+            dpi: int = 120) -> tuple[Figure, Axes]:
+    """A new figure with one equal-aspect axes in metres (east right, north up)."""
+    fig = Figure(figsize=size_in, dpi=dpi, layout="constrained")
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot(1, 1, 1)
+    ax.set_aspect("equal", adjustable="box")
+    ax.set_xlabel("east [m]")
+    ax.set_ylabel("north [m]")
+    ax.grid(True, color="#dddddd", linewidth=0.6, zorder=0)
+    ax.set_axisbelow(True)
+    ax.set_title(title, fontsize=13, fontweight="bold", loc="left")
+    if subtitle:
+        ax.text(0.0, 1.008, subtitle, transform=ax.transAxes, fontsize=8.5, color="#555555",
+                ha="left", va="bottom", linespacing=1.3)
+        pad = 8 + 12 * (subtitle.count("\n") + 1)
+        ax.set_title(title, fontsize=13, fontweight="bold", loc="left", pad=pad)
+    return fig, ax
+
+
+def _closed(xy: np.ndarray) -> np.ndarray:
+    xy = np.asarray(xy, dtype=float).reshape(-1, 2)
+    return np.vstack([xy, xy[:1]]) if len(xy) and not np.array_equal(xy[0], xy[-1]) else xy
+
+
+def draw_area(ax: Axes, xy: np.ndarray, label: str | None = "search area", *, color: str = AREA_COLOR,
+              fill: bool = True) -> None:
+    """The search area: a bold outline with a faint fill. ``xy`` (N, 2) metres, open or closed."""
+    ring = _closed(xy)
+    if fill:
+        ax.add_patch(MplPolygon(ring, closed=True, facecolor=color, alpha=0.06, edgecolor="none", zorder=1))
+    ax.plot(ring[:, 0], ring[:, 1], color=color, linewidth=2.0, label=label, zorder=2)
+    ax.update_datalim(ring)
+    ax.autoscale_view()
+
+
+def draw_polygons(ax: Axes, polygons: Sequence[np.ndarray], labels: Sequence[str | None] | None = None,
+                  colors: Sequence | None = None, *, alpha: float = 0.14) -> None:
+    """Filled polygons (e.g. one sub-area per vehicle), a thin dashed edge each."""
+    colors = list(colors) if colors is not None else vehicle_colors(len(polygons))
+    for k, xy in enumerate(polygons):
+        ring = _closed(xy)
+        if len(ring) < 3:
+            continue
+        label = labels[k] if labels is not None else None
+        ax.add_patch(MplPolygon(ring, closed=True, facecolor=colors[k], alpha=alpha, edgecolor=colors[k],
+                                linewidth=0.8, linestyle="--", label=label, zorder=1))
+        ax.update_datalim(ring)
+    ax.autoscale_view()
+
+
+def draw_polylines(ax: Axes, lines: Sequence[np.ndarray], labels: Sequence[str | None] | None = None,
+                   colors: Sequence | None = None, *, linewidth: float = 1.8, arrows: bool = True,
+                   linestyle: str = "-", markers: bool = False, zorder: float = 3) -> None:
+    """Polylines (routes), one colour each; ``arrows`` marks the flight direction on long legs."""
+    colors = list(colors) if colors is not None else vehicle_colors(len(lines))
+    for k, xy in enumerate(lines):
+        xy = np.asarray(xy, dtype=float).reshape(-1, 2)
+        if len(xy) == 0:
+            continue
+        label = labels[k] if labels is not None else None
+        ax.plot(xy[:, 0], xy[:, 1], color=colors[k], linewidth=linewidth, linestyle=linestyle, label=label,
+                marker="o" if markers else None, markersize=3, zorder=zorder, solid_capstyle="round")
+        if arrows and len(xy) >= 2:
+            _direction_arrows(ax, xy, colors[k], zorder)
+    ax.autoscale_view()
+
+
+def _direction_arrows(ax: Axes, xy: np.ndarray, color, zorder: float) -> None:
+    seg = np.diff(xy, axis=0)
+    length = np.linalg.norm(seg, axis=1)
+    if length.max() <= 0:
+        return
+    x0, x1 = ax.dataLim.intervalx
+    min_len = 0.08 * max(x1 - x0, float(length.max()))
+    for k in np.nonzero(length >= min_len)[0]:
+        mid = xy[k] + 0.5 * seg[k]
+        d = seg[k] / length[k] * 1e-3 * length[k]
+        ax.annotate("", xy=mid + d, xytext=mid - d, zorder=zorder + 0.1,
+                    arrowprops=dict(arrowstyle="-|>", color=color, lw=0, mutation_scale=13))
+
+
+def draw_points(ax: Axes, xy: np.ndarray, label: str | None = None, *, color="#222222", marker: str = "o",
+                size: float = 30.0, annotations: Sequence[str] | None = None, zorder: float = 5) -> None:
+    """Scatter points (waypoints, people, estimates); optional text next to each."""
+    xy = np.asarray(xy, dtype=float).reshape(-1, 2)
+    if len(xy) == 0:
+        return
+    ax.scatter(xy[:, 0], xy[:, 1], s=size, c=[color], marker=marker, label=label, zorder=zorder,
+               edgecolors="white", linewidths=0.6)
+    if annotations is not None:
+        for (x, y), text in zip(xy, annotations):
+            ax.annotate(str(text), (x, y), xytext=(4, 4), textcoords="offset points", fontsize=8,
+                        color=color, zorder=zorder)
+    ax.update_datalim(xy)
+    ax.autoscale_view()
+
+
+def draw_circles(ax: Axes, centres: np.ndarray, radii: Sequence[float] | float, label: str | None = None, *,
+                 color="#d62728", alpha: float = 0.15, linestyle: str = "-", fill: bool = True,
+                 zorder: float = 4) -> None:
+    """Circles of radius ``radii`` [m] (e.g. 95 % error circles) around ``centres`` (N, 2)."""
+    c = np.asarray(centres, dtype=float).reshape(-1, 2)
+    r = np.broadcast_to(np.asarray(radii, dtype=float), (len(c),))
+    for k, ((x, y), rad) in enumerate(zip(c, r)):
+        if not math.isfinite(rad) or rad <= 0:
+            continue
+        ax.add_patch(Circle((x, y), rad, facecolor=color if fill else "none", alpha=alpha if fill else 1.0,
+                            edgecolor="none", zorder=zorder))
+        ax.add_patch(Circle((x, y), rad, facecolor="none", edgecolor=color, linewidth=1.0,
+                            linestyle=linestyle, zorder=zorder, label=label if k == 0 else None))
+        ax.update_datalim([[x - rad, y - rad], [x + rad, y + rad]])
+    ax.autoscale_view()
+
+
+def draw_launch(ax: Axes, xy: Sequence[float] = (0.0, 0.0), label: str = "launch / home") -> None:
+    """The launch point: a large red triangle."""
+    ax.scatter([xy[0]], [xy[1]], s=160, marker="^", c=LAUNCH_COLOR, edgecolors="white", linewidths=1.2,
+               label=label, zorder=10)
+    ax.update_datalim([xy])
+    ax.autoscale_view()
+
+
+def _nice_length(target: float) -> float:
+    if target <= 0:
+        return 1.0
+    exp = 10 ** math.floor(math.log10(target))
+    for m in (5, 2, 1):
+        if m * exp <= target:
+            return m * exp
+    return exp
+
+
+def add_scale_bar(ax: Axes, length_m: float | None = None, *, loc: str = "lower right") -> float:
+    """A labelled scale bar (about a fifth of the view width unless ``length_m``). Returns its length."""
+    from mpl_toolkits.axes_grid1.anchored_artists import AnchoredSizeBar
+
+    ax.autoscale_view()
+    x0, x1 = ax.get_xlim()
+    length = length_m or _nice_length((x1 - x0) / 5.0)
+    text = f"{length / 1000:g} km" if length >= 1000 else f"{length:g} m"
+    bar = AnchoredSizeBar(ax.transData, length, text, loc, pad=0.6, sep=4, frameon=True, size_vertical=0,
+                          fontproperties={"size": 9})
+    bar.patch.set_alpha(0.8)
+    bar.patch.set_edgecolor("#bbbbbb")
+    ax.add_artist(bar)
+    return length
+
+
+def add_north_arrow(ax: Axes, *, xy_axes: tuple[float, float] = (0.97, 0.88)) -> None:
+    """A small 'N' arrow in axes coordinates (north is up in the local frame)."""
+    x, y = xy_axes
+    ax.annotate("N", xy=(x, y + 0.08), xytext=(x, y), xycoords="axes fraction", textcoords="axes fraction",
+                ha="center", va="top", fontsize=10, fontweight="bold",
+                arrowprops=dict(arrowstyle="-|>", color="black", lw=1.2), zorder=20)
+
+
+def add_legend(ax: Axes, *, loc: str = "upper left", outside: bool = True, ncol: int = 1) -> None:
+    """A legend without duplicate labels; by default outside the map on the right."""
+    handles, labels = ax.get_legend_handles_labels()
+    seen: dict[str, object] = {}
+    for h, lab in zip(handles, labels):
+        if lab and not lab.startswith("_") and lab not in seen:
+            seen[lab] = h
+    if not seen:
+        return
+    kwargs = dict(fontsize=9, framealpha=0.9, ncol=ncol)
+    if outside:
+        ax.legend(seen.values(), seen.keys(), loc="upper left", bbox_to_anchor=(1.01, 1.0), **kwargs)
+    else:
+        ax.legend(seen.values(), seen.keys(), loc=loc, **kwargs)
+
+
+def save_figure(fig: Figure, path: str | Path) -> Path:
+    """Write ``fig`` to ``path`` as PNG or SVG (by suffix), deterministically and atomically."""
+    import matplotlib
+
+    p = Path(path)
+    fmt = p.suffix.lower().lstrip(".")
+    if fmt not in ("png", "svg"):
+        raise ValueError(f"picture format must be .png or .svg, got {p.name!r}")
+    metadata = {"Software": None} if fmt == "png" else {"Date": None, "Creator": None}
+    fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=f".{fmt}", dir=p.parent if str(p.parent) else ".")
+    try:
+        with os.fdopen(fd, "wb") as fh, matplotlib.rc_context({"svg.hashsalt": "uavloc"}):
+            fig.savefig(fh, format=fmt, metadata=metadata)
+        os.replace(tmp, p)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+    return p

@@ -1,0 +1,58 @@
+"""The scan-plan picture: area, sub-areas, lanes and routes per vehicle, launch point."""
+
+from __future__ import annotations
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from . import maps
+
+
+def scan_figure(scenario, plan, *, title: str | None = None) -> Figure:
+    """Figure of a :class:`uavloc_gcs.scan.ScanPlan` for ``scenario`` (local metres)."""
+    lat0, lon0 = scenario.launch_latlon_deg
+    n = len(plan.vehicles)
+    colors = maps.vehicle_colors(max(n, 1))
+    head = title or f"Initial scan: {scenario.name}"
+    sub = (f"{n} vehicles, lanes {plan.lane_spacing_m:.0f} m apart ({plan.coverage} coverage, "
+           f"hearing radius R = {plan.range_m:.0f} m) at {scenario.fleet.altitude_m:g} m, "
+           f"{scenario.fleet.speed_m_s:g} m/s\n{maps.origin_caption(lat0, lon0)}")
+    fig, ax = maps.new_map(head, subtitle=sub)
+    maps.draw_area(ax, scenario.area_xy_m(), label="search area")
+    for v, col in zip(plan.vehicles, colors):
+        maps.draw_polygons(ax, list(v.subarea_parts_xy_m), colors=[col] * len(v.subarea_parts_xy_m))
+    for v, col in zip(plan.vehicles, colors):
+        label = (f"uav{v.index + 1}: {v.length_m / 1000:.2f} km, {v.duration_s / 60:.1f} min, "
+                 f"{v.energy_j / 1000:.0f} kJ")
+        route = v.route_xy_m()
+        # Transit legs (launch -> first lane, last lane -> launch) dashed, the scan itself solid.
+        maps.draw_polylines(ax, [route[:2], route[-2:]], colors=[col, col], linewidth=1.0, linestyle=":",
+                            arrows=False, zorder=2.5)
+        maps.draw_polylines(ax, [v.waypoints_xy_m], labels=[label], colors=[col], linewidth=2.0)
+    if n:
+        ax.plot([], [], color="#777777", linestyle=":", label="transit to/from launch")
+    maps.draw_launch(ax)
+    maps.add_scale_bar(ax)
+    maps.add_north_arrow(ax)
+    maps.add_legend(ax)
+    ax.margins(0.04)
+    return fig
+
+
+def mission_figure(xy_by_vehicle: list[np.ndarray], labels: list[str], *, title: str,
+                   subtitle: str | None = None, fence_xy: np.ndarray | None = None) -> Figure:
+    """Figure of mission routes already converted to local metres (used by ``uavloc preview``)."""
+    fig, ax = maps.new_map(title, subtitle=subtitle)
+    if fence_xy is not None and len(fence_xy) >= 3:
+        maps.draw_area(ax, fence_xy, label="geofence (inclusion)")
+    colors = maps.vehicle_colors(len(xy_by_vehicle))
+    maps.draw_polylines(ax, xy_by_vehicle, labels=labels, colors=colors, markers=True)
+    for xy, col in zip(xy_by_vehicle, colors):
+        if len(xy):
+            maps.draw_points(ax, xy[:1], color=col, marker="s", size=40)
+    maps.draw_launch(ax)
+    maps.add_scale_bar(ax)
+    maps.add_north_arrow(ax)
+    maps.add_legend(ax)
+    ax.margins(0.05)
+    return fig

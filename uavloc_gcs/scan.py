@@ -1,0 +1,417 @@
+"""Initial scan: split the area among the fleet and sweep each part with boustrophedon lanes.
+
+SPEC §2.1. Every vehicle leaves the launch point (local (0, 0)), flies parallel lanes over its
+sub-area through pass-through waypoints (never hovering) and returns to the launch point.
+
+Layout, in a frame rotated so that lanes are horizontal ("along" = lane direction,
+"across" = offset between lanes):
+
+* **Lane spacing.** With ``scan.coverage = "double"`` (the default) lanes are at most R apart and
+  the outermost lanes run (almost) on the area's edge, so every point lies within R of **two**
+  lanes: a person is heard from two legs at different offsets, which is what makes a moving person
+  observable at all (SPEC §3.1: one straight leg fixes only three of four unknowns, plus a mirror
+  image). ``"single"`` uses the paper's coverage spacing sqrt(2)·R (the diagonal-free cell size of
+  the paper's grid) with the outer lanes half a spacing inside the edge: every point within R of
+  one lane, about 30 % fewer lanes, but half-observable people. ``scan.lane_spacing_m`` replaces the
+  mode's spacing (it is an upper bound; lanes are spread evenly across the area).
+* **Lanes** are the chords of the area at each offset (several per offset in concave areas;
+  the vehicle flies straight over a notch between them). A final repair pass samples the area and
+  lengthens lane ends wherever a sample is not within R of enough lanes (acute corners).
+* **Split.** Lanes ("rows") are partitioned into contiguous groups, one per vehicle, minimizing
+  the longest vehicle flight **including the transit from and back to the launch point** (exact
+  dynamic programme over contiguous groups; each group flown in the best of its four
+  boustrophedon entry choices). All hull-edge directions (plus east and north) are tried and
+  the one with the shortest makespan is kept.
+
+Time and energy use a constant cruise speed (``energy.route_cost``): climb, descent and turns are
+not modelled, so they are a lower bound on what the battery needs.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .energy import route_cost
+from .errors import ConfigError, InfeasibleError
+from .mission import MissionPlan, flight_mission
+
+log = logging.getLogger(__name__)
+
+__all__ = ["VehicleScan", "ScanPlan", "plan_scan", "scan_missions", "lane_spacing_for", "coverage_counts"]
+
+_EDGE_INSET_M = 0.5  # double coverage: outer lanes this far inside the edge (clipping stays robust)
+
+
+@dataclass(frozen=True)
+class VehicleScan:
+    """One vehicle's part of the scan, in local metres (launch point = (0, 0)).
+
+    ``waypoints_xy_m`` are the pass-through points in flight order, without the launch point;
+    ``length_m``/``duration_s``/``energy_j`` cover launch -> waypoints -> launch at cruise speed.
+    """
+
+    index: int
+    subarea_xy_m: np.ndarray  # (K, 2) exterior ring of the largest part of the sub-area, CCW
+    subarea_parts_xy_m: tuple  # all parts (concave areas can be cut into several)
+    lanes_xy_m: tuple  # of (2, 2) arrays [[x0, y0], [x1, y1]] in flight direction
+    waypoints_xy_m: np.ndarray  # (N, 2)
+    length_m: float
+    duration_s: float
+    energy_j: float
+
+    def route_xy_m(self) -> np.ndarray:
+        """The whole flight path including the launch point at both ends, (N + 2, 2)."""
+        z = np.zeros((1, 2))
+        return np.vstack([z, self.waypoints_xy_m, z])
+
+
+@dataclass(frozen=True)
+class ScanPlan:
+    vehicles: tuple  # of VehicleScan (vehicles with nothing to scan are left out)
+    lane_spacing_m: float  # actual spacing between adjacent lanes
+    coverage: str  # "double" or "single"
+    lane_heading_deg: float  # compass bearing of the lanes (0..180)
+    range_m: float  # horizontal hearing radius R used for the layout
+
+    @property
+    def makespan_s(self) -> float:
+        return max((v.duration_s for v in self.vehicles), default=0.0)
+
+
+def lane_spacing_for(scenario) -> tuple[float, str]:
+    """Maximum lane spacing [m] and the coverage mode for ``scenario`` (ConfigError if unusable)."""
+    r = scenario.horizontal_range_m
+    mode = scenario.scan.coverage
+    given = scenario.scan.lane_spacing_m
+    if given is None:
+        return (r if mode == "double" else math.sqrt(2.0) * r), mode
+    limit = r if mode == "double" else 2.0 * r
+    if given > limit:
+        why = ("double coverage needs lanes at most R" if mode == "double"
+               else "lanes farther apart than 2R leave strips nobody hears")
+        raise ConfigError(
+            f"{given:g} m is too wide: {why} = {limit:.1f} m apart (R = {r:.1f} m)",
+            source=scenario.source, key="scan.lane_spacing_m",
+        )
+    return float(given), mode
+
+
+# ---------------------------------------------------------------------------------------------
+# Geometry in the rotated frame: rows of intervals
+
+
+@dataclass(frozen=True)
+class _Rows:
+    offsets: np.ndarray  # (n,) across-coordinate of each row
+    intervals: tuple  # n lists of [a0, a1] along-intervals, sorted
+    spacing_m: float
+
+
+def _rot(theta: float) -> np.ndarray:
+    """Matrix mapping xy -> (along, across) for lanes pointing at math angle ``theta``."""
+    c, s = math.cos(theta), math.sin(theta)
+    return np.array([[c, s], [-s, c]])
+
+
+def _layout_rows(poly_r, spacing: float, mode: str) -> _Rows:
+    from shapely.geometry import LineString
+
+    a_min, c_min, a_max, c_max = poly_r.bounds
+    width = c_max - c_min
+    if mode == "double":
+        inset = min(_EDGE_INSET_M, width / 10.0)
+        n = max(2, math.ceil((width - 2 * inset) / max(spacing - inset, 1e-9) - 1e-9) + 1)
+        step = (width - 2 * inset) / (n - 1)
+        offsets = c_min + inset + step * np.arange(n)
+    else:
+        n = max(1, math.ceil(width / spacing - 1e-9))
+        step = width / n
+        offsets = c_min + step * (np.arange(n) + 0.5)
+    rows, offs = [], []
+    for c in offsets:
+        cut = poly_r.intersection(LineString([(a_min - 1.0, c), (a_max + 1.0, c)]))
+        parts = [g for g in getattr(cut, "geoms", [cut]) if g.geom_type == "LineString" and g.length > 1e-3]
+        ivs = sorted([min(g.coords[0][0], g.coords[-1][0]), max(g.coords[0][0], g.coords[-1][0])] for g in parts)
+        if ivs:
+            rows.append(ivs)
+            offs.append(float(c))
+    return _Rows(np.array(offs), tuple(rows), float(step))
+
+
+def _sample_area(poly_r, step: float) -> np.ndarray:
+    """Grid points inside the polygon plus points along its boundary, (K, 2) rotated frame."""
+    import shapely
+
+    a0, c0, a1, c1 = poly_r.bounds
+    ga = np.arange(a0, a1 + step, step)
+    gc = np.arange(c0, c1 + step, step)
+    grid = np.array(np.meshgrid(ga, gc)).reshape(2, -1).T
+    inside = grid[shapely.contains_xy(poly_r, grid[:, 0], grid[:, 1])]
+    ring = poly_r.exterior
+    k = max(4, int(ring.length / step))
+    edge = np.array([ring.interpolate(t, normalized=True).coords[0] for t in np.linspace(0, 1, k, endpoint=False)])
+    verts = np.asarray(ring.coords)
+    return np.vstack([inside, edge, verts])
+
+
+def coverage_counts(points_xy_m: np.ndarray, lanes_xy_m, range_m: float) -> np.ndarray:
+    """How many lane segments pass within ``range_m`` of each point. (K,) ints."""
+    p = np.asarray(points_xy_m, dtype=float).reshape(-1, 2)
+    counts = np.zeros(len(p), dtype=int)
+    for seg in lanes_xy_m:
+        a, b = np.asarray(seg[0], float), np.asarray(seg[1], float)
+        d = b - a
+        L2 = float(d @ d)
+        t = np.zeros(len(p)) if L2 == 0 else np.clip(((p - a) @ d) / L2, 0.0, 1.0)
+        dist = np.linalg.norm(p - (a + t[:, None] * d), axis=1)
+        counts += dist <= range_m + 1e-6
+    return counts
+
+
+def _repair(rows: _Rows, samples: np.ndarray, r: float, need: int, margin: float) -> _Rows:
+    """Lengthen lane ends until every sample is within ``r`` of ``need`` distinct rows."""
+    ivs = [[list(iv) for iv in row] for row in rows.intervals]
+    for _ in range(3):
+        changed = False
+        for pa, pc in samples[_row_counts(rows.offsets, ivs, samples, r) < need]:
+            dc = np.abs(rows.offsets - pc)
+            near = [k for k in np.argsort(dc, kind="stable") if dc[k] <= r]
+            covering = 0
+            for k in near:
+                reach = math.sqrt(max(r * r - dc[k] ** 2, 0.0))
+                if any(a0 - reach <= pa <= a1 + reach for a0, a1 in ivs[k]):
+                    covering += 1
+            if covering >= need:
+                continue
+            for k in near:
+                reach = math.sqrt(max(r * r - dc[k] ** 2, 0.0))
+                if any(a0 - reach <= pa <= a1 + reach for a0, a1 in ivs[k]):
+                    continue
+                iv = min(ivs[k], key=lambda v: min(abs(v[0] - pa), abs(v[1] - pa)))
+                # Extend to within (r - margin) of the sample so the points between samples
+                # (up to ``margin`` away) are covered too.
+                ext = math.sqrt(max((r - margin) ** 2 - dc[k] ** 2, 0.0))
+                if pa < iv[0]:
+                    iv[0] = pa + ext
+                else:
+                    iv[1] = pa - ext
+                changed = True
+                covering += 1
+                if covering >= need:
+                    break
+        if not changed:
+            break
+    return _Rows(rows.offsets, tuple(ivs), rows.spacing_m)
+
+
+def _row_counts(offsets: np.ndarray, ivs: list, samples: np.ndarray, r: float) -> np.ndarray:
+    """Number of distinct rows within ``r`` of each sample (rotated frame)."""
+    counts = np.zeros(len(samples), dtype=int)
+    for c, row in zip(offsets, ivs):
+        dc = np.abs(samples[:, 1] - c)
+        reach = np.sqrt(np.maximum(r * r - dc * dc, 0.0))
+        hit = np.zeros(len(samples), dtype=bool)
+        for a0, a1 in row:
+            hit |= (samples[:, 0] >= a0 - reach) & (samples[:, 0] <= a1 + reach)
+        counts += hit & (dc <= r)
+    return counts
+
+
+# ---------------------------------------------------------------------------------------------
+# Splitting rows among vehicles
+
+
+def _group_costs(rows: _Rows, rot_inv: np.ndarray):
+    """Route length [m] of every contiguous row group (i..j) and its best entry choice.
+
+    Returns (cost (n, n), choice (n, n)); choice in 0..3 = (start at i or j) x (enter left/right).
+    """
+    n = len(rows.offsets)
+    left = np.array([[row[0][0], c] for row, c in zip(rows.intervals, rows.offsets)]) @ rot_inv.T
+    right = np.array([[row[-1][1], c] for row, c in zip(rows.intervals, rows.offsets)]) @ rot_inv.T
+    span = np.array([row[-1][1] - row[0][0] for row in rows.intervals])
+    con_r = np.linalg.norm(np.diff(right, axis=0), axis=1) if n > 1 else np.zeros(0)
+    con_l = np.linalg.norm(np.diff(left, axis=0), axis=1) if n > 1 else np.zeros(0)
+    m = np.arange(n - 1)
+    # Connector m joins rows m, m+1 on the side given by parity (m - start) and the entry side.
+    pa = np.concatenate([[0.0], np.cumsum(np.where(m % 2 == 0, con_r, con_l))])
+    pb = np.concatenate([[0.0], np.cumsum(np.where(m % 2 == 0, con_l, con_r))])
+    ps = np.concatenate([[0.0], np.cumsum(span)])
+    ii, jj = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
+    base = ps[jj + 1] - ps[ii]
+    d_left, d_right = np.linalg.norm(left, axis=1), np.linalg.norm(right, axis=1)
+    costs = []
+    for start_low in (True, False):
+        s = ii if start_low else jj  # first row flown
+        e = jj if start_low else ii  # last row flown
+        for enter_left in (True, False):
+            # Upward from i entering left, connector m (rows m, m+1) is on the right when m - i is
+            # even; downward from j entering left, it is on the right when m - (j - 1) is even.
+            # ``pa`` sums right connectors at even m, ``pb`` at odd m.
+            use_a = ((s % 2 == 0) == enter_left) if start_low else ((s % 2 == 1) == enter_left)
+            conn = np.where(use_a, pa[jj] - pa[ii], pb[jj] - pb[ii])
+            entry = np.where(enter_left, d_left[s], d_right[s])
+            exit_left = (np.abs(e - s) % 2 == 1) == enter_left
+            exit_d = np.where(exit_left, d_left[e], d_right[e])
+            costs.append(base + conn + entry + exit_d)
+    stack = np.stack(costs)
+    choice = np.argmin(stack, axis=0)
+    cost = np.min(stack, axis=0)
+    cost[ii > jj] = np.inf
+    return cost, choice
+
+
+def _partition(cost: np.ndarray, vehicles: int) -> list[tuple[int, int]]:
+    """Contiguous groups (i, j) minimizing the largest cost; at most ``vehicles`` groups."""
+    n = cost.shape[0]
+    best = np.full((vehicles + 1, n + 1), np.inf)  # best[m][j]: rows 0..j-1 with m vehicles
+    arg = np.zeros((vehicles + 1, n + 1), dtype=int)
+    best[:, 0] = 0.0
+    for m in range(1, vehicles + 1):
+        for j in range(1, n + 1):
+            i = np.arange(j)  # group rows i..j-1
+            cand = np.maximum(best[m - 1, i], cost[i, j - 1])
+            k = int(np.argmin(cand))
+            if best[m - 1, j] <= cand[k]:
+                best[m, j], arg[m, j] = best[m - 1, j], -1
+            else:
+                best[m, j], arg[m, j] = cand[k], k
+    groups, m, j = [], vehicles, n
+    while j > 0:
+        k = arg[m, j]
+        if k >= 0:
+            groups.append((int(k), j - 1))
+            j = k
+        m -= 1
+    return groups[::-1]
+
+
+def _group_waypoints(rows: _Rows, i: int, j: int, choice: int) -> tuple[np.ndarray, list]:
+    """Waypoints and flown lane segments (rotated frame) of rows i..j for an entry ``choice``."""
+    start_low, enter_left = choice < 2, choice % 2 == 0
+    order = range(i, j + 1) if start_low else range(j, i - 1, -1)
+    pts, lanes = [], []
+    left_to_right = enter_left
+    for k in order:
+        c = rows.offsets[k]
+        ivs = rows.intervals[k] if left_to_right else [[b, a] for a, b in reversed(rows.intervals[k])]
+        for a0, a1 in ivs:
+            pts += [(a0, c), (a1, c)]
+            lanes.append(np.array([[a0, c], [a1, c]]))
+        left_to_right = not left_to_right
+    return np.array(pts), lanes
+
+
+# ---------------------------------------------------------------------------------------------
+# Public API
+
+
+def _candidate_angles(poly) -> list[float]:
+    hull = np.asarray(poly.convex_hull.exterior.coords)
+    edges = np.diff(hull, axis=0)
+    lengths = np.linalg.norm(edges, axis=1)
+    angles = [0.0, math.pi / 2]
+    for k in np.argsort(-lengths, kind="stable")[:16]:
+        th = math.atan2(edges[k, 1], edges[k, 0]) % math.pi
+        if all(min(abs(th - a), math.pi - abs(th - a)) > math.radians(0.5) for a in angles):
+            angles.append(th)
+    return angles
+
+
+def plan_scan(scenario) -> ScanPlan:
+    """Plan the initial scan of ``scenario``: sub-areas, lanes and waypoints per vehicle.
+
+    Raises ConfigError for an unusable lane spacing and InfeasibleError when a vehicle's scan
+    needs more than ``scenario.usable_energy_j``.
+    """
+    from shapely import affinity
+    from shapely.geometry import Polygon, box
+
+    r = scenario.horizontal_range_m
+    spacing, mode = lane_spacing_for(scenario)
+    need = 2 if mode == "double" else 1
+    poly = Polygon(scenario.area_xy_m())
+    speed = scenario.fleet.speed_m_s
+    best = None
+    for theta in _candidate_angles(poly):
+        rot = _rot(theta)
+        poly_r = Polygon(np.asarray(poly.exterior.coords) @ rot.T)
+        rows = _layout_rows(poly_r, spacing, mode)
+        step = max(r / 20.0, math.sqrt(poly.area / 20000.0))
+        rows = _repair(rows, _sample_area(poly_r, step), r, need, margin=step)
+        cost, choice = _group_costs(rows, rot.T)
+        groups = _partition(cost, scenario.fleet.vehicles)
+        makespan = max(cost[i, j] for i, j in groups)
+        key = (round(makespan, 6), round(sum(cost[i, j] for i, j in groups), 6), theta)
+        log.debug("lanes at %.1f deg: %d rows, makespan %.0f m", math.degrees(theta), len(rows.offsets), makespan)
+        if best is None or key < best[0]:
+            best = (key, theta, rot, poly_r, rows, groups, choice)
+    _, theta, rot, poly_r, rows, groups, choice = best
+    vehicles = []
+    a0, _, a1, _ = poly_r.bounds
+    for idx, (i, j) in enumerate(groups):
+        pts_r, lanes_r = _group_waypoints(rows, i, j, int(choice[i, j]))
+        wps = _dedupe(pts_r @ rot)  # rot is orthonormal: inverse = transpose
+        lanes = tuple(seg @ rot for seg in lanes_r)
+        lo = (rows.offsets[i - 1] + rows.offsets[i]) / 2 if i > 0 else -1e9
+        hi = (rows.offsets[j] + rows.offsets[j + 1]) / 2 if j + 1 < len(rows.offsets) else 1e9
+        part = poly_r.intersection(box(a0 - 1, lo, a1 + 1, hi))
+        pieces = sorted((g for g in getattr(part, "geoms", [part]) if g.geom_type == "Polygon" and g.area > 0),
+                        key=lambda g: -g.area)
+        parts = tuple(_ccw(np.asarray(g.exterior.coords)[:-1] @ rot) for g in pieces)
+        route = np.vstack([np.zeros((1, 2)), wps, np.zeros((1, 2))])
+        rc = route_cost(route, speed, scenario.power_model)
+        vehicles.append(VehicleScan(idx, parts[0] if parts else np.zeros((0, 2)), parts, lanes, wps,
+                                    rc.length_m, rc.duration_s, rc.energy_j))
+    bearing = (90.0 - math.degrees(theta)) % 180.0
+    plan = ScanPlan(tuple(vehicles), rows.spacing_m, mode, bearing, r)
+    _check_energy(scenario, plan)
+    return plan
+
+
+def _dedupe(xy: np.ndarray, tol_m: float = 0.01) -> np.ndarray:
+    keep = [0] + [k for k in range(1, len(xy)) if np.linalg.norm(xy[k] - xy[k - 1]) > tol_m]
+    return xy[keep]
+
+
+def _ccw(xy: np.ndarray) -> np.ndarray:
+    x, y = xy[:, 0], xy[:, 1]
+    return xy if np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y) > 0 else xy[::-1].copy()
+
+
+def _check_energy(scenario, plan: ScanPlan) -> None:
+    budget = scenario.usable_energy_j
+    for v in plan.vehicles:
+        if v.energy_j > budget:
+            f = scenario.fleet
+            raise InfeasibleError(
+                f"vehicle uav{v.index + 1} needs {v.energy_j / 1000:.1f} kJ for its {v.length_m / 1000:.2f} km scan "
+                f"but may use only {budget / 1000:.1f} kJ ({f.energy_budget_j / 1000:.1f} kJ budget minus "
+                f"{f.energy_reserve_fraction:.0%} reserve); add vehicles (fleet.vehicles = {f.vehicles}), "
+                "raise fleet.energy_budget_j, or use scan.coverage = \"single\""
+            )
+
+
+def scan_missions(scenario, plan: ScanPlan) -> list[MissionPlan]:
+    """One MAVLink mission per planned vehicle: takeoff, speed, pass-through waypoints, RTL.
+
+    Home is the launch point; the area polygon is attached as the inclusion geofence (clockwise,
+    as QGroundControl writes it).
+    """
+    frame = scenario.frame
+    fleet = scenario.fleet
+    fence = tuple(tuple(map(float, v)) for v in reversed(frame.to_wgs84_latlon(scenario.area_xy_m())))
+    out = []
+    for v in plan.vehicles:
+        latlon = frame.to_wgs84_latlon(v.waypoints_xy_m) if len(v.waypoints_xy_m) else np.zeros((0, 2))
+        mission = flight_mission(
+            latlon.tolist(), alt_m=fleet.altitude_m, speed_m_s=fleet.speed_m_s, autopilot=fleet.autopilot,
+            home_latlon_deg=scenario.launch_latlon_deg,
+        )
+        out.append(dataclasses.replace(mission, geofence_polygons=((True, fence),)))
+    return out
