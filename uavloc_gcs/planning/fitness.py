@@ -1,0 +1,213 @@
+"""The one fitness all optimizers share: makespan with edge access and an energy penalty,
+evaluated for a whole population at once.
+
+A solution is a giant ordering of the targets grouped by vehicle (``order``, ``(P, n)`` target
+indices) and the number of targets per vehicle (``counts``, ``(P, m)``, summing to ``n``): the
+route of vehicle ``v`` is the next ``counts[v]`` targets of ``order``. EPSO/PSO random keys and
+the GA's two-part chromosome both decode to this. For evaluation each solution becomes one
+sequence of ``n + 2m`` slots ``[start_1, targets..., home_1, start_2, ...]``; starts and homes
+are disks of radius 0, so one coordinate-descent sweep over the sequence handles everything.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .access import _norm, best_point_between
+from .problem import Plan, Route, RoutingProblem
+
+# Penalty [s of makespan per s of flight beyond a vehicle's energy]: makes any energy overrun cost
+# far more than it could save.
+ENERGY_PENALTY = 100.0
+SEARCH_SWEEPS = 4
+SEARCH_NEWTON = 4
+FINAL_NEWTON = 20
+
+
+@dataclass
+class Layout:
+    seq: np.ndarray  # (P, L) node index per slot
+    start_slot: np.ndarray  # (P, m)
+    home_slot: np.ndarray  # (P, m)
+    route_start: np.ndarray  # (P, L) slot of the start of this slot's route
+    par_p: tuple[np.ndarray, np.ndarray]  # flat (particle, slot) of target slots, odd then even
+    par_j: tuple[np.ndarray, np.ndarray]
+
+
+@dataclass
+class Evaluation:
+    fitness: np.ndarray  # (P,) makespan [s] + penalty
+    makespan_s: np.ndarray  # (P,)
+    lengths_m: np.ndarray  # (P, m)
+    feasible: np.ndarray  # (P,) bool
+    points_xy_m: np.ndarray  # (P, L, 2)
+    layout: Layout
+
+
+class Evaluator:
+    """Precomputed arrays of one problem; ``evaluate`` scores a population."""
+
+    def __init__(self, problem: RoutingProblem):
+        self.problem = problem
+        self.n = len(problem.targets)
+        self.m = len(problem.vehicles)
+        self.speed = float(problem.speed_m_s)
+        self.node_xy = np.concatenate([problem.centres_xy_m, problem.starts_xy_m, problem.homes_xy_m])
+        self.node_r = np.concatenate([problem.radii_m, np.zeros(2 * self.m)])
+        self.node_vel = np.concatenate([problem.velocities_m_s, np.zeros((2 * self.m, 2))])
+        self.moving = bool(np.any(self.node_vel != 0))
+        self.max_len = problem.max_length_m
+        self.nfev = 0
+
+    # --- encodings ------------------------------------------------------------------------------
+    def decode_keys(self, keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Random keys in [0, m): integer part = vehicle, order within a vehicle by key."""
+        keys = np.atleast_2d(keys)
+        veh = np.clip(np.floor(keys).astype(int), 0, self.m - 1)
+        order = np.argsort(veh * 2.0 + (keys - veh), axis=1, kind="stable")
+        counts = np.stack([np.count_nonzero(veh == v, axis=1) for v in range(self.m)], axis=1)
+        return order, counts
+
+    def encode_keys(self, routes: list[list[int]]) -> np.ndarray:
+        """Random keys (n,) reproducing ``routes`` (lists of target indices per vehicle)."""
+        x = np.zeros(self.n)
+        for v, route in enumerate(routes):
+            k = len(route)
+            for rank, i in enumerate(route):
+                x[i] = v + (rank + 0.5) / k
+        return x
+
+    @staticmethod
+    def to_routes(order: np.ndarray, counts: np.ndarray) -> list[list[int]]:
+        bounds = np.concatenate([[0], np.cumsum(counts)])
+        return [list(map(int, order[bounds[v]:bounds[v + 1]])) for v in range(len(counts))]
+
+    @staticmethod
+    def from_routes(routes: list[list[int]]) -> tuple[np.ndarray, np.ndarray]:
+        order = np.array([i for r in routes for i in r], dtype=int)
+        return order, np.array([len(r) for r in routes], dtype=int)
+
+    # --- evaluation -----------------------------------------------------------------------------
+    def layout(self, order: np.ndarray, counts: np.ndarray) -> Layout:
+        order = np.atleast_2d(order)
+        counts = np.atleast_2d(counts)
+        P, n, m = order.shape[0], self.n, self.m
+        L = n + 2 * m
+        cum = np.cumsum(counts, axis=1)
+        excl = cum - counts
+        vs = np.arange(m)
+        start_slot = excl + 2 * vs
+        home_slot = cum + 2 * vs + 1
+        rows = np.arange(P)[:, None]
+        seq = np.empty((P, L), dtype=int)
+        route_start = np.empty((P, L), dtype=int)
+        if n:
+            pos = np.arange(n)
+            veh = (pos[None, :, None] >= cum[:, None, :]).sum(-1)  # (P, n)
+            tslot = pos[None, :] + 2 * veh + 1
+            seq[rows, tslot] = order
+            route_start[rows, tslot] = np.take_along_axis(start_slot, veh, axis=1)
+        seq[rows, start_slot] = n + vs
+        seq[rows, home_slot] = n + m + vs
+        route_start[rows, start_slot] = start_slot
+        route_start[rows, home_slot] = start_slot
+        is_target = seq < n
+        par_p, par_j = [], []
+        for parity in (1, 0):
+            mask = is_target & ((np.arange(L) % 2) == parity)[None, :]
+            p, j = np.nonzero(mask)
+            par_p.append(p)
+            par_j.append(j)
+        return Layout(seq, start_slot, home_slot, route_start, tuple(par_p), tuple(par_j))
+
+    def _centres(self, lay: Layout, Q: np.ndarray) -> np.ndarray:
+        C = self.node_xy[lay.seq]
+        if self.moving:
+            t = self._times_s(lay, Q)
+            C = C + self.node_vel[lay.seq] * t[..., None]
+        return C
+
+    def _times_s(self, lay: Layout, Q: np.ndarray) -> np.ndarray:
+        """Flight time [s] from the route start to each slot."""
+        seg = _norm(np.diff(Q, axis=1))
+        cum = np.concatenate([np.zeros((Q.shape[0], 1)), np.cumsum(seg, axis=1)], axis=1)
+        return (cum - np.take_along_axis(cum, lay.route_start, axis=1)) / self.speed
+
+    def access_points(self, lay: Layout, sweeps: int, newton: int, Q: np.ndarray | None = None,
+                      tol_m: float = 0.0) -> np.ndarray:
+        """Coordinate descent on the access points (P, L, 2); ``tol_m`` > 0 stops early."""
+        R = self.node_r[lay.seq]
+        if Q is None:
+            Q = self.node_xy[lay.seq].copy()
+        for _ in range(sweeps):
+            C = self._centres(lay, Q)
+            moved = 0.0
+            for p, j in zip(lay.par_p, lay.par_j):
+                if len(p) == 0:
+                    continue
+                a, b, old = Q[p, j - 1], Q[p, j + 1], Q[p, j]
+                c, r = C[p, j], R[p, j]
+                q, cost = best_point_between(a, b, c, r, q_init=old, newton_steps=newton)
+                old_cost = _norm(old - a) + _norm(b - old)
+                old_ok = _norm(old - c) <= r * (1 + 1e-12) + 1e-9
+                keep = old_ok & (old_cost <= cost)
+                new = np.where(keep[:, None], old, q)
+                if tol_m:
+                    moved = max(moved, float(np.max(_norm(new - old))))
+                Q[p, j] = new
+            if tol_m and moved < tol_m:
+                break
+        return Q
+
+    def evaluate(self, order: np.ndarray, counts: np.ndarray, sweeps: int = SEARCH_SWEEPS,
+                 newton: int = SEARCH_NEWTON) -> Evaluation:
+        order = np.atleast_2d(order)
+        counts = np.atleast_2d(counts)
+        lay = self.layout(order, counts)
+        Q = self.access_points(lay, sweeps, newton)
+        self.nfev += order.shape[0]
+        return self._score(lay, Q)
+
+    def _score(self, lay: Layout, Q: np.ndarray) -> Evaluation:
+        seg = _norm(np.diff(Q, axis=1))
+        cum = np.concatenate([np.zeros((Q.shape[0], 1)), np.cumsum(seg, axis=1)], axis=1)
+        lengths = np.take_along_axis(cum, lay.home_slot, 1) - np.take_along_axis(cum, lay.start_slot, 1)
+        makespan = lengths.max(axis=1) / self.speed
+        excess = np.maximum(lengths - self.max_len[None, :], 0.0).sum(axis=1) / self.speed
+        fitness = makespan + ENERGY_PENALTY * excess
+        return Evaluation(fitness, makespan, lengths, excess <= 1e-9, Q, lay)
+
+    def refine(self, order: np.ndarray, counts: np.ndarray, max_sweeps: int = 2000,
+               tol_m: float = 1e-7) -> Evaluation:
+        """Converged access points of one or more solutions (used for final plans)."""
+        order = np.atleast_2d(order)
+        counts = np.atleast_2d(counts)
+        lay = self.layout(order, counts)
+        Q = self.access_points(lay, max_sweeps, FINAL_NEWTON, tol_m=tol_m)
+        self.nfev += order.shape[0]
+        return self._score(lay, Q)
+
+    def plan(self, order: np.ndarray, counts: np.ndarray, lower_bound_s: float) -> Plan:
+        """The converged plan of one solution."""
+        ev = self.refine(order, counts)
+        pb = self.problem
+        Q = ev.points_xy_m[0]
+        lay = ev.layout
+        t = self._times_s(lay, Q[None])[0] + pb.t0_s
+        e_per_m = pb.energy_per_m_j
+        routes = []
+        for v, veh in enumerate(pb.vehicles):
+            s0, h0 = lay.start_slot[0, v], lay.home_slot[0, v]
+            idx = lay.seq[0, s0 + 1:h0]
+            length = float(ev.lengths_m[0, v])
+            routes.append(Route(
+                vehicle_id=veh.id,
+                target_ids=tuple(pb.targets[i].id for i in idx),
+                access_points_xy_m=Q[s0 + 1:h0].copy(),
+                access_times_s=t[s0 + 1:h0].copy(),
+                duration_s=length / self.speed,
+                energy_j=length * e_per_m,
+            ))
+        return Plan(tuple(routes), float(ev.makespan_s[0]), float(lower_bound_s))

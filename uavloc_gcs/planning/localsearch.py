@@ -1,0 +1,249 @@
+"""Local search on one solution (beyond the paper): 2-opt and or-opt inside routes, relocate and
+swap of single targets between the longest route and the others, and cheapest insertion (used for
+warm starts and the greedy seed).
+
+Move values are computed with the current access points held fixed, and with the best point on
+the moved target's disk between its new neighbours. For static disks that is an upper bound on
+the length after the access points are re-optimized (the old points stay feasible), so an
+improving move found here is a real improvement. After each round the access points are
+re-optimized by the shared evaluator and the round is kept only if the makespan went down.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from .access import _norm, best_point_between
+from .fitness import Evaluator
+
+_EPS = 1e-9
+
+
+def _dmat(x: np.ndarray) -> np.ndarray:
+    return np.sqrt(((x[:, None, :] - x[None, :, :]) ** 2).sum(-1))
+
+
+def two_opt(x: np.ndarray, route: list[int], max_rounds: int = 200) -> tuple[list[int], np.ndarray]:
+    """Improve ``route`` whose points (with start/home at both ends) are ``x`` ((k+2, 2))."""
+    k = len(route)
+    if k < 2:
+        return route, x
+    route = list(route)
+    x = x.copy()
+    for _ in range(max_rounds):
+        d = _dmat(x)
+        i, j = np.triu_indices(k, 1)
+        i = i + 1
+        j = j + 1
+        delta = d[i - 1, j] + d[i, j + 1] - d[i - 1, i] - d[j, j + 1]
+        b = int(np.argmin(delta))
+        if delta[b] >= -_EPS:
+            break
+        a, c = i[b], j[b]
+        x[a:c + 1] = x[a:c + 1][::-1]
+        route[a - 1:c] = route[a - 1:c][::-1]
+    return route, x
+
+
+def or_opt(x: np.ndarray, route: list[int], max_len: int = 3, max_rounds: int = 100):
+    """Move a segment of 1..3 targets (possibly reversed) elsewhere in the same route."""
+    route = list(route)
+    x = x.copy()
+    for _ in range(max_rounds):
+        k = len(route)
+        d = _dmat(x)
+        best = (-_EPS, None)
+        for seg in range(1, min(max_len, k - 1) + 1):
+            for i in range(1, k - seg + 2):
+                e = i + seg - 1  # last slot of the segment
+                gain = d[i - 1, i] + d[e, e + 1] - d[i - 1, e + 1]
+                # Insertion edges (u, u+1) of the remaining sequence, outside the segment.
+                u = np.array([p for p in range(0, k + 1) if p < i - 1 or p > e])
+                w = np.where(u == i - 1, e + 1, u + 1)
+                ok = (u != i - 1)
+                u, w = u[ok], w[ok]
+                if len(u) == 0:
+                    continue
+                fwd = d[u, i] + d[e, w] - d[u, w]
+                rev = d[u, e] + d[i, w] - d[u, w]
+                cost = np.minimum(fwd, rev) - gain
+                b = int(np.argmin(cost))
+                if cost[b] < best[0]:
+                    best = (cost[b], (i, e, int(u[b]), bool(rev[b] < fwd[b])))
+        if best[1] is None:
+            break
+        i, e, u, rev = best[1]
+        seg_r = route[i - 1:e]
+        seg_x = x[i:e + 1]
+        if rev:
+            seg_r, seg_x = seg_r[::-1], seg_x[::-1]
+        rest_r = route[:i - 1] + route[e:]
+        rest_x = np.concatenate([x[:i], x[e + 1:]])
+        pos = u if u < i else u - (e - i + 1)  # insertion after rest slot ``pos``
+        route = rest_r[:pos] + list(seg_r) + rest_r[pos:]
+        x = np.concatenate([rest_x[:pos + 1], seg_x, rest_x[pos + 1:]])
+    return route, x
+
+
+class LocalSearch:
+    """Local search bound to one evaluator (one problem)."""
+
+    def __init__(self, ev: Evaluator):
+        self.ev = ev
+        self.max_len = ev.max_len
+
+    def evaluate(self, routes: list[list[int]], points: np.ndarray | None = None):
+        """(fitness, per-target points (n,2), per-target centres (n,2), lengths (m,))."""
+        ev = self.ev
+        order, counts = ev.from_routes(routes)
+        lay = ev.layout(order, counts)
+        Q0 = ev.node_xy[lay.seq].copy()
+        sweeps = 12
+        if points is not None:
+            tmask = lay.seq[0] < ev.n
+            Q0[0, tmask] = points[lay.seq[0, tmask]]
+            sweeps = 4
+        Q = ev.access_points(lay, sweeps, 6, Q=Q0)
+        ev.nfev += 1
+        sc = ev._score(lay, Q)
+        C = ev._centres(lay, Q)[0]
+        pts = np.zeros((ev.n, 2))
+        cen = np.zeros((ev.n, 2))
+        tmask = lay.seq[0] < ev.n
+        pts[lay.seq[0, tmask]] = Q[0, tmask]
+        cen[lay.seq[0, tmask]] = C[tmask]
+        return float(sc.fitness[0]), pts, cen, sc.lengths_m[0]
+
+    def _route_x(self, v: int, route: list[int], pts: np.ndarray) -> np.ndarray:
+        ev = self.ev
+        return np.concatenate([ev.node_xy[ev.n + v][None], pts[route].reshape(-1, 2),
+                               ev.node_xy[ev.n + ev.m + v][None]])
+
+    def intra(self, routes, pts):
+        new = []
+        for v, r in enumerate(routes):
+            x = self._route_x(v, r, pts)
+            r2, x2 = two_opt(x, r)
+            r2, x2 = or_opt(x2, r2)
+            new.append(r2)
+        return new
+
+    def inter(self, routes, pts, cen, lengths) -> list[list[int]] | None:
+        """Best relocate or swap that lowers the longest route without making another as long."""
+        ev = self.ev
+        rad = ev.node_r
+        c = int(np.argmax(lengths))
+        Lc = lengths[c]
+        rc = routes[c]
+        if not rc:
+            return None
+        xc = self._route_x(c, rc, pts)
+        k = len(rc)
+        idx = np.arange(1, k + 1)
+        rem_gain = (_norm(xc[idx] - xc[idx - 1]) + _norm(xc[idx + 1] - xc[idx])
+                    - _norm(xc[idx + 1] - xc[idx - 1]))
+        # Edges of every other route: (u, w, route).
+        U, W, R, POS = [], [], [], []
+        for v, r in enumerate(routes):
+            if v == c:
+                continue
+            x = self._route_x(v, r, pts)
+            U.append(x[:-1]); W.append(x[1:]); R.append(np.full(len(r) + 1, v))
+            POS.append(np.arange(len(r) + 1))
+        if not U:
+            return None
+        U, W, R, POS = map(np.concatenate, (U, W, R, POS))
+        tgt = np.array(rc)
+        _, ins = best_point_between(U[None], W[None], cen[tgt][:, None], rad[tgt][:, None],
+                                    newton_steps=8)
+        ins = ins - _norm(W - U)[None]
+        new_v = lengths[R][None] + ins
+        new_c = (Lc - rem_gain)[:, None]
+        ok = new_v <= self.max_len[R][None] * (1 - 1e-12)
+        score = np.where(ok, np.maximum(new_v, new_c), np.inf)
+        b = np.unravel_index(int(np.argmin(score)), score.shape)
+        best_reloc = score[b]
+        # Swaps: target at position i of c with target j of route v.
+        others = [(v, p, t) for v, r in enumerate(routes) if v != c for p, t in enumerate(r)]
+        best_swap = np.inf
+        if others:
+            ov = np.array([o[0] for o in others])
+            op = np.array([o[1] for o in others])
+            ot = np.array([o[2] for o in others])
+            xs = [self._route_x(v, r, pts) for v, r in enumerate(routes)]
+            prev_o = np.array([xs[v][p] for v, p in zip(ov, op)])
+            next_o = np.array([xs[v][p + 2] for v, p in zip(ov, op)])
+            cur_o = pts[ot]
+            base_o = _norm(cur_o - prev_o) + _norm(next_o - cur_o)
+            # Put c's target i into the other slot, and the other target into c's slot i.
+            _, into_o = best_point_between(prev_o[None], next_o[None], cen[tgt][:, None],
+                                           rad[tgt][:, None], newton_steps=8)
+            _, into_c = best_point_between(xc[idx - 1][:, None], xc[idx + 1][:, None],
+                                           cen[ot][None], rad[ot][None], newton_steps=8)
+            base_c = (_norm(xc[idx] - xc[idx - 1]) + _norm(xc[idx + 1] - xc[idx]))[:, None]
+            new_c2 = Lc - base_c + into_c
+            new_o2 = lengths[ov][None] - base_o[None] + into_o
+            ok2 = new_o2 <= self.max_len[ov][None] * (1 - 1e-12)
+            sc2 = np.where(ok2, np.maximum(new_c2, new_o2), np.inf)
+            b2 = np.unravel_index(int(np.argmin(sc2)), sc2.shape)
+            best_swap = sc2[b2]
+        if min(best_reloc, best_swap) >= Lc - 1e-6:
+            return None
+        routes = [list(r) for r in routes]
+        if best_reloc <= best_swap:
+            i, e = b
+            t = routes[c].pop(i)
+            routes[R[e]].insert(POS[e], t)
+        else:
+            i, o = b2
+            v, p, t = ov[o], op[o], ot[o]
+            routes[c][i], routes[v][p] = t, routes[c][i]
+        return routes
+
+    def run(self, routes: list[list[int]], deadline: float, max_rounds: int = 200):
+        """Improve ``routes`` until no move helps or ``deadline`` (perf_counter) passes."""
+        f, pts, cen, lengths = self.evaluate(routes)
+        for _ in range(max_rounds):
+            if time.perf_counter() > deadline:
+                break
+            improved = False
+            cand = self.intra(routes, pts)
+            if cand != routes:
+                fc, pc, cc, lc = self.evaluate(cand, pts)
+                if fc < f - 1e-9:
+                    routes, f, pts, cen, lengths = cand, fc, pc, cc, lc
+                    improved = True
+            moved = self.inter(routes, pts, cen, lengths)
+            if moved is not None:
+                fm, pm, cm, lm = self.evaluate(moved, pts)
+                if fm < f - 1e-9:
+                    routes, f, pts, cen, lengths = moved, fm, pm, cm, lm
+                    improved = True
+            if not improved:
+                break
+        return routes, f
+
+    def insert(self, routes: list[list[int]], targets: list[int]) -> list[list[int]]:
+        """Cheapest min-max insertion of ``targets`` (in the given order) into ``routes``."""
+        ev = self.ev
+        routes = [list(r) for r in routes]
+        cen = ev.node_xy[:ev.n]
+        for t in targets:
+            U, W, R, POS, L = [], [], [], [], []
+            for v, r in enumerate(routes):
+                x = self._route_x(v, r, cen)
+                U.append(x[:-1]); W.append(x[1:]); R.append(np.full(len(r) + 1, v))
+                POS.append(np.arange(len(r) + 1))
+                L.append(_norm(np.diff(x, axis=0)).sum())
+            U, W, R, POS = map(np.concatenate, (U, W, R, POS))
+            L = np.array(L)
+            _, ins = best_point_between(U, W, cen[t], ev.node_r[t])
+            new = L[R] + ins - _norm(W - U)
+            over = np.maximum(new - self.max_len[R], 0.0)
+            others = np.array([np.max(np.delete(L, v)) if len(L) > 1 else 0.0 for v in R])
+            score = np.maximum(new, others) + 1e6 * over + 1e-6 * ins
+            e = int(np.argmin(score))
+            routes[R[e]].insert(POS[e], t)
+        return routes

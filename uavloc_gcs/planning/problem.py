@@ -1,0 +1,203 @@
+"""The routing problem of the accurate-localization stage, and the plan that answers it.
+
+Vehicles start where they are now (``start_xy_m``) at ``t0_s``, fly at ``speed_m_s``, pass within
+``radius_m`` of each assigned person's (moving) predicted centre, and end at ``home_xy_m``. The
+objective is the makespan: the largest route duration [s] from ``t0_s`` to the last vehicle home.
+Every route's propulsion energy (``power.leg_energy_j`` at ``speed_m_s``) must fit the vehicle's
+remaining ``energy_j``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Callable, Sequence
+
+import numpy as np
+
+from ..energy import ZENG_2019, RotorcraftPower
+from ..errors import ConfigError, InfeasibleError
+
+
+@dataclass(frozen=True)
+class VehicleState:
+    """A vehicle as the planner sees it: where it is, where it must end, energy left [J]."""
+
+    id: str
+    start_xy_m: tuple[float, float]
+    home_xy_m: tuple[float, float]
+    energy_j: float
+
+
+@dataclass(frozen=True)
+class Target:
+    """A person to look at: centre [m] at ``t0_s`` moving at ``velocity_m_s``; a pass within
+    ``radius_m`` of the centre at the time of the pass counts."""
+
+    id: str
+    xy_m: tuple[float, float]
+    velocity_m_s: tuple[float, float] = (0.0, 0.0)
+    radius_m: float = 0.0
+
+
+@dataclass(frozen=True)
+class RoutingProblem:
+    vehicles: tuple[VehicleState, ...]
+    targets: tuple[Target, ...]
+    speed_m_s: float
+    t0_s: float = 0.0
+    power: RotorcraftPower = ZENG_2019
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "vehicles", tuple(self.vehicles))
+        object.__setattr__(self, "targets", tuple(self.targets))
+
+    # Array views (cheap; recomputed on demand, the dataclass stays hashable-free and frozen).
+    @property
+    def starts_xy_m(self) -> np.ndarray:
+        return np.array([v.start_xy_m for v in self.vehicles], dtype=float).reshape(-1, 2)
+
+    @property
+    def homes_xy_m(self) -> np.ndarray:
+        return np.array([v.home_xy_m for v in self.vehicles], dtype=float).reshape(-1, 2)
+
+    @property
+    def energies_j(self) -> np.ndarray:
+        return np.array([v.energy_j for v in self.vehicles], dtype=float)
+
+    @property
+    def centres_xy_m(self) -> np.ndarray:
+        return np.array([t.xy_m for t in self.targets], dtype=float).reshape(-1, 2)
+
+    @property
+    def velocities_m_s(self) -> np.ndarray:
+        return np.array([t.velocity_m_s for t in self.targets], dtype=float).reshape(-1, 2)
+
+    @property
+    def radii_m(self) -> np.ndarray:
+        return np.array([t.radius_m for t in self.targets], dtype=float)
+
+    @property
+    def energy_per_m_j(self) -> float:
+        return float(self.power.energy_per_m_j(self.speed_m_s))
+
+    @property
+    def max_length_m(self) -> np.ndarray:
+        """Longest route [m] each vehicle's energy allows at ``speed_m_s``."""
+        return self.energies_j / self.energy_per_m_j
+
+
+@dataclass(frozen=True)
+class Route:
+    """One vehicle's answer: targets in visiting order, where and when each disk is reached."""
+
+    vehicle_id: str
+    target_ids: tuple[str, ...]
+    access_points_xy_m: np.ndarray  # (k, 2)
+    access_times_s: np.ndarray  # (k,), absolute (t0_s + flight time)
+    duration_s: float  # start -> accesses -> home
+    energy_j: float
+
+
+@dataclass(frozen=True)
+class Plan:
+    routes: tuple[Route, ...]
+    makespan_s: float
+    lower_bound_s: float
+
+    def assignment(self) -> dict[str, tuple[str, ...]]:
+        """vehicle id -> target ids in order."""
+        return {r.vehicle_id: r.target_ids for r in self.routes}
+
+
+@dataclass
+class PlanResult:
+    """scipy-style result. ``x`` is the best decision vector in the optimizer's own encoding
+    (random keys for EPSO/PSO, permutation + route sizes for GA); ``fun`` the makespan [s]
+    (penalized if ``success`` is False)."""
+
+    x: np.ndarray
+    fun: float
+    nit: int
+    nfev: int
+    success: bool
+    message: str
+    plan: Plan
+    runtime_s: float = 0.0
+    history: list[float] = field(default_factory=list)
+
+
+def _finite(values: Sequence[float]) -> bool:
+    return all(math.isfinite(float(v)) for v in values)
+
+
+def validate(problem: RoutingProblem) -> None:
+    """Raise ConfigError for malformed input, naming the vehicle/target and the numbers."""
+    if not problem.vehicles:
+        raise ConfigError("the routing problem has no vehicles")
+    if not (math.isfinite(problem.speed_m_s) and problem.speed_m_s > 0):
+        raise ConfigError(f"speed must be a positive finite number, got {problem.speed_m_s} m/s")
+    if not math.isfinite(problem.t0_s):
+        raise ConfigError(f"t0 must be finite, got {problem.t0_s} s")
+    seen: set[str] = set()
+    for v in problem.vehicles:
+        if v.id in seen:
+            raise ConfigError(f"vehicle id {v.id!r} appears twice")
+        seen.add(v.id)
+        if len(v.start_xy_m) != 2 or len(v.home_xy_m) != 2:
+            raise ConfigError(f"vehicle {v.id}: start and home must be [x, y] pairs")
+        if not _finite([*v.start_xy_m, *v.home_xy_m, v.energy_j]):
+            raise ConfigError(
+                f"vehicle {v.id}: non-finite number in start {v.start_xy_m}, home {v.home_xy_m} "
+                f"or energy {v.energy_j} J")
+        if v.energy_j < 0:
+            raise ConfigError(f"vehicle {v.id}: negative energy {v.energy_j} J")
+    seen = set()
+    for t in problem.targets:
+        if t.id in seen:
+            raise ConfigError(f"target id {t.id!r} appears twice")
+        seen.add(t.id)
+        if len(t.xy_m) != 2 or len(t.velocity_m_s) != 2:
+            raise ConfigError(f"target {t.id}: position and velocity must be [x, y] pairs")
+        if not _finite([*t.xy_m, *t.velocity_m_s, t.radius_m]):
+            raise ConfigError(
+                f"target {t.id}: non-finite number in position {t.xy_m}, velocity "
+                f"{t.velocity_m_s} or radius {t.radius_m}")
+        if t.radius_m < 0:
+            raise ConfigError(f"target {t.id}: negative radius {t.radius_m} m")
+        speed = math.hypot(*t.velocity_m_s)
+        if speed >= 0.5 * problem.speed_m_s:
+            raise ConfigError(
+                f"target {t.id}: speed {speed:.2f} m/s is not small against the vehicle speed "
+                f"{problem.speed_m_s} m/s (the moving-disk model needs it below half)")
+
+
+def check_reachable(problem: RoutingProblem) -> None:
+    """InfeasibleError if some vehicle cannot even get home, or a target no vehicle can reach
+    and return from within its energy (measured with the shortest start -> disk -> home detour)."""
+    from .access import single_visit_length_m  # local: access imports this module
+
+    e_per_m = problem.energy_per_m_j
+    max_len = problem.max_length_m
+    starts, homes = problem.starts_xy_m, problem.homes_xy_m
+    direct = np.linalg.norm(homes - starts, axis=1)
+    for v, d, cap in zip(problem.vehicles, direct, max_len):
+        if d > cap * (1 + 1e-9):
+            raise InfeasibleError(
+                f"vehicle {v.id} cannot reach home: {d:.1f} m need {d * e_per_m:.0f} J, "
+                f"it has {v.energy_j:.0f} J")
+    if not problem.targets:
+        return
+    need = single_visit_length_m(problem)  # (n, m)
+    for i, t in enumerate(problem.targets):
+        ok = need[i] <= max_len * (1 + 1e-9)
+        if not ok.any():
+            best = int(np.argmin(need[i] - max_len))
+            raise InfeasibleError(
+                f"target {t.id} at ({t.xy_m[0]:.1f}, {t.xy_m[1]:.1f}) m, radius {t.radius_m:.1f} m "
+                f"is out of reach: the best vehicle {problem.vehicles[best].id} needs "
+                f"{need[i, best]:.1f} m = {need[i, best] * e_per_m:.0f} J there and home, "
+                f"it has {problem.vehicles[best].energy_j:.0f} J")
+
+
+ProgressCallback = Callable[["PlanResult"], bool | None]

@@ -1,0 +1,156 @@
+"""``solve(problem, method=...)``: one entry point for EPSO, PSO, GA and the external anchors."""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass, fields
+from typing import Callable
+
+import numpy as np
+
+from ..errors import ConfigError
+from .bounds import lower_bound_s
+from .fitness import Evaluator
+from .ga import GAOptions, genetic
+from .localsearch import LocalSearch
+from .problem import Plan, PlanResult, RoutingProblem, check_reachable, validate
+from .swarm import SwarmOptions, particle_swarm
+
+log = logging.getLogger(__name__)
+
+METHODS = ("epso", "pso", "ga", "ortools", "pyvrp")
+
+
+@dataclass
+class Progress:
+    """What a callback sees after each iteration. Return True (or raise StopIteration) to stop."""
+
+    x: np.ndarray
+    fun: float
+    nit: int
+    nfev: int
+    elapsed_s: float
+
+
+def _rng(rng) -> np.random.Generator:
+    if isinstance(rng, np.random.Generator):
+        return rng
+    return np.random.default_rng(rng)
+
+
+def _split_options(cls, options: dict) -> object:
+    names = {f.name for f in fields(cls)}
+    bad = set(options) - names
+    if bad:
+        raise ConfigError(f"unknown planner option(s) {sorted(bad)}; known: {sorted(names)}")
+    return cls(**options)
+
+
+def warm_routes(problem: RoutingProblem, ev: Evaluator, plan: Plan) -> list[list[int]]:
+    """Routes of ``plan`` mapped onto ``problem``: vanished targets dropped, new ones inserted
+    at their cheapest min-max position, vehicles no longer present dropped."""
+    tindex = {t.id: i for i, t in enumerate(problem.targets)}
+    by_vehicle = {r.vehicle_id: r.target_ids for r in plan.routes}
+    routes, seen = [], set()
+    for v in problem.vehicles:
+        r = [tindex[t] for t in by_vehicle.get(v.id, ()) if t in tindex and t not in seen]
+        seen.update(problem.targets[i].id for i in r)
+        routes.append(r)
+    new = [i for i, t in enumerate(problem.targets) if t.id not in seen]
+    return LocalSearch(ev).insert(routes, new)
+
+
+def greedy_routes(problem: RoutingProblem, ev: Evaluator) -> list[list[int]]:
+    """Cheapest min-max insertion, farthest targets first (a seed for the search)."""
+    c = problem.centres_xy_m
+    depots = np.concatenate([problem.starts_xy_m, problem.homes_xy_m])
+    far = np.min(np.linalg.norm(c[:, None] - depots[None], axis=2), axis=1)
+    return LocalSearch(ev).insert([[] for _ in problem.vehicles], list(np.argsort(-far)))
+
+
+def solve(problem: RoutingProblem, *, method: str = "epso", rng=None, time_limit_s: float = 1.0,
+          max_iter: int | None = None, local_search: bool = True, warm_start: Plan | None = None,
+          callback: Callable[[Progress], bool | None] | None = None, **options) -> PlanResult:
+    """Plan routes minimizing the makespan [s] under the vehicles' energy budgets.
+
+    ``method``: "epso" (paper, adaptive inertia), "pso" (fixed inertia), "ga" (two-part
+    chromosome), or the anchors "ortools" / "pyvrp" (optional extra). ``local_search`` and
+    ``warm_start`` go beyond the paper; with ``local_search=False`` and no warm start EPSO/PSO/GA
+    are the paper's plain optimizers. ``time_limit_s`` bounds the search (the final access-point
+    refinement comes on top, a few milliseconds). ``options`` go to SwarmOptions / GAOptions.
+    Raises ConfigError on malformed input and InfeasibleError when some target cannot be served.
+    """
+    t_start = time.perf_counter()
+    if method not in METHODS:
+        raise ConfigError(f"unknown planner method {method!r}; choose one of {', '.join(METHODS)}")
+    if not (time_limit_s > 0):
+        raise ConfigError(f"time limit must be positive, got {time_limit_s} s")
+    validate(problem)
+    check_reachable(problem)
+    gen = _rng(rng)
+    ev = Evaluator(problem)
+    lb = lower_bound_s(problem)
+    # Leave ~10 % of the budget for the final polish and refinement.
+    deadline = t_start + 0.9 * time_limit_s
+
+    if method in ("ortools", "pyvrp"):
+        from . import anchors  # optional extra, imported lazily
+
+        routes, message = anchors.solve_anchor(problem, ev, method, time_limit_s, gen, **options)
+        order, counts = ev.from_routes(routes)
+        plan = ev.plan(order, counts, lb)
+        return _result(ev, order, counts, plan, 1, message, t_start, np.concatenate([order, counts]))
+
+    if ev.n == 0:
+        order, counts = np.zeros(0, dtype=int), np.zeros(ev.m, dtype=int)
+        plan = ev.plan(order, counts, lb)
+        return _result(ev, order, counts, plan, 0, "no targets", t_start, np.zeros(0))
+
+    seeds: list[list[list[int]]] = []
+    if warm_start is not None:
+        seeds.append(warm_routes(problem, ev, warm_start))
+    if local_search:
+        seeds.append(greedy_routes(problem, ev))
+
+    def cb(x, fun, nit):
+        if callback is None:
+            return False
+        try:
+            return bool(callback(Progress(x, fun, nit, ev.nfev, time.perf_counter() - t_start)))
+        except StopIteration:
+            return True
+
+    if method in ("epso", "pso"):
+        opts = _split_options(SwarmOptions, options)
+        x, fun, nit, message = particle_swarm(
+            ev, adaptive=(method == "epso"), rng=gen, deadline=deadline, max_iter=max_iter,
+            local_search=local_search, seeds=seeds, callback=cb, opts=opts)
+        order, counts = (a[0] for a in ev.decode_keys(x))
+    else:
+        opts = _split_options(GAOptions, options)
+        x, fun, nit, message = genetic(
+            ev, rng=gen, deadline=deadline, max_iter=max_iter, local_search=local_search,
+            seeds=seeds, callback=cb, opts=opts)
+        order, counts = x[:ev.n].astype(int), x[ev.n:].astype(int)
+    if local_search:
+        # Polish the final answer once more (cheap, and keeps the result locally optimal).
+        routes, _ = LocalSearch(ev).run(ev.to_routes(order, counts), t_start + 0.97 * time_limit_s)
+        o2, c2 = ev.from_routes(routes)
+        if ev.refine(o2, c2).fitness[0] <= ev.refine(order, counts).fitness[0]:
+            order, counts = o2, c2
+    plan = ev.plan(order, counts, lb)
+    return _result(ev, order, counts, plan, nit, message, t_start, np.asarray(x))
+
+
+def _result(ev: Evaluator, order, counts, plan: Plan, nit: int, message: str, t_start: float,
+            x: np.ndarray) -> PlanResult:
+    lengths = np.array([r.duration_s for r in plan.routes]) * ev.speed
+    feasible = bool(np.all(lengths <= ev.max_len * (1 + 1e-9) + 1e-6))
+    if not feasible:
+        over = [(r.vehicle_id, r.energy_j, v.energy_j) for r, v in zip(plan.routes, ev.problem.vehicles)
+                if r.energy_j > v.energy_j * (1 + 1e-9)]
+        message = "no energy-feasible plan found: " + "; ".join(
+            f"vehicle {vid} needs {need:.0f} J, has {have:.0f} J" for vid, need, have in over)
+    return PlanResult(x=x, fun=plan.makespan_s, nit=nit, nfev=ev.nfev, success=feasible,
+                      message=message, plan=plan, runtime_s=time.perf_counter() - t_start)
