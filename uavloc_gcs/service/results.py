@@ -32,7 +32,8 @@ class PersonResult:
     """One person's final estimate. Positions in WGS84 and in the local frame (east/north m).
 
     ``located`` means the calibrated 95 % radius is within the required accuracy;
-    ``reason`` says why not otherwise (one phrase). ``fix_time_s`` is mission seconds since start.
+    ``reason`` says why not otherwise (one phrase). ``fix_time_s`` and ``t_ref_s`` are mission
+    seconds (the daemon's clock).
     """
 
     emitter_id: int
@@ -48,6 +49,7 @@ class PersonResult:
     located: bool
     ambiguity_resolved: bool
     reason: str = ""
+    t_ref_s: float = math.nan  # mission time [s] the position refers to (people move)
 
 
 def _num(x: float, nd: int) -> str:

@@ -1,0 +1,104 @@
+"""From the search policy's beliefs to what the operator gets: person results and one statement."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+
+from ..geo import LocalFrame
+from .results import PersonResult
+from .store import EstimateRow
+
+
+def _f(value, default: float = math.nan) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        return default
+    return v if math.isfinite(v) else default
+
+
+def _vec(value) -> tuple[float, float]:
+    if value is None:
+        return math.nan, math.nan
+    arr = np.asarray(value, dtype=float).reshape(-1)
+    return (float(arr[0]), float(arr[1])) if arr.size >= 2 else (math.nan, math.nan)
+
+
+def person_result(status, frame: LocalFrame, *, epoch_t_s: float = 0.0) -> PersonResult:
+    """A :class:`PersonResult` from a ``search.policy.PersonStatus`` (estimate duck-typed).
+
+    ``epoch_t_s`` is subtracted from the fix time so it reads as seconds since the search began.
+    """
+    est = status.estimate
+    if status.xy_m is not None:
+        e, n = status.xy_m
+    else:
+        e, n = _vec(getattr(est, "position_xy_m", None))
+    ve, vn = _vec(getattr(est, "velocity_m_s", None))
+    r95 = _f(getattr(est, "radius95_m", None))
+    bound = _f(getattr(est, "annulus_bound_m", getattr(est, "bound_m", None)))
+    if math.isfinite(e) and math.isfinite(n):
+        lat, lon = frame.to_wgs84(e, n)
+        lat, lon = float(lat), float(lon)
+    else:
+        lat = lon = math.nan
+    fix = _f(status.fix_t_s) - epoch_t_s if status.fix_t_s is not None else math.nan
+    ambiguous = bool(getattr(est, "ambiguous", False))
+    reason = "" if status.located else status.reason
+    t_ref = _f(status.t_ref_s) - epoch_t_s if status.t_ref_s is not None else math.nan
+    return PersonResult(int(status.emitter_id), lat, lon, float(e), float(n), ve, vn, r95, bound, fix,
+                        bool(status.located), not ambiguous, reason, t_ref)
+
+
+def estimate_row(status, t_s: float) -> EstimateRow:
+    r = person_result(status, _NO_FRAME)
+    return EstimateRow(t_s, r.emitter_id, r.east_m, r.north_m, r.vel_east_m_s, r.vel_north_m_s,
+                       r.radius95_m, r.annulus_bound_m, r.located, not r.ambiguity_resolved,
+                       "" if r.located else status.reason)
+
+
+class _NoFrame:
+    """Stands in for a frame when only local coordinates are needed (no lat/lon conversion)."""
+
+    def to_wgs84(self, e, n):
+        return math.nan, math.nan
+
+
+_NO_FRAME = _NoFrame()
+
+
+@dataclass(frozen=True)
+class SearchOutcome:
+    """How a search ended. ``statement`` is one or two sentences for the operator."""
+
+    people: tuple[PersonResult, ...]
+    all_located: bool
+    statement: str
+    elapsed_s: float
+    replans: int
+    vehicles_home: tuple[int, ...]
+    vehicles_lost: tuple[int, ...]
+
+
+def statement_for(people: Sequence[PersonResult], required_m: float, lost: Sequence[int],
+                  not_home: Sequence[int]) -> str:
+    """One clear statement: everyone located, or who is not and why; and where the fleet is."""
+    missing = [p for p in sorted(people, key=lambda p: p.emitter_id) if not p.located]
+    if not people:
+        text = "No phone was heard anywhere in the search area."
+    elif not missing:
+        text = f"All {len(people)} people heard were located within {required_m:g} m (95 %)."
+    else:
+        why = "; ".join(f"person {p.emitter_id}: {p.reason or 'not located'}" for p in missing)
+        text = f"{len(people) - len(missing)} of {len(people)} people located within {required_m:g} m; not located: {why}."
+    if lost:
+        text += f" Lost contact with vehicle(s) {', '.join(map(str, lost))}."
+    if not_home:
+        text += f" Vehicle(s) {', '.join(map(str, not_home))} not confirmed landed."
+    else:
+        text += " All vehicles are home."
+    return text

@@ -1,0 +1,69 @@
+"""Run one search end to end and write what the operator gets (shared by ``uavloc daemon`` and
+``uavloc demo``): the daemon, then the results table, people.csv/geojson/kml and result.png."""
+
+from __future__ import annotations
+
+import asyncio
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable, Mapping, Sequence
+
+import numpy as np
+
+from ..scenario import Scenario
+from .daemon import Daemon, DaemonOptions
+from .liveview import LiveView
+from .outcome import SearchOutcome
+from .results import PersonResult, results_table, write_results
+from .store import StoreReader
+
+
+@dataclass(frozen=True)
+class RunResult:
+    outcome: SearchOutcome
+    people: tuple[PersonResult, ...]  # the outcome's, plus simulated people never heard
+    table: str
+    files: tuple[Path, ...]
+
+
+def connections_for(scenario: Scenario) -> list[tuple[int, str]]:
+    """[(system id, connection)] from the config's [link] section (vehicle i+1 = entry i)."""
+    from ..errors import ConfigError  # noqa: PLC0415
+
+    conns = scenario.link.connections
+    if not conns:
+        raise ConfigError("no vehicle connections: add [link] connections = [\"udpout:HOST:PORT\", ...] "
+                          "with one entry per vehicle", source=scenario.source, key="link.connections")
+    return [(i + 1, c) for i, c in enumerate(conns)]
+
+
+def run_search(scenario: Scenario, connections: Sequence[tuple[int, str]], options: DaemonOptions,
+               out_dir: Path, *, view: LiveView | None = None,
+               truth: Callable[[Sequence[PersonResult], float], Mapping[int, tuple]] | None = None,
+               on_daemon: Callable[[Daemon], None] | None = None) -> RunResult:
+    """Run the search to its end, then write the result files into ``out_dir``.
+
+    ``truth(people, epoch_unix_s)`` (simulations only) returns {emitter id: (east, north)} true
+    positions at each estimate's reference time, including people that were never heard.
+    """
+    daemon = Daemon(scenario, connections, options, view=view)
+    if on_daemon is not None:
+        on_daemon(daemon)
+    outcome = asyncio.run(daemon.run())
+    people = list(outcome.people)
+    truth_xy = None
+    if truth is not None:
+        truth_xy = dict(truth(people, daemon.epoch_unix_s or 0.0))
+        heard = {p.emitter_id for p in people}
+        for eid in sorted(set(truth_xy) - heard):
+            people.append(PersonResult(eid, math.nan, math.nan, math.nan, math.nan, math.nan, math.nan, math.nan,
+                                       math.nan, math.nan, False, False, "never heard"))
+    with StoreReader(options.store_path) as rd:
+        tracks = rd.tracks()
+    frame = scenario.frame
+    files = write_results(out_dir, people, frame=frame, area_latlon_deg=np.array(scenario.polygon_latlon_deg),
+                          tracks_latlon_deg=tracks, required_accuracy_m=scenario.people.required_accuracy_m,
+                          truth_xy_m=truth_xy, name=scenario.name)
+    table = results_table(people, scenario.people.required_accuracy_m, truth_xy)
+    return RunResult(outcome, tuple(people), table, tuple(files))

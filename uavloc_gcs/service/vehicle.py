@@ -1,0 +1,173 @@
+"""One vehicle as the daemon sees it: its link, its telemetry, its RSSI, and the few actions
+the search needs (upload, download, start, switch mission, return home).
+
+Telemetry is kept from the raw messages (HEARTBEAT, GLOBAL_POSITION_INT, SYS_STATUS,
+MISSION_CURRENT, SYSTEM_TIME) in the link's receive path; RSSI batches are decoded into
+:class:`SlotBatch` on the mission clock and handed to ``on_slots``. The protocol exchanges
+themselves (mission transfer, commands with COMMAND_ACK) are the link layer's.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from dataclasses import dataclass
+from typing import Callable, Sequence
+
+from ..dialect.rssi import decode_rssi_batch
+from ..link import (arm, download_mission, flavour_named, return_to_launch, set_current_item, start_mission,
+                    upload_mission)
+from ..geo import LocalFrame
+from ..mission import WireItem
+from ..observations import SlotBatch
+
+log = logging.getLogger(__name__)
+
+MAV_MODE_FLAG_SAFETY_ARMED = 128
+LANDED_ALT_M = 1.5  # below this relative altitude (and disarmed or not moving) a vehicle is on the ground
+MISSION_MODES = ("AUTO", "AUTO.MISSION")  # ArduPilot, PX4
+
+
+@dataclass
+class Telemetry:
+    """The latest telemetry of one vehicle. ``wall_s`` is the daemon's clock at the last message."""
+
+    lat_deg: float = math.nan
+    lon_deg: float = math.nan
+    rel_alt_m: float = math.nan
+    ground_speed_m_s: float = math.nan
+    battery_pct: float | None = None
+    autopilot: int = 0
+    mode: str = "?"
+    armed: bool = False
+    mission_seq: int | None = None
+    mission_total: int | None = None
+    mission_state: int | None = None
+    unix_s: float | None = None  # the vehicle's clock (SYSTEM_TIME), simulated time under speed-up
+    unix_wall_s: float | None = None  # daemon wall clock when unix_s arrived
+    wall_s: float = -math.inf
+    messages: int = 0
+
+
+class VehicleAgent:
+    """Telemetry and RSSI of one MAVLink system on one link, with the search's actions."""
+
+    def __init__(self, vehicle: int, link, frame: LocalFrame, *, autopilot: str,
+                 epoch_unix_s: Callable[[], float | None],
+                 on_slots: Callable[[SlotBatch], None] | None = None,
+                 on_position: Callable[[int, Telemetry], None] | None = None,
+                 on_status_text: Callable[[int, str], None] | None = None,
+                 wall: Callable[[], float] = time.monotonic):
+        self.vehicle = vehicle
+        self.link = link
+        self.frame = frame
+        self.autopilot = autopilot
+        self.flavour = flavour_named(autopilot)
+        self.tel = Telemetry()
+        self._epoch = epoch_unix_s
+        self._on_slots = on_slots
+        self._on_position = on_position
+        self._on_status_text = on_status_text
+        self._wall = wall
+        self._pending_rssi: list = []  # raw messages that arrived before the epoch was known
+        self.rssi_messages = 0
+        self._sub = link.subscribe(None, source_system=vehicle, callback=self._on_message)
+
+    def close(self) -> None:
+        self._sub.close()
+
+    # -- receive path ---------------------------------------------------------------------------
+    def _on_message(self, msg) -> None:
+        t = self.tel
+        t.wall_s = self._wall()
+        t.messages += 1
+        kind = msg.get_type()
+        if kind == "UAVLOC_RSSI_BATCH":
+            self.rssi_messages += 1
+            self._rssi(msg)
+        elif kind == "GLOBAL_POSITION_INT":
+            t.lat_deg, t.lon_deg = msg.lat / 1e7, msg.lon / 1e7
+            t.rel_alt_m = msg.relative_alt / 1000.0
+            t.ground_speed_m_s = math.hypot(msg.vx, msg.vy) / 100.0
+            if self._on_position is not None:
+                self._on_position(self.vehicle, t)
+        elif kind == "HEARTBEAT":
+            if msg.autopilot == 8:  # MAV_AUTOPILOT_INVALID: a GCS or companion, not the autopilot
+                return
+            t.autopilot = msg.autopilot
+            t.armed = bool(msg.base_mode & MAV_MODE_FLAG_SAFETY_ARMED)
+            t.mode = self.flavour.mode_name(msg.custom_mode, msg.type)
+        elif kind == "SYS_STATUS":
+            if msg.battery_remaining >= 0:
+                t.battery_pct = float(msg.battery_remaining)
+        elif kind == "MISSION_CURRENT":
+            t.mission_seq = int(msg.seq)
+            total = getattr(msg, "total", 0)
+            t.mission_total = int(total) if total not in (0, 65535) else None
+            t.mission_state = getattr(msg, "mission_state", None)
+        elif kind == "SYSTEM_TIME":
+            if msg.time_unix_usec > 0:
+                t.unix_s = msg.time_unix_usec / 1e6
+                t.unix_wall_s = t.wall_s
+        elif kind == "STATUSTEXT" and self._on_status_text is not None:
+            self._on_status_text(self.vehicle, str(msg.text).rstrip("\x00"))
+
+    def _rssi(self, msg) -> None:
+        epoch = self._epoch()
+        if epoch is None:
+            self._pending_rssi.append(msg)
+            return
+        if self._pending_rssi:
+            pending, self._pending_rssi = self._pending_rssi, []
+            for m in pending:
+                self._deliver(m, epoch)
+        self._deliver(msg, epoch)
+
+    def _deliver(self, msg, epoch: float) -> None:
+        batch = decode_rssi_batch(msg, self.frame, vehicle=self.vehicle, epoch_unix_s=epoch)
+        if len(batch) and self._on_slots is not None:
+            self._on_slots(batch)
+
+    # -- state ------------------------------------------------------------------------------------
+    def silent_for_s(self) -> float:
+        return self._wall() - self.tel.wall_s
+
+    def position_xy_m(self) -> tuple[float, float] | None:
+        if not math.isfinite(self.tel.lat_deg):
+            return None
+        e, n = self.frame.to_local(self.tel.lat_deg, self.tel.lon_deg)
+        return float(e), float(n)
+
+    def on_ground(self) -> bool:
+        alt = self.tel.rel_alt_m
+        return math.isfinite(alt) and alt < LANDED_ALT_M and (not self.tel.armed or self.tel.ground_speed_m_s < 0.5)
+
+    # -- actions (the link layer's exchanges) -------------------------------------------------------
+    @property
+    def in_mission_mode(self) -> bool:
+        return self.tel.mode in MISSION_MODES
+
+    async def upload(self, items: Sequence[WireItem]) -> None:
+        """Upload and verify by reading back (MissionTransferError names vehicle, item, result)."""
+        await upload_mission(self.link, self.vehicle, 1, list(items), verify=True, autopilot=self.autopilot)
+
+    async def download(self) -> list[WireItem]:
+        return list(await download_mission(self.link, self.vehicle, 1))
+
+    async def start(self) -> None:
+        """Arm and start the uploaded mission from the ground (takeoff is its first item)."""
+        if not self.tel.armed:
+            await arm(self.link, self.vehicle, 1)
+        await start_mission(self.link, self.vehicle, 1)
+
+    async def switch_to(self, first_seq: int) -> None:
+        """Fly the just-uploaded mission from item ``first_seq`` (vehicle airborne or not)."""
+        await set_current_item(self.link, self.vehicle, 1, first_seq)
+        if not self.in_mission_mode:
+            if not self.tel.armed:
+                await arm(self.link, self.vehicle, 1)
+            await start_mission(self.link, self.vehicle, 1, first_seq)
+
+    async def return_home(self) -> None:
+        await return_to_launch(self.link, self.vehicle, 1)
