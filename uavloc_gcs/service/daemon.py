@@ -212,7 +212,7 @@ class Daemon:
                 if not isinstance(r, Exception):
                     raise r
             names = ", ".join(f"{v.id} ({v.connection})" for v, _ in bad)
-            first = bad[0][1]
+            first = next((r for _, r in bad if not isinstance(r, LinkError)), bad[0][1])
             if all(isinstance(r, LinkError) for _, r in bad):
                 raise LinkError(f"no heartbeat within {self.opt.connect_timeout_s:g} s from vehicle(s) {names}; "
                                 "check that they are powered and the connection strings in [link] are right",

@@ -35,6 +35,14 @@ def connections_for(scenario: Scenario) -> list[tuple[int, str]]:
     if not conns:
         raise ConfigError("no vehicle connections: add [link] connections = [\"udpout:HOST:PORT\", ...] "
                           "with one entry per vehicle", source=scenario.source, key="link.connections")
+    from ..link import parse_connection  # noqa: PLC0415
+
+    for i, c in enumerate(conns):
+        try:
+            parse_connection(c)
+        except ConfigError as exc:
+            raise ConfigError(f"entry {i} ({c!r}) for vehicle {i + 1}: {exc}", source=scenario.source,
+                              key="link.connections") from None
     return [(i + 1, c) for i, c in enumerate(conns)]
 
 
