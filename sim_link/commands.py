@@ -1,0 +1,110 @@
+"""COMMAND_LONG / COMMAND_INT / SET_MODE handling of a fake vehicle, each answered by COMMAND_ACK.
+
+Supported: COMPONENT_ARM_DISARM (400; param2 21196 forces), NAV_TAKEOFF (22; ArduPilot: GUIDED
+mode, param7 metres above home; PX4: param7 AMSL, NaN = MIS_TAKEOFF_ALT, switches to Takeoff),
+DO_SET_MODE (176) and SET_MODE, MISSION_START (300), NAV_RETURN_TO_LAUNCH (20), NAV_LAND (21),
+DO_SET_MISSION_CURRENT (224; param1 -1 = keep, FAILED if out of range), DO_CHANGE_SPEED (178),
+SET_MESSAGE_INTERVAL (511), REQUEST_MESSAGE (512), REQUEST_AUTOPILOT_CAPABILITIES (520),
+GET_HOME_POSITION (410), PREFLIGHT_REBOOT_SHUTDOWN (246, param1 = 1). Anything else: UNSUPPORTED.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+from uavloc_gcs.dialect import mavlink as mav
+
+from .mission_server import Peer, Reply
+
+if TYPE_CHECKING:  # pragma: no cover
+    from .vehicle import FakeVehicle
+
+ACCEPTED, DENIED, UNSUPPORTED, FAILED = (
+    mav.MAV_RESULT_ACCEPTED, mav.MAV_RESULT_DENIED, mav.MAV_RESULT_UNSUPPORTED, mav.MAV_RESULT_FAILED)
+FORCE_MAGIC = 21196
+
+
+def _ack(peer: Peer, command: int, result: int) -> Reply:
+    return Reply(mav.MAVLink_command_ack_message(command, result, 0, 0, peer.sysid, peer.compid), peer)
+
+
+def handle_command(v: "FakeVehicle", msg, peer: Peer) -> list[Reply]:
+    cmd = int(msg.command)
+    p = [msg.param1, msg.param2, msg.param3, msg.param4]
+    if msg.get_type() == "COMMAND_INT":
+        p += [msg.x, msg.y, msg.z]
+    else:
+        p += [msg.param5, msg.param6, msg.param7]
+    extra: list[Reply] = []
+    result = _dispatch(v, cmd, p, extra)
+    out = [_ack(peer, cmd, result)] + extra
+    if cmd == mav.MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN and result == ACCEPTED and v.on_reboot_request:
+        v.on_reboot_request()
+    return out
+
+
+def handle_set_mode(v: "FakeVehicle", msg, peer: Peer) -> list[Reply]:
+    mode = v.flavour.mode_from_custom(int(msg.custom_mode)) if msg.base_mode & 1 else None
+    ok = mode is not None and v.set_mode(mode)
+    return [_ack(peer, mav.MAVLINK_MSG_ID_SET_MODE, ACCEPTED if ok else FAILED)]
+
+
+def _dispatch(v: "FakeVehicle", cmd: int, p: list, extra: list) -> int:
+    px4 = v.flavour.name == "px4"
+    if cmd == mav.MAV_CMD_COMPONENT_ARM_DISARM:
+        force = int(round(p[1])) == FORCE_MAGIC
+        ok = v.arm(force) if p[0] >= 0.5 else v.disarm(force)
+        return ACCEPTED if ok else FAILED
+    if cmd == mav.MAV_CMD_NAV_TAKEOFF:
+        if not v.armed:
+            return DENIED
+        if px4:
+            alt = v.flavour.takeoff_alt_default_m if math.isnan(p[6]) else p[6] - v.cfg.home_alt_amsl_m
+            if not v.landed or not v.takeoff(alt):
+                return FAILED
+            v.mode = "TAKEOFF"
+            return ACCEPTED
+        if v.mode != "GUIDED":
+            return FAILED
+        return ACCEPTED if v.takeoff(p[6]) else FAILED
+    if cmd == mav.MAV_CMD_DO_SET_MODE:
+        if not int(p[0]) & mav.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED:
+            return UNSUPPORTED
+        mode = v.flavour.mode_from_custom(int(p[1]), int(p[2]) if px4 else None)
+        if mode is None:
+            return FAILED
+        return ACCEPTED if v.set_mode(mode) else FAILED
+    if cmd == mav.MAV_CMD_MISSION_START:
+        first = int(p[0])
+        if first > 0 and not v.set_current(first):
+            return FAILED
+        return ACCEPTED if v.set_mode("AUTO") else FAILED
+    if cmd == mav.MAV_CMD_NAV_RETURN_TO_LAUNCH:
+        return ACCEPTED if v.set_mode("RTL") else FAILED
+    if cmd == mav.MAV_CMD_NAV_LAND:
+        return ACCEPTED if v.set_mode("LAND") else FAILED
+    if cmd == mav.MAV_CMD_DO_SET_MISSION_CURRENT:
+        if not v.set_current(int(p[0]), reset=p[1] >= 0.5):
+            return FAILED
+        extra.append(v.mission_current_reply())
+        return ACCEPTED
+    if cmd == mav.MAV_CMD_DO_CHANGE_SPEED:
+        if p[1] > 0:
+            v.speed_m_s = float(p[1])
+        return ACCEPTED
+    if cmd == mav.MAV_CMD_SET_MESSAGE_INTERVAL:
+        v.set_interval(int(p[0]), float(p[1]))
+        return ACCEPTED
+    if cmd in (mav.MAV_CMD_REQUEST_MESSAGE, mav.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES,
+               mav.MAV_CMD_GET_HOME_POSITION):
+        msg_id = {mav.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES: mav.MAVLINK_MSG_ID_AUTOPILOT_VERSION,
+                  mav.MAV_CMD_GET_HOME_POSITION: mav.MAVLINK_MSG_ID_HOME_POSITION}.get(cmd, int(p[0]))
+        replies = v.message_replies(msg_id)
+        if not replies:
+            return UNSUPPORTED
+        extra.extend(Reply(r.msg, None, r.component) for r in replies)
+        return ACCEPTED
+    if cmd == mav.MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN:
+        return ACCEPTED if int(p[0]) == 1 and not v.armed else (DENIED if v.armed else UNSUPPORTED)
+    return UNSUPPORTED

@@ -1,0 +1,98 @@
+"""What makes a fake vehicle ArduPilot-like or PX4-like, in one table.
+
+Values follow the autopilots' sources as summarised in ``reference/mavlink.md`` (§1.5 timeouts,
+§1.8 sequence errors, §1.10 item 0, §1.11 validation) and the flight-mode encodings each autopilot
+puts in HEARTBEAT.custom_mode.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+from uavloc_gcs.dialect import mavlink as mav
+
+# Our own vehicle modes; each flavour maps them to HEARTBEAT custom_mode values.
+Mode = Literal["STABILIZE", "GUIDED", "AUTO", "RTL", "LAND", "LOITER", "TAKEOFF"]
+
+# ArduCopter custom modes (ArduCopter/mode.h).
+AP_COPTER_MODES: dict[str, int] = {
+    "STABILIZE": 0, "AUTO": 3, "GUIDED": 4, "LOITER": 5, "RTL": 6, "LAND": 9, "BRAKE": 17,
+}
+
+# PX4 custom_mode = main_mode << 16 | sub_mode << 24 (px4_custom_mode.h).
+PX4_MAIN_AUTO, PX4_MAIN_POSCTL, PX4_MAIN_MANUAL = 4, 3, 1
+PX4_SUB = {"READY": 1, "TAKEOFF": 2, "LOITER": 3, "MISSION": 4, "RTL": 5, "LAND": 6}
+
+
+def px4_custom_mode(main: int, sub: int = 0) -> int:
+    return (main << 16) | (sub << 24)
+
+
+PX4_MODES: dict[str, int] = {
+    "STABILIZE": px4_custom_mode(PX4_MAIN_MANUAL),
+    "GUIDED": px4_custom_mode(PX4_MAIN_AUTO, PX4_SUB["LOITER"]),  # PX4 "Hold"
+    "LOITER": px4_custom_mode(PX4_MAIN_AUTO, PX4_SUB["LOITER"]),
+    "AUTO": px4_custom_mode(PX4_MAIN_AUTO, PX4_SUB["MISSION"]),
+    "RTL": px4_custom_mode(PX4_MAIN_AUTO, PX4_SUB["RTL"]),
+    "LAND": px4_custom_mode(PX4_MAIN_AUTO, PX4_SUB["LAND"]),
+    "TAKEOFF": px4_custom_mode(PX4_MAIN_AUTO, PX4_SUB["TAKEOFF"]),
+}
+
+
+@dataclass(frozen=True)
+class Flavour:
+    """Autopilot-specific behaviour of a fake vehicle."""
+
+    name: Literal["ardupilot", "px4"]
+    mav_autopilot: int
+    home_is_item0: bool  # ArduPilot: mission seq 0 is home, execution starts at 1
+    request_int: bool  # PX4 requests items with MISSION_REQUEST_INT, ArduPilot with MISSION_REQUEST
+    nack_out_of_sequence: bool  # ArduPilot answers MAV_MISSION_INVALID_SEQUENCE and keeps going
+    atomic_upload: bool  # PX4 swaps in the new plan at the end; ArduPilot writes in place
+    item_retry_s: float  # vehicle re-sends the pending item request after this (wall seconds)
+    upload_timeout_s: float  # gives up an upload after this long without an item (wall seconds)
+    max_items: int
+    keep_mission_on_reboot: bool
+    modes: dict
+    takeoff_alt_default_m: float  # PX4 MIS_TAKEOFF_ALT; ArduPilot needs the altitude given
+
+    def custom_mode(self, mode: str) -> int:
+        return self.modes[mode]
+
+    def mode_from_custom(self, custom_mode: int, sub_mode: int | None = None) -> str | None:
+        """Our mode name for a SET_MODE/DO_SET_MODE request, or None if unknown/unsupported."""
+        if self.name == "px4":
+            if sub_mode is not None:  # DO_SET_MODE: param2 = main mode, param3 = sub mode
+                custom_mode = px4_custom_mode(int(custom_mode), int(sub_mode))
+            main, sub = (custom_mode >> 16) & 0xFF, (custom_mode >> 24) & 0xFF
+            if main == PX4_MAIN_POSCTL:
+                return "LOITER"
+            if main == PX4_MAIN_MANUAL:
+                return "STABILIZE"
+            if main == PX4_MAIN_AUTO:
+                for name, value in PX4_SUB.items():
+                    if value == sub:
+                        return {"READY": "LOITER", "MISSION": "AUTO"}.get(name, name)
+            return None
+        for name, value in self.modes.items():
+            if value == custom_mode:
+                return "LOITER" if name == "BRAKE" else name
+        return None
+
+
+ARDUPILOT = Flavour(
+    name="ardupilot", mav_autopilot=mav.MAV_AUTOPILOT_ARDUPILOTMEGA, home_is_item0=True,
+    request_int=False, nack_out_of_sequence=True, atomic_upload=False,
+    item_retry_s=1.0, upload_timeout_s=8.0, max_items=700, keep_mission_on_reboot=True,
+    modes=AP_COPTER_MODES, takeoff_alt_default_m=2.5,
+)
+
+PX4 = Flavour(
+    name="px4", mav_autopilot=mav.MAV_AUTOPILOT_PX4, home_is_item0=False,
+    request_int=True, nack_out_of_sequence=False, atomic_upload=True,
+    item_retry_s=0.25, upload_timeout_s=5.0, max_items=2000, keep_mission_on_reboot=False,
+    modes=PX4_MODES, takeoff_alt_default_m=2.5,
+)
+
+FLAVOURS = {"ardupilot": ARDUPILOT, "px4": PX4}

@@ -1,0 +1,392 @@
+"""One fake vehicle: modes, commands, mission execution, flight, energy and telemetry.
+
+:class:`FakeVehicle` is transport-free: :meth:`FakeVehicle.handle` takes a decoded MAVLink message
+(with its sender and the wall-clock time) and :meth:`FakeVehicle.advance` moves the simulation to a
+new mission time; both return :class:`~sim_link.mission_server.Reply` objects for the caller
+(:mod:`sim_link.fleet`) to encode and send. Physics runs in fixed steps of simulated time, so a
+vehicle is deterministic given its seed and the (simulated) times commands arrive.
+
+Modes are named the ArduPilot way (GUIDED, AUTO, RTL, LAND, LOITER, STABILIZE; TAKEOFF is PX4's
+own) and encoded per flavour in HEARTBEAT.custom_mode (:mod:`sim_link.flavour`).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+from uavloc_gcs.dialect import mavlink as mav
+from uavloc_gcs.dialect.rssi import COMPANION_COMPONENT_ID, RssiBatcher
+from uavloc_gcs.energy import RotorcraftPower
+from uavloc_gcs.geo import LocalFrame
+from uavloc_gcs.mission import WireItem
+
+from .commands import handle_command, handle_set_mode
+from .executor import MissionExecutor, Target
+from .flavour import Flavour
+from .flight import Kinematics
+from .mission_server import MissionServer, Peer, Reply
+from .telemetry import TelemetryMixin
+
+log = logging.getLogger(__name__)
+
+PHYSICS_DT_S = 0.05
+
+
+@dataclass(frozen=True)
+class VehicleConfig:
+    """Everything fixed about one fake vehicle. Speeds m/s, accelerations m/s^2, energy J."""
+
+    sysid: int
+    flavour: Flavour
+    frame: LocalFrame  # launch point = local origin
+    cruise_speed_m_s: float = 10.0  # until a DO_CHANGE_SPEED
+    max_accel_m_s2: float = 5.0
+    climb_rate_m_s: float = 5.0
+    descent_rate_m_s: float = 3.0
+    acceptance_radius_m: float = 2.0  # ArduPilot WPNAV_RADIUS
+    rtl_alt_m: float = 15.0  # ArduPilot RTL_ALT: return at max(current, this)
+    home_alt_amsl_m: float = 0.0
+    energy_budget_j: float = 250_000.0
+    power: RotorcraftPower = field(default_factory=RotorcraftPower)
+    slot_s: float = 0.025
+    epoch_unix_s: float = 0.0
+    rssi: bool = True  # generate UAVLOC_RSSI_BATCH from the world (off when a companion does it)
+
+
+class FakeVehicle(TelemetryMixin):
+    def __init__(self, cfg: VehicleConfig, world=None, *, t_s: float = 0.0):
+        self.cfg = cfg
+        self.flavour = cfg.flavour
+        self.world = world
+        self.kin = Kinematics(cfg.max_accel_m_s2, cfg.climb_rate_m_s, cfg.descent_rate_m_s)
+        self.mission = MissionServer(cfg.flavour, cfg.sysid, self._home_item, self._on_mission_changed)
+        self.executor = MissionExecutor(cfg.frame, cfg.home_alt_amsl_m, 1 if cfg.flavour.home_is_item0 else 0)
+        self.executor.reset()
+        self.batcher = RssiBatcher(cfg.frame, cfg.epoch_unix_s, cfg.slot_s)
+        self.t_s = t_s
+        self.energy_used_j = 0.0
+        self.rssi_slots = 0
+        self._boot(t_s)
+        self.on_reboot_request: Callable[[], None] | None = None
+        self._init_telemetry()
+
+    def _boot(self, t_s: float) -> None:
+        self.boot_t_s = t_s
+        self.armed = False
+        self.landed = True
+        self.mode = "STABILIZE" if self.flavour.name == "ardupilot" else "LOITER"
+        self.speed_m_s = self.cfg.cruise_speed_m_s
+        self.home_xyz_m = np.array([self.kin.pos[0], self.kin.pos[1], 0.0])
+        self.hold_xyz_m = self.kin.pos.copy()
+        self.takeoff_alt_m: float | None = None
+        self.rtl_phase = "climb"
+        self.rtl_alt = self.cfg.rtl_alt_m
+        self._complete_reported = False
+        self._missing_takeoff_reported = False
+        self.next_slot_t_s = math.ceil(t_s / self.cfg.slot_s - 1e-9) * self.cfg.slot_s
+
+    # ---------------------------------------------------------------- state others read
+    @property
+    def sysid(self) -> int:
+        return self.cfg.sysid
+
+    @property
+    def position_xyz_m(self) -> np.ndarray:
+        return self.kin.pos.copy()
+
+    @property
+    def latlon_deg(self) -> tuple[float, float]:
+        lat, lon = self.cfg.frame.to_wgs84(self.kin.pos[0], self.kin.pos[1])
+        return float(lat), float(lon)
+
+    @property
+    def mission_items(self) -> list[WireItem]:
+        return self.mission.mission()
+
+    @property
+    def current_seq(self) -> int:
+        return self.executor.current
+
+    @property
+    def battery_remaining_fraction(self) -> float:
+        return max(0.0, 1.0 - self.energy_used_j / self.cfg.energy_budget_j)
+
+    # ---------------------------------------------------------------- inputs
+    def handle(self, msg, peer: Peer, wall_s: float) -> list[Reply]:
+        """React to one message from ``peer``; returns the replies."""
+        name = msg.get_type()
+        target = getattr(msg, "target_system", None)
+        if target not in (None, 0, self.sysid):
+            return []
+        tcomp = getattr(msg, "target_component", None)
+        if name.startswith("MISSION_") and name not in ("MISSION_SET_CURRENT", "MISSION_CURRENT"):
+            if tcomp not in (None, 0, 1):
+                return []
+            return self.mission.handle(msg, peer, wall_s)
+        if tcomp not in (None, 0, 1):
+            return []
+        if name in ("COMMAND_LONG", "COMMAND_INT"):
+            return handle_command(self, msg, peer)
+        if name == "SET_MODE":
+            return handle_set_mode(self, msg, peer)
+        if name == "MISSION_SET_CURRENT":
+            if not self.set_current(int(msg.seq)):
+                return [self.text(mav.MAV_SEVERITY_WARNING, f"Mission: set current {msg.seq} failed")]
+            return [self.mission_current_reply()]
+        return []
+
+    def tick_protocols(self, wall_s: float) -> list[Reply]:
+        return self.mission.tick(wall_s)
+
+    # ---------------------------------------------------------------- actions (commands call these)
+    def arm(self, force: bool = False) -> bool:
+        if self.armed:
+            return True
+        if self.mode in ("RTL", "LAND") and not force:
+            return False
+        self.armed = True
+        self.home_xyz_m = np.array([self.kin.pos[0], self.kin.pos[1], 0.0])
+        self.hold_xyz_m = self.kin.pos.copy()
+        self._out.append(self.text(mav.MAV_SEVERITY_INFO, "Arming motors"))
+        return True
+
+    def disarm(self, force: bool = False) -> bool:
+        if not self.armed:
+            return True
+        if not self.landed and not force:
+            return False
+        self.armed = False
+        if not self.landed:  # forced disarm in the air: it falls
+            self.kin.pos[2] = 0.0
+            self.kin.stop()
+            self.landed = True
+        self.takeoff_alt_m = None
+        self._out.append(self.text(mav.MAV_SEVERITY_INFO, "Disarming motors"))
+        return True
+
+    def set_mode(self, mode: str) -> bool:
+        if mode == "AUTO":
+            items = self.mission.mission()
+            if len(items) <= self.executor.first_seq:
+                self._out.append(self.text(mav.MAV_SEVERITY_WARNING, "Mission: no mission"))
+                return False
+            if self.executor.complete or self.executor.current >= len(items):
+                self.executor.reset()
+            self.executor.leg_start_xyz_m = None
+            self.executor.started = True
+        elif mode in ("RTL", "LAND") and self.landed:
+            return False
+        elif mode in ("GUIDED", "LOITER", "STABILIZE"):
+            self.hold_xyz_m = self.kin.pos.copy()
+        if mode == "RTL":
+            self.rtl_phase = "climb"
+        self.mode = mode
+        self._out.append(self.heartbeat_reply())
+        return True
+
+    def takeoff(self, alt_m: float) -> bool:
+        if not self.armed or not self.landed or not (alt_m > 0.0):
+            return False
+        self.takeoff_alt_m = float(alt_m)
+        self.hold_xyz_m = np.array([self.kin.pos[0], self.kin.pos[1], float(alt_m)])
+        self.landed = False
+        self._out.append(self.text(mav.MAV_SEVERITY_INFO, f"Takeoff to {alt_m:.1f} m"))
+        return True
+
+    def set_current(self, seq: int, reset: bool = False) -> bool:
+        items = self.mission.mission()
+        if seq == -1:
+            seq = self.executor.current
+        if self.flavour.home_is_item0 and seq == 0:
+            seq = 1
+        if not 0 <= seq < len(items):
+            return False
+        self.executor.reset(seq)
+        return True
+
+    def _on_mission_changed(self, mission_type: int) -> None:
+        if mission_type != 0:
+            return
+        n = len(self.mission.stores[0])
+        if self.flavour.name == "px4" and not self.mission.busy():
+            self.executor.reset()  # PX4 starts a new plan from its first item
+        elif self.executor.current >= n:
+            self.executor.complete = self.executor.started
+        self._mission_current_due = True
+
+    def _home_item(self) -> WireItem:
+        lat, lon = self.cfg.frame.to_wgs84(self.home_xyz_m[0], self.home_xyz_m[1])
+        return WireItem(0, mav.MAV_FRAME_GLOBAL, 16, 0, 1, 0.0, 0.0, 0.0, 0.0,
+                        int(round(float(lat) * 1e7)), int(round(float(lon) * 1e7)), self.cfg.home_alt_amsl_m)
+
+    def reboot(self, keep_mission: bool | None = None) -> None:
+        """Power-cycle: on the ground where it is, disarmed, default mode, mission kept or lost."""
+        keep = self.flavour.keep_mission_on_reboot if keep_mission is None else keep_mission
+        self.kin.pos[2] = 0.0
+        self.kin.stop()
+        if not keep:
+            self.mission.stores = {0: [], 1: [], 2: []}
+        self.mission.upload = None
+        self.executor.reset()
+        self.executor.started = False
+        self._boot(self.t_s)
+        self._init_telemetry()
+
+    # ---------------------------------------------------------------- simulation
+    def advance(self, t_s: float) -> list[Reply]:
+        """Simulate up to mission time ``t_s`` in fixed physics steps; returns the telemetry due."""
+        while self.t_s + PHYSICS_DT_S <= t_s + 1e-9:
+            p0, t0 = self.kin.pos.copy(), self.t_s
+            self._physics(PHYSICS_DT_S)
+            self.t_s = t0 + PHYSICS_DT_S
+            self._hear(t0, p0, self.t_s, self.kin.pos)
+            self._telemetry_due()
+        out, self._out = self._out, []
+        return out
+
+    def _physics(self, dt: float) -> None:
+        if self.landed:
+            self.kin.stop()
+            if self.armed and self.mode == "AUTO" and self.executor.started:
+                self._auto(dt)
+            return
+        if self.takeoff_alt_m is not None:
+            self._fly(dt, self.hold_xyz_m, stop=True)
+            if self.kin.pos[2] >= self.takeoff_alt_m - 0.5:
+                self.takeoff_alt_m = None
+                if self.flavour.name == "px4" and self.mode == "TAKEOFF":
+                    self.mode = "LOITER"
+            return
+        if self.mode == "AUTO":
+            self._auto(dt)
+        elif self.mode == "RTL":
+            if self._rtl(dt):
+                self.mode = "LAND"
+        elif self.mode == "LAND":
+            self._land(dt)
+        else:
+            self._fly(dt, self.hold_xyz_m, stop=True)
+        self._burn(dt)
+
+    def _fly(self, dt: float, xyz, *, stop: bool) -> None:
+        self.kin.step(dt, xyz, self.speed_m_s, stop_at_target=stop)
+
+    def _burn(self, dt: float) -> None:
+        if not self.landed:
+            self.energy_used_j += float(self.cfg.power.power_w(self.kin.ground_speed_m_s)) * dt
+
+    def _land(self, dt: float) -> bool:
+        self.kin.descend(dt, self.cfg.descent_rate_m_s)
+        if self.kin.pos[2] <= 0.0:
+            self.landed = True
+            self._out.append(self.text(mav.MAV_SEVERITY_INFO, "Landed"))
+            self.disarm()
+            return True
+        return False
+
+    def _rtl(self, dt: float) -> bool:
+        """Climb to max(current, RTL_ALT), fly home, then report True (caller lands)."""
+        if self.rtl_phase == "climb":
+            self.rtl_alt = max(float(self.kin.pos[2]), self.cfg.rtl_alt_m)
+            self.rtl_phase = "return"
+        home = np.array([self.home_xyz_m[0], self.home_xyz_m[1], self.rtl_alt])
+        self._fly(dt, home, stop=True)
+        return float(np.linalg.norm(self.kin.pos - home)) < 1.0 and self.kin.ground_speed_m_s < 0.5
+
+    def _auto(self, dt: float) -> None:
+        ex = self.executor
+        items = self.mission.mission()
+        ex.advance_instant_items(items, self._set_speed)
+        tgt: Target = ex.target(items, self.kin.pos, self.kin.pos[2])
+        if tgt.kind == "done":
+            if not self._complete_reported:
+                self._complete_reported = True
+                self.hold_xyz_m = self.kin.pos.copy()
+                self._out.append(self.text(mav.MAV_SEVERITY_INFO, "Mission complete"))
+                self._mission_current_due = True
+            if not self.landed:
+                self._fly(dt, self.hold_xyz_m, stop=True)
+            return
+        self._complete_reported = False
+        if self.landed and tgt.kind != "takeoff":
+            if tgt.kind in ("rtl", "land"):
+                self._item_done()  # already on the ground
+            elif self.flavour.name == "px4":
+                self.takeoff_alt_m = float(max(tgt.xyz_m[2], self.flavour.takeoff_alt_default_m))
+                self.hold_xyz_m = np.array([self.kin.pos[0], self.kin.pos[1], self.takeoff_alt_m])
+                self.landed = False  # PX4 climbs before flying to the first waypoint
+            elif not self._missing_takeoff_reported:
+                self._missing_takeoff_reported = True
+                self._out.append(self.text(mav.MAV_SEVERITY_WARNING, "Auto: Missing Takeoff Cmd"))
+            return
+        if tgt.kind == "takeoff":
+            if self.landed:
+                self.landed = False
+            self._fly(dt, tgt.xyz_m, stop=True)
+            if self.kin.pos[2] >= tgt.xyz_m[2] - 0.5:
+                self._item_done()
+        elif tgt.kind == "rtl":
+            if self.rtl_phase not in ("return", "land"):
+                self.rtl_phase = "climb"
+            if self.rtl_phase == "land" or self._rtl(dt):
+                self.rtl_phase = "land"
+                if self._land(dt):
+                    self.rtl_phase = "climb"
+                    self._item_done()
+        elif tgt.kind == "land":
+            d = np.linalg.norm(tgt.xyz_m[:2] - self.kin.pos[:2])
+            if d > 1.0 and self.rtl_phase != "land":
+                self._fly(dt, tgt.xyz_m, stop=True)
+            else:
+                self.rtl_phase = "land"
+                if self._land(dt):
+                    self.rtl_phase = "climb"
+                    self._item_done()
+        else:
+            self._fly(dt, tgt.xyz_m, stop=tgt.stop)
+            if ex.reached(tgt, self.kin.pos, self.kin.ground_speed_m_s, self.t_s + dt,
+                          self.cfg.acceptance_radius_m):
+                self._item_done()
+
+    def _item_done(self) -> None:
+        seq = self.executor.next()
+        self._out.append(Reply(mav.MAVLink_mission_item_reached_message(seq)))
+        if self.flavour.name == "ardupilot":
+            self._out.append(self.text(mav.MAV_SEVERITY_INFO, f"Reached command #{seq}"))
+        self._mission_current_due = True
+        if self.executor.current >= len(self.mission.stores[0]):
+            self.executor.complete = True
+            self._complete_reported = True
+            self.hold_xyz_m = self.kin.pos.copy()
+            self._out.append(self.text(mav.MAV_SEVERITY_INFO, "Mission complete"))
+
+    def _set_speed(self, speed_m_s: float) -> None:
+        self.speed_m_s = speed_m_s
+
+    def _hear(self, t0: float, p0: np.ndarray, t1: float, p1: np.ndarray) -> None:
+        """RSSI slots starting in [t0, t1): positions interpolated along the physics step."""
+        if self.world is None or not self.cfg.rssi:
+            return
+        slot = self.cfg.slot_s
+        k0 = self.next_slot_t_s
+        times = []
+        while k0 < t1 - 1e-9:
+            times.append(k0)
+            k0 = round((k0 + slot) / slot) * slot
+        self.next_slot_t_s = k0
+        if not times or self.landed:
+            return
+        ts = np.array(times)
+        w = ((ts - t0) / (t1 - t0))[:, None]
+        xyz = p0[None, :] * (1 - w) + p1[None, :] * w
+        heard = self.world.hear_track(self.sysid, ts, xyz)
+        self.rssi_slots += len(heard)
+        for m in self.batcher.add(heard):
+            self._out.append(Reply(m, None, COMPANION_COMPONENT_ID))
+        for m in self.batcher.flush(now_s=t1):
+            self._out.append(Reply(m, None, COMPANION_COMPONENT_ID))
