@@ -1,0 +1,26 @@
+"""The MAVLink link layer: transports, a :class:`Link` per connection, one module per protocol
+exchange (mission upload / download / clear, commands), telemetry tracking, ``.tlog`` files.
+
+pymavlink is used only as a codec (``uavloc_gcs.dialect.mavlink``); sockets, timing and retries
+live here. Everything is asyncio: each exchange is one ``async`` function with its timeouts as
+named constants next to the MAVLink devguide's values.
+"""
+
+from .autopilots import ARDUPILOT, PX4, Flavour, flavour_for, flavour_named
+from .command import (arm, command_long, disarm, return_to_launch, set_current_item, set_message_interval,
+                      set_mode, start_mission, takeoff)
+from .connection import Link, LinkStats, Subscription, open_link, parse_signing_key
+from .mission_clear import clear_mission
+from .mission_download import download_mission
+from .mission_upload import UploadResult, upload_mission
+from .tlog import TlogWriter, iter_tlog
+from .transport import parse_connection
+
+__all__ = [
+    "ARDUPILOT", "PX4", "Flavour", "flavour_for", "flavour_named",
+    "arm", "command_long", "disarm", "return_to_launch", "set_current_item", "set_message_interval", "set_mode",
+    "start_mission", "takeoff",
+    "Link", "LinkStats", "Subscription", "open_link", "parse_signing_key",
+    "clear_mission", "download_mission", "UploadResult", "upload_mission",
+    "TlogWriter", "iter_tlog", "parse_connection",
+]
