@@ -1,0 +1,93 @@
+"""SearchPolicy: the adaptive loop's decisions on a simulated world (pure, deterministic)."""
+
+import numpy as np
+import pytest
+
+from sim_link.missionsim import Flight, hear
+from sim_link.world import World
+from uavloc_gcs.planning import VehicleState
+from uavloc_gcs.scan import plan_scan
+from uavloc_gcs.scenario import load_scenario
+from uavloc_gcs.search import SearchPolicy
+from uavloc_gcs.search import targets as tg
+
+EXAMPLES = __import__("pathlib").Path(__file__).resolve().parents[3] / "examples"
+
+
+@pytest.fixture(scope="module")
+def small():
+    return load_scenario(EXAMPLES / "small.toml")
+
+
+class _V:
+    def __init__(self, index, flight):
+        self.index, self.flight, self.home_t_s = index, flight, None
+
+
+def _scan_policy(sc, world, **kw):
+    """Feed the whole initial scan to a fresh policy; return it, the scan end time and positions."""
+    scan = plan_scan(sc)
+    flights = [_V(vs.index + 1, Flight(np.vstack([[0, 0], vs.waypoints_xy_m]), 0.0, sc.fleet.speed_m_s))
+               for vs in scan.vehicles]
+    t_end = max(v.flight.end_t_s for v in flights)
+    policy = SearchPolicy(sc, time_limit_s=20.0, max_iter=20, **kw)
+    policy.ingest(hear(world, flights, 0.0, t_end))
+    changed = policy.update(t_end)
+    states = [VehicleState(str(v.index), tuple(v.flight.position(t_end)), (0.0, 0.0), sc.usable_energy_j)
+              for v in flights]
+    return policy, changed, t_end, states
+
+
+def test_scan_finds_everyone_and_located_people_are_accurate(small):
+    world = World(small, seed=3, people=3, motion="static")
+    policy, changed, t_end, _ = _scan_policy(small, world)
+    people = policy.people(t_end)
+    assert {p.emitter_id for p in people} == set(int(e) for e in world.emitter_ids)
+    assert changed == {p.emitter_id for p in people}  # all new
+    truth = world.positions(0.0)
+    for p in people:
+        if p.located:
+            i = world.index_of(p.emitter_id)
+            assert p.estimate.radius95_m <= small.people.required_accuracy_m
+            assert np.hypot(*(np.array(p.xy_m) - truth[i])) < 3 * small.people.required_accuracy_m
+    assert policy.done(t_end) == all(p.located for p in people)
+
+
+def test_replan_visits_pending_people_and_ends_home(small):
+    sc = small.replace(people={"required_accuracy_m": 4.0})  # strict: the scan alone cannot do it
+    world = World(sc, seed=3, people=3, motion="static")
+    policy, _, t_end, states = _scan_policy(sc, world)
+    pending = policy.pending_ids()
+    assert pending, "a 4 m requirement must leave someone for a second look"
+    assert policy.needs_replan(t_end, set())
+    plan = policy.replan(t_end, states)
+    assert {e for task in plan.tasks for e in task.target_ids} == set(pending)
+    for task in plan.tasks:
+        assert np.allclose(task.waypoints_xy_m[-1], 0.0)  # ends home
+        assert len(task.waypoints_xy_m) == len(task.target_ids) + 1
+        assert task.eta_s >= t_end
+    assert plan.makespan_s == pytest.approx(max(t.eta_s for t in plan.tasks) - t_end)
+    assert not policy.needs_replan(t_end, set())  # nothing new since the plan
+
+
+def test_policy_is_deterministic(small):
+    sc = small.replace(people={"required_accuracy_m": 4.0})
+    plans = []
+    for _ in range(2):
+        world = World(sc, seed=5, people=3, motion="constant_velocity")
+        policy, _, t_end, states = _scan_policy(sc, world, seed=9)
+        plan = policy.replan(t_end, states)
+        plans.append([(t.target_ids, np.round(t.waypoints_xy_m, 9).tolist()) for t in plan.tasks])
+    assert plans[0] == plans[1]
+
+
+def test_mirror_candidate_outside_area_is_not_an_ambiguity():
+    area = np.array([[0, 0], [100, 0], [100, 100], [0, 100]], float)
+    assert tg.inside_area(area, np.array([50.0, 50.0]))
+    assert not tg.inside_area(area, np.array([150.0, 50.0]))
+    assert tg.inside_area(area, np.array([105.0, 50.0]), margin_m=10.0)
+    assert tg.boundary_distance_m(area, np.array([50.0, 120.0])) == pytest.approx(20.0)
+    # an ambiguous person's look radius keeps the pass off the mirror line
+    assert tg.look_radius_m(60.0, 40.0) == pytest.approx(10.0)
+    assert tg.look_radius_m(60.0, None) == pytest.approx(60.0)
+    assert tg.look_radius_m(float("nan"), None) == 0.0

@@ -1,0 +1,427 @@
+"""The adaptive search loop's decisions (SPEC §2.3), shared by the daemon and the experiments.
+
+A :class:`SearchPolicy` holds every RSSI slot received so far, re-estimates the emitters that got
+new data, says who is located, decides when the plan is stale and plans the next flights::
+
+    policy = SearchPolicy(scenario, model_motion=True, optimizer="epso", seed=0)
+    policy.ingest(slots)                      # any time slots arrive
+    changed = policy.update(t_s)              # re-estimate emitters with new slots
+    if policy.needs_replan(t_s, changed):
+        plan = policy.replan(t_s, vehicle_states)   # -> one VehicleTask per vehicle
+    if policy.done(t_s): ...                  # everyone located (or given up): go home
+
+It is pure and deterministic: no sockets, files or clocks decide anything (the planner's run time
+is measured for reporting only); time and seeds are passed in. The caller owns the scan: call
+``replan`` once the initial scan is over.
+
+A *look* is a pass of a vehicle within the person's access radius (``access_radius_m``) of the
+predicted position; the vehicle flies through the access point without stopping. When a person is
+mirror-ambiguous the look goes to the more likely candidate with a radius small enough to keep
+the pass off the mirror line; if the pass hears nothing, the next look goes to the other candidate.
+Mirror candidates well outside the search area are discarded (people are inside it). Looks are
+capped per person (:data:`MAX_LOOKS`) so a mission always ends.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import EstimationError, InfeasibleError
+from ..observations import SlotBatch
+from ..scenario import Scenario
+from . import targets as tg
+
+log = logging.getLogger(__name__)
+
+MAX_LOOKS = 4  # planned looks per person before giving up (the mission must end)
+MAX_MISSES = 2  # looks that heard nothing before giving up
+MATERIAL_SHIFT_FRACTION = 0.5  # estimate moved > this x required accuracy => replan
+RADIUS_RECHECK_FRACTION = 0.85  # replan once more if a planned radius shrinks below this fraction
+
+
+@dataclass(frozen=True)
+class PersonStatus:
+    """What the policy believes about one emitter.
+
+    ``located``: estimate ok, calibrated 95 % radius <= required accuracy, no mirror ambiguity.
+    ``xy_m`` is the believed position at ``t_ref_s`` (the mirror candidate if that one was chosen);
+    ``fix_t_s`` the time the person became located (None if not yet).
+    """
+
+    emitter_id: int
+    estimate: object
+    located: bool
+    reason: str
+    xy_m: tuple[float, float] | None = None
+    t_ref_s: float | None = None
+    fix_t_s: float | None = None
+    looks: int = 0
+
+
+@dataclass(frozen=True)
+class VehicleTask:
+    """Where one vehicle flies next: pass points in order, then home (last row). ``eta_s`` is the
+    planned time home [s]."""
+
+    vehicle_id: str
+    waypoints_xy_m: np.ndarray  # (k, 2)
+    target_ids: tuple[int, ...]
+    eta_s: float
+    access_times_s: tuple[float, ...] = ()
+
+
+@dataclass(frozen=True)
+class SearchPlan:
+    tasks: tuple[VehicleTask, ...]
+    makespan_s: float
+    planner_runtime_s: float
+    plan: object = None  # planning.Plan (None when nobody needs a look)
+    t0_s: float = 0.0
+
+
+@dataclass
+class _Person:
+    """Mutable bookkeeping for one emitter (private to the policy)."""
+
+    emitter_id: int
+    batches: list = field(default_factory=list)
+    n_slots: int = 0
+    last_slot_t_s: float = -math.inf
+    dirty: bool = False
+    estimate: object = None
+    error: str = ""
+    flipped: bool = False  # look at the mirror candidate instead of the primary
+    looks: int = 0
+    misses: int = 0
+    gave_up: str = ""
+    fix_t_s: float | None = None
+    fix_estimate: object = None
+
+
+class SearchPolicy:
+    """Estimator + planner decisions of the adaptive loop for one mission (see module docstring)."""
+
+    def __init__(
+        self,
+        scenario: Scenario,
+        *,
+        model_motion: bool = True,
+        optimizer: str = "epso",
+        local_search: bool = True,
+        seed: int = 0,
+        time_limit_s: float | None = None,
+        max_iter: int | None = None,
+    ) -> None:
+        from ..estimation import ChannelModel  # local: keeps `import uavloc_gcs.search` light
+
+        self.scenario = scenario
+        self.model_motion = model_motion
+        self.optimizer = optimizer
+        self.local_search = local_search
+        self.seed = int(seed)
+        self.time_limit_s = scenario.planner.time_limit_s if time_limit_s is None else float(time_limit_s)
+        self.max_iter = max_iter  # None: stop on the time limit; set it (and a long time limit) for
+        # run-to-run determinism
+        self.channel = ChannelModel.from_scenario(scenario)
+        self.required_m = scenario.people.required_accuracy_m
+        self.area_xy_m = scenario.area_xy_m()
+        self.range_m = scenario.horizontal_range_m
+        self.speed_m_s = scenario.fleet.speed_m_s
+        self._people: dict[int, _Person] = {}
+        self._plan: SearchPlan | None = None
+        self._awaiting: dict[int, float] = {}  # emitter -> planned access time [s]
+        self._replans = 0
+        self.planner_runtime_s = 0.0  # total over all replans
+        self.estimator_runtime_s = 0.0
+
+    # -- data in ---------------------------------------------------------------------------
+    def ingest(self, slots: SlotBatch) -> None:
+        """Store new slots (any vehicles, any emitters)."""
+        if len(slots) == 0:
+            return
+        for eid in slots.emitters():
+            part = slots.for_emitter(int(eid))
+            p = self._people.setdefault(int(eid), _Person(int(eid)))
+            p.batches.append(part)
+            p.n_slots += len(part)
+            p.last_slot_t_s = max(p.last_slot_t_s, float(np.max(part.t_s)))
+            p.dirty = True
+
+    def update(self, t_s: float) -> set[int]:
+        """Re-estimate emitters with new slots; return the ids whose state changed materially
+        (new person, located, ambiguity, estimate moved, a planned look happened or failed)."""
+        from ..estimation import estimate_emitter
+
+        changed: set[int] = set()
+        for eid, p in sorted(self._people.items()):
+            if not p.dirty:
+                continue
+            p.dirty = False
+            if len(p.batches) > 1:
+                p.batches = [SlotBatch.concat(p.batches).sorted_by_time()]
+            before = self._signature(p)
+            t0 = time.perf_counter()
+            try:
+                est = estimate_emitter(
+                    p.batches[0], self.channel, max_speed_m_s=self.scenario.people.max_speed_m_s,
+                    t_ref_s=p.last_slot_t_s, model_motion=self.model_motion, previous=p.estimate)
+                p.estimate, p.error = est, ""
+            except EstimationError as exc:
+                p.error = str(exc)
+            self.estimator_runtime_s += time.perf_counter() - t0
+            self._classify(p, t_s)
+            if before is None or self._material(before, self._signature(p)):
+                changed.add(eid)
+        changed |= self._check_looks(t_s)
+        return changed
+
+    # -- views -----------------------------------------------------------------------------
+    def people(self, t_s: float) -> list[PersonStatus]:
+        """Status of every emitter heard so far, by id."""
+        out = []
+        for eid, p in sorted(self._people.items()):
+            cand = self._candidate(p)
+            est = p.fix_estimate if p.fix_estimate is not None else p.estimate
+            out.append(PersonStatus(
+                emitter_id=eid, estimate=est, located=p.fix_t_s is not None, reason=self._reason(p),
+                xy_m=None if cand is None else (float(cand.xy_m[0]), float(cand.xy_m[1])),
+                t_ref_s=None if cand is None else cand.t_ref_s, fix_t_s=p.fix_t_s, looks=p.looks))
+        return out
+
+    def pending_ids(self) -> list[int]:
+        """Emitters that still need a look (not located, not given up)."""
+        return [e for e, p in sorted(self._people.items()) if p.fix_t_s is None and not p.gave_up]
+
+    @property
+    def current_plan(self) -> SearchPlan | None:
+        return self._plan
+
+    def done(self, t_s: float) -> bool:
+        """True when every emitter heard is located or given up and no look is outstanding."""
+        return not self.pending_ids()
+
+    def needs_replan(self, t_s: float, changed: set[int]) -> bool:
+        """True if the current plan no longer fits what is known."""
+        pending = set(self.pending_ids())
+        if self._plan is None:
+            return bool(pending)
+        planned = {e for task in self._plan.tasks for e in task.target_ids}
+        if planned - pending:  # someone in the plan is already located or given up
+            return True
+        if pending - planned:  # someone new needs a look
+            return True
+        return bool(changed & (pending | planned))
+
+    # -- planning --------------------------------------------------------------------------
+    def replan(self, t_s: float, vehicles: list) -> SearchPlan:
+        """Plan looks at every pending person from the vehicles' current states (planning.VehicleState,
+        remaining usable energy). Persons no vehicle can reach within its energy are given up."""
+        from ..planning import RoutingProblem, solve
+
+        self._replans += 1
+        rng = np.random.default_rng([self.seed, self._replans])
+        runtime = 0.0
+        targets = self._targets(t_s, vehicles, None)
+        result = None
+        while targets:
+            problem = RoutingProblem(tuple(vehicles), tuple(targets), self.speed_m_s, t0_s=t_s,
+                                     power=self.scenario.power_model)
+            t0 = time.perf_counter()
+            try:
+                result = solve(problem, method=self.optimizer, rng=rng, time_limit_s=self.time_limit_s,
+                               max_iter=self.max_iter, local_search=self.local_search,
+                               warm_start=self._warm_start())
+            except InfeasibleError as exc:
+                runtime += time.perf_counter() - t0
+                if not self._drop_unreachable(problem, str(exc)):
+                    targets, result = [], None
+                    break
+                targets = self._targets(t_s, vehicles, None)
+                continue
+            runtime += time.perf_counter() - t0
+            planned_times = {int(tid): float(ta) for r in result.plan.routes
+                             for tid, ta in zip(r.target_ids, r.access_times_s)}
+            rechecked = self._targets(t_s, vehicles, planned_times)
+            shrunk = any(b.radius_m < RADIUS_RECHECK_FRACTION * a.radius_m for a, b in zip(targets, rechecked))
+            if not shrunk:
+                break
+            problem = RoutingProblem(tuple(vehicles), tuple(rechecked), self.speed_m_s, t0_s=t_s,
+                                     power=self.scenario.power_model)
+            t0 = time.perf_counter()
+            try:
+                result = solve(problem, method=self.optimizer, rng=rng, time_limit_s=self.time_limit_s,
+                               max_iter=self.max_iter, local_search=self.local_search, warm_start=result.plan)
+            except InfeasibleError:
+                pass  # keep the first plan (its radii were a little optimistic)
+            runtime += time.perf_counter() - t0
+            break
+        self.planner_runtime_s += runtime
+        self._plan = self._to_search_plan(t_s, vehicles, result, runtime)
+        self._awaiting = {e: ta for task in self._plan.tasks for e, ta in zip(task.target_ids, task.access_times_s)}
+        return self._plan
+
+    # -- internals -------------------------------------------------------------------------
+    def _warm_start(self):
+        return None if self._plan is None else self._plan.plan
+
+    def _targets(self, t_s: float, vehicles: list, planned_times: dict[int, float] | None) -> list:
+        from ..estimation import access_radius_m
+        from ..planning import Target
+
+        starts = np.array([v.start_xy_m for v in vehicles], dtype=float).reshape(-1, 2)
+        out = []
+        for eid in self.pending_ids():
+            p = self._people[eid]
+            cand = self._candidate(p)
+            if cand is None or p.estimate is None:
+                continue
+            centre = cand.at(t_s)
+            if planned_times is not None and eid in planned_times:
+                t_pass = planned_times[eid]
+            else:
+                near = float(np.min(np.linalg.norm(starts - centre, axis=1))) if len(starts) else 0.0
+                t_pass = t_s + near / self.speed_m_s
+            try:
+                rho = float(access_radius_m(
+                    p.estimate, t_pass_s=t_pass, altitude_m=self.scenario.fleet.altitude_m,
+                    speed_m_s=self.speed_m_s, channel=self.channel, required_accuracy_m=self.required_m,
+                    comm_range_m=self.scenario.fleet.comm_range_m))
+            except (EstimationError, ValueError):
+                rho = 0.0
+            sep = self._separation(p)
+            vel = cand.velocity_m_s if self.model_motion else np.zeros(2)
+            vmax_plan = 0.45 * self.speed_m_s
+            speed = float(np.hypot(*vel))
+            if speed > vmax_plan:
+                vel = vel * (vmax_plan / speed)
+            out.append(Target(str(eid), (float(centre[0]), float(centre[1])),
+                              (float(vel[0]), float(vel[1])), tg.look_radius_m(rho, sep)))
+        return out
+
+    def _drop_unreachable(self, problem, message: str) -> bool:
+        """Give up the target named in an InfeasibleError; False if no target can be blamed."""
+        for t in problem.targets:
+            if f"target {t.id} " in message:
+                p = self._people[int(t.id)]
+                p.gave_up = f"out of energy reach ({message})"
+                log.info("emitter %s given up: %s", t.id, message)
+                return True
+        return False
+
+    def _to_search_plan(self, t_s: float, vehicles: list, result, runtime: float) -> SearchPlan:
+        tasks = []
+        routes = {} if result is None else {r.vehicle_id: r for r in result.plan.routes}
+        for v in vehicles:
+            home = np.asarray(v.home_xy_m, dtype=float).reshape(1, 2)
+            r = routes.get(v.id)
+            if r is None or not len(r.target_ids):
+                dur = float(np.linalg.norm(home[0] - np.asarray(v.start_xy_m, dtype=float))) / self.speed_m_s
+                tasks.append(VehicleTask(v.id, home, (), t_s + dur))
+                continue
+            pts = np.vstack([np.asarray(r.access_points_xy_m, dtype=float).reshape(-1, 2), home])
+            tasks.append(VehicleTask(v.id, pts, tuple(int(i) for i in r.target_ids), t_s + float(r.duration_s),
+                                     tuple(float(a) for a in r.access_times_s)))
+        makespan = max((task.eta_s for task in tasks), default=t_s) - t_s
+        return SearchPlan(tuple(tasks), makespan, runtime, None if result is None else result.plan, t_s)
+
+    def _candidate(self, p: _Person) -> tg.Candidate | None:
+        if p.estimate is None:
+            return None
+        cands = tg.candidates(p.estimate, p.last_slot_t_s)
+        if not cands:
+            return None
+        if len(cands) == 2:
+            inside = [tg.inside_area(self.area_xy_m, c.xy_m, margin_m=self.required_m) for c in cands]
+            if inside[0] != inside[1]:
+                return cands[0] if inside[0] else cands[1]
+            if p.flipped:
+                return cands[1]
+        return cands[0]
+
+    def _ambiguous(self, p: _Person) -> bool:
+        cands = tg.candidates(p.estimate, p.last_slot_t_s) if p.estimate is not None else []
+        if len(cands) < 2:
+            return False
+        inside = [tg.inside_area(self.area_xy_m, c.xy_m, margin_m=self.required_m) for c in cands]
+        return inside[0] == inside[1]
+
+    def _separation(self, p: _Person) -> float | None:
+        if not self._ambiguous(p):
+            return None
+        a, b = tg.candidates(p.estimate, p.last_slot_t_s)
+        return float(np.linalg.norm(a.xy_m - b.xy_m))
+
+    def _ok(self, p: _Person) -> bool:
+        est = p.estimate
+        return est is not None and str(getattr(est, "status", "ok")) == "ok" and not p.error
+
+    def _classify(self, p: _Person, t_s: float) -> None:
+        if p.fix_t_s is not None or p.gave_up or not self._ok(p):
+            return
+        r95 = float(getattr(p.estimate, "radius95_m", math.inf))
+        if r95 <= self.required_m and not self._ambiguous(p):
+            p.fix_t_s = p.last_slot_t_s if math.isfinite(p.last_slot_t_s) else t_s
+            p.fix_estimate = p.estimate
+            self._awaiting.pop(p.emitter_id, None)
+
+    def _signature(self, p: _Person):
+        if p.estimate is None:
+            return None
+        cand = self._candidate(p)
+        return (p.fix_t_s is not None, bool(p.gave_up), self._ambiguous(p), p.flipped,
+                None if cand is None else cand.xy_m.copy(), self._ok(p))
+
+    def _material(self, a, b) -> bool:
+        if a[:4] != b[:4] or a[5] != b[5]:
+            return True
+        if a[4] is None or b[4] is None:
+            return a[4] is not b[4]
+        return float(np.linalg.norm(a[4] - b[4])) > MATERIAL_SHIFT_FRACTION * self.required_m
+
+    def _check_looks(self, t_s: float) -> set[int]:
+        """Planned looks whose time has passed: count them; a look that heard nothing is a miss
+        (flip to the mirror candidate if ambiguous; give up after MAX_MISSES)."""
+        changed = set()
+        grace_s = self.range_m / self.speed_m_s
+        for eid, t_access in list(self._awaiting.items()):
+            if t_s < t_access + grace_s:
+                continue
+            del self._awaiting[eid]
+            p = self._people[eid]
+            if p.fix_t_s is not None or p.gave_up:
+                continue
+            p.looks += 1
+            heard = p.last_slot_t_s >= t_access - 2.0 * grace_s
+            if not heard:
+                p.misses += 1
+                if self._ambiguous(p):
+                    p.flipped = not p.flipped
+            if p.misses >= MAX_MISSES:
+                p.gave_up = f"not heard on {p.misses} looks"
+            elif p.looks >= MAX_LOOKS:
+                r95 = float(getattr(p.estimate, "radius95_m", math.nan))
+                p.gave_up = f"not located after {p.looks} looks (95 % radius {r95:.1f} m)"
+            changed.add(eid)
+        return changed
+
+    def _reason(self, p: _Person) -> str:
+        if p.fix_t_s is not None:
+            r95 = float(getattr(p.fix_estimate, "radius95_m", math.nan))
+            return f"located: 95 % radius {r95:.1f} m <= {self.required_m:g} m"
+        if p.gave_up:
+            return f"given up: {p.gave_up}"
+        if p.error:
+            return f"no estimate: {p.error}"
+        if p.estimate is None:
+            return "not estimated yet"
+        if not self._ok(p):
+            return f"estimate status {getattr(p.estimate, 'status', '?')}"
+        if self._ambiguous(p):
+            return "mirror ambiguity: needs a look off the flight line"
+        r95 = float(getattr(p.estimate, "radius95_m", math.inf))
+        return f"95 % radius {r95:.1f} m > {self.required_m:g} m"
