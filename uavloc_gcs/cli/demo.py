@@ -30,8 +30,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--people", type=int, metavar="N", help="number of simulated people (default: scenario's)")
     p.add_argument("--seed", type=int, metavar="N", help="world seed (default: scenario's)")
     p.add_argument("--loss", type=float, default=0.0, metavar="P", help="packet loss fraction on every link")
-    p.add_argument("--base-port", type=int, default=14561, metavar="PORT",
-                   help="UDP port of vehicle 1 (vehicle i listens on PORT+i-1; default 14561)")
+    p.add_argument("--base-port", type=int, default=14560, metavar="PORT",
+                   help="vehicle i listens on UDP port PORT+i (default 14560: 14561, 14562, ...; 0 = any free)")
     p.add_argument("--signing-key", metavar="HEX", help="sign every link with this 32-byte key (64 hex digits)")
     p.set_defaults(func=run)
 
@@ -39,6 +39,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     import numpy as np
 
+    from sim_link.faults import FaultConfig
     from sim_link.fleet import FakeFleet
 
     from ..errors import ConfigError
@@ -70,7 +71,7 @@ def run(args: argparse.Namespace) -> int:
     for old in [out / "search.sqlite", out / "search.sqlite-wal", out / "search.sqlite-shm", *out.glob("uav*.tlog")]:
         old.unlink(missing_ok=True)
 
-    faults = {"loss": args.loss} if args.loss else None
+    faults = FaultConfig(loss=args.loss) if args.loss else None
     fleet = FakeFleet(sc, speedup=sc.simulation.speedup, seed=sc.simulation.seed, base_port=args.base_port,
                       faults=faults, signing_key=key)
     print(f"uavloc demo: scenario '{sc.name}', {sc.fleet.vehicles} {sc.fleet.autopilot} vehicles, "
@@ -82,7 +83,7 @@ def run(args: argparse.Namespace) -> int:
         def truth(people, epoch_unix_s: float):
             """True position of every simulated person at the time its estimate refers to."""
             shift = epoch_unix_s - fleet.epoch_unix_s
-            t_end = max(0.0, fleet.mission_time_s())
+            t_end = max(0.0, fleet.now_s())
             out_xy = {}
             ids = [int(e) for e in world.emitter_ids]
             by_id = {p.emitter_id: p for p in people}
@@ -95,7 +96,8 @@ def run(args: argparse.Namespace) -> int:
         opts = DaemonOptions(store_path=out / "search.sqlite", signing_key=key, tlog_dir=out,
                              lost_timeout_s=sc.link.lost_timeout_s, resume=False)
         view = LiveView(sys.stdout)
-        result = run_search(sc, fleet.endpoints, opts, out, view=view, truth=truth)
+        connections = [(i + 1, conn) for i, (_name, conn) in enumerate(fleet.endpoints)]
+        result = run_search(sc, connections, opts, out, view=view, truth=truth)
     finally:
         fleet.stop()
     print()

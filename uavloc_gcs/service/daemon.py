@@ -31,7 +31,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from ..errors import LinkError, UavlocError
-from ..mission import DO_CHANGE_SPEED, NAV_RETURN_TO_LAUNCH, WireItem, flight_mission, to_wire
+from ..mission import NAV_RETURN_TO_LAUNCH, WireItem, flight_mission, to_wire
 from ..observations import SlotBatch
 from ..scenario import Scenario
 from .liveview import LiveView, PersonStatusView, StatusSnapshot, VehicleStatus
@@ -42,7 +42,7 @@ from .vehicle import VehicleAgent
 log = logging.getLogger(__name__)
 
 WAYPOINT_TOLERANCE_M = 10.0  # a replanned look this close to the uploaded one is "unchanged"
-LAND_WAIT_S = 600.0  # mission seconds to wait for the fleet to land after sending it home
+LAND_WAIT_S = 300.0  # mission seconds to wait for the fleet to land after sending it home
 
 
 @dataclass(frozen=True)
@@ -470,7 +470,7 @@ class Daemon:
         plan = flight_mission(latlon.tolist(), alt_m=f.altitude_m, speed_m_s=f.speed_m_s, autopilot=f.autopilot,
                               home_latlon_deg=self.sc.launch_latlon_deg, include_takeoff=v.agent.on_ground())
         items = to_wire(plan, f.autopilot)
-        first = next(it.seq for it in items if it.command == DO_CHANGE_SPEED)
+        first = 1 if v.agent.flavour.home_at_seq0 else 0  # the takeoff (on the ground) or the speed item
         await self._upload(v, "look", items, first_seq=first)
         v.targets, v.look_xy_m = targets, pts
         v.home = False
@@ -479,8 +479,11 @@ class Daemon:
         self._event("plan", f"vehicle {v.id} looks at {', '.join(map(str, targets))}", v.id)
 
     async def _send_home(self, v: _Vehicle) -> None:
-        await v.agent.return_home()
         v.purpose, v.targets, v.look_xy_m = "home", (), None
+        if v.agent.on_ground():
+            v.home, v.phase = True, "landed"
+            return
+        await v.agent.return_home()
         v.phase = "returning"
         self._event("home", f"vehicle {v.id} has nothing left to look at: returning home", v.id)
 

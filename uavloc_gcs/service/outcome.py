@@ -34,10 +34,16 @@ def person_result(status, frame: LocalFrame, *, epoch_t_s: float = 0.0) -> Perso
     ``epoch_t_s`` is subtracted from the fix time so it reads as seconds since the search began.
     """
     est = status.estimate
-    if status.xy_m is not None:
-        e, n = status.xy_m
+    # A located person is reported as fixed (status.estimate is then the fix estimate; xy_m and
+    # t_ref_s may come from a later estimate); otherwise as the policy currently believes.
+    own_xy = _vec(getattr(est, "position_xy_m", None))
+    own_t = _f(getattr(est, "t_ref_s", None))
+    if status.located and math.isfinite(own_xy[0]) and math.isfinite(own_t):
+        (e, n), t_ref_abs = own_xy, own_t
+    elif status.xy_m is not None:
+        (e, n), t_ref_abs = status.xy_m, _f(status.t_ref_s)
     else:
-        e, n = _vec(getattr(est, "position_xy_m", None))
+        (e, n), t_ref_abs = own_xy, own_t
     ve, vn = _vec(getattr(est, "velocity_m_s", None))
     r95 = _f(getattr(est, "radius95_m", None))
     bound = _f(getattr(est, "annulus_bound_m", getattr(est, "bound_m", None)))
@@ -49,7 +55,7 @@ def person_result(status, frame: LocalFrame, *, epoch_t_s: float = 0.0) -> Perso
     fix = _f(status.fix_t_s) - epoch_t_s if status.fix_t_s is not None else math.nan
     ambiguous = bool(getattr(est, "ambiguous", False))
     reason = "" if status.located else status.reason
-    t_ref = _f(status.t_ref_s) - epoch_t_s if status.t_ref_s is not None else math.nan
+    t_ref = t_ref_abs - epoch_t_s
     return PersonResult(int(status.emitter_id), lat, lon, float(e), float(n), ve, vn, r95, bound, fix,
                         bool(status.located), not ambiguous, reason, t_ref)
 

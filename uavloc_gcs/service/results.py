@@ -129,13 +129,13 @@ def people_kml(people: Sequence[PersonResult], frame: LocalFrame, name: str = "u
 def results_table(people: Sequence[PersonResult], required_accuracy_m: float,
                   truth_xy_m: Mapping[int, Sequence[float]] | None = None) -> str:
     """A plain-text table for the terminal, with the error to the truth when simulated."""
-    head = f"{'person':>6}  {'lat':>11}  {'lon':>11}  {'95% r':>7}  {'status':<10}"
+    head = f"{'person':>10}  {'lat':>11}  {'lon':>11}  {'95% r':>7}  {'status':<10}"
     if truth_xy_m:
         head += f"  {'true error':>10}"
     lines = [head, "-" * len(head)]
     for p in sorted(people, key=lambda p: p.emitter_id):
         status = "located" if p.located else "NOT"
-        row = (f"{p.emitter_id:>6}  {_num(p.lat_deg, 6):>11}  {_num(p.lon_deg, 6):>11}  "
+        row = (f"{p.emitter_id:>10}  {_num(p.lat_deg, 6):>11}  {_num(p.lon_deg, 6):>11}  "
                f"{_num(p.radius95_m, 1) + ' m' if math.isfinite(p.radius95_m) else '-':>7}  {status:<10}")
         if truth_xy_m:
             t = truth_xy_m.get(p.emitter_id)
