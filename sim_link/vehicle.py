@@ -35,6 +35,8 @@ from .telemetry import TelemetryMixin
 log = logging.getLogger(__name__)
 
 PHYSICS_DT_S = 0.05
+LAND_FINAL_ALT_M = 10.0
+LAND_FINAL_SPEED_M_S = 0.5
 
 
 @dataclass(frozen=True)
@@ -281,7 +283,9 @@ class FakeVehicle(TelemetryMixin):
             self.energy_used_j += float(self.cfg.power.power_w(self.kin.ground_speed_m_s)) * dt
 
     def _land(self, dt: float) -> bool:
-        self.kin.descend(dt, self.cfg.descent_rate_m_s)
+        # ArduPilot: LAND_SPEED_HIGH down to 10 m, then LAND_SPEED (0.5 m/s) to touchdown
+        rate = self.cfg.descent_rate_m_s if self.kin.pos[2] > LAND_FINAL_ALT_M else LAND_FINAL_SPEED_M_S
+        self.kin.descend(dt, rate)
         if self.kin.pos[2] <= 0.0:
             self.landed = True
             self._out.append(self.text(mav.MAV_SEVERITY_INFO, "Landed"))
@@ -333,11 +337,12 @@ class FakeVehicle(TelemetryMixin):
         elif tgt.kind == "rtl":
             if self.rtl_phase not in ("return", "land"):
                 self.rtl_phase = "climb"
-            if self.rtl_phase == "land" or self._rtl(dt):
-                self.rtl_phase = "land"
-                if self._land(dt):
-                    self.rtl_phase = "climb"
-                    self._item_done()
+            if self.rtl_phase != "land":
+                if self._rtl(dt):
+                    self.rtl_phase = "land"  # above home: descend from the next step on
+            elif self._land(dt):
+                self.rtl_phase = "climb"
+                self._item_done()
         elif tgt.kind == "land":
             d = np.linalg.norm(tgt.xyz_m[:2] - self.kin.pos[:2])
             if d > 1.0 and self.rtl_phase != "land":

@@ -1,0 +1,196 @@
+"""A fake vehicle flies the paper scenario's scan mission (in-process, no sockets, fixed steps)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from uavloc_gcs.dialect import mavlink as mav
+from uavloc_gcs.dialect.rssi import decode_rssi_batches
+from uavloc_gcs.mission import to_wire
+from uavloc_gcs.scan import plan_scan, scan_missions
+from uavloc_gcs.scenario import load_scenario
+from sim_link.flavour import FLAVOURS
+from sim_link.mission_server import Peer
+from sim_link.vehicle import PHYSICS_DT_S, FakeVehicle, VehicleConfig
+from sim_link.world import World
+
+PAPER = load_scenario("examples/paper.toml")
+GCS = Peer(("127.0.0.1", 1), 255, 190)
+EPOCH = 1_800_000_000.0
+
+
+def _vehicle(sc, sysid=1, world=None, seed=1):
+    f = sc.fleet
+    cfg = VehicleConfig(sysid, FLAVOURS[f.autopilot], sc.frame, cruise_speed_m_s=f.speed_m_s,
+                        max_accel_m_s2=f.max_acceleration_m_s2, energy_budget_j=f.energy_budget_j,
+                        slot_s=sc.channel.slot_s, epoch_unix_s=EPOCH)
+    return FakeVehicle(cfg, world if world is not None else World(sc, seed=seed))
+
+
+def _fly(v, wire, *, t_end_s=600.0, chunk_s=PHYSICS_DT_S):
+    """Store the mission, arm, AUTO, run to the end; returns per-step samples and all messages."""
+    v.mission.stores[0] = list(wire)
+    v.executor.reset()
+    assert v.set_mode("AUTO") and v.arm()
+    t, samples, msgs = 0.0, [], []
+    while t < t_end_s and not (v.landed and not v.armed and t > 5):
+        t += chunk_s
+        for r in v.advance(t):
+            msgs.append((t, r))
+        samples.append((v.t_s, *v.kin.pos, *v.kin.vel, v.executor.current))
+    return np.array(samples), msgs
+
+
+@pytest.fixture(scope="module", params=["ardupilot", "px4"])
+def scan_flight(request):
+    sc = PAPER.replace(fleet={"autopilot": request.param})
+    plan = scan_missions(sc, plan_scan(sc))[0]
+    wire = to_wire(plan, request.param)
+    v = _vehicle(sc)
+    samples, msgs = _fly(v, wire)
+    return sc, wire, v, samples, msgs
+
+
+def test_scan_reaches_every_item_in_order_and_lands(scan_flight):
+    sc, wire, v, samples, msgs = scan_flight
+    reached = [r.msg.seq for _, r in msgs if r.msg.get_type() == "MISSION_ITEM_REACHED"]
+    nav = [w.seq for w in wire if w.command in (16, 20, 22)]
+    first = 1 if sc.fleet.autopilot == "ardupilot" else 0
+    assert nav and reached == [s for s in nav if s >= first]
+    assert v.landed and not v.armed
+    assert np.linalg.norm(v.position_xyz_m[:2]) < 2.0  # RTL came home
+    texts = [r.msg.text for _, r in msgs if r.msg.get_type() == "STATUSTEXT"]
+    assert "Mission complete" in texts
+
+
+def test_scan_flies_through_waypoints_without_stopping_and_within_the_acceleration_bound(scan_flight):
+    sc, wire, v, samples, msgs = scan_flight
+    t, vel = samples[:, 0], samples[:, 4:7]
+    reached = {r.msg.seq: tt for tt, r in msgs if r.msg.get_type() == "MISSION_ITEM_REACHED"}
+    wps = [w.seq for w in wire if w.command == 16 and w.seq > 0]
+    # from cruise speed after the first waypoint (it may be right above the launch point) to the
+    # second-to-last waypoint: every waypoint in between is a pass-through one
+    t0 = reached[wps[0]] + sc.fleet.speed_m_s / sc.fleet.max_acceleration_m_s2 + 1.0
+    t1 = reached[wps[-2]]
+    speed = np.hypot(vel[:, 0], vel[:, 1])
+    cruise = (t >= t0) & (t <= t1)
+    assert cruise.sum() > 100
+    assert speed[cruise].min() > 0.6 * sc.fleet.speed_m_s  # corners are flown round, not stopped at
+    assert np.median(speed[cruise]) == pytest.approx(sc.fleet.speed_m_s, rel=0.02)
+    acc = np.linalg.norm(np.diff(vel, axis=0), axis=1) / np.diff(t)
+    airborne = (samples[:-1, 3] > 0.0) & (samples[1:, 3] > 0.0)  # touchdown stops it at 0.5 m/s
+    acc = acc[airborne]
+    assert acc.max() <= sc.fleet.max_acceleration_m_s2 * 1.5  # horizontal and vertical bounded separately
+    assert np.abs(samples[cruise, 3] - sc.fleet.altitude_m).max() < 1.0
+
+
+def test_battery_follows_the_energy_model(scan_flight):
+    sc, wire, v, samples, msgs = scan_flight
+    status = [r.msg for _, r in msgs if r.msg.get_type() == "SYS_STATUS"]
+    remaining = [m.battery_remaining for m in status]
+    assert remaining[0] == 100 and remaining[-1] < remaining[0]
+    assert all(a >= b for a, b in zip(remaining, remaining[1:]))
+    assert remaining[-1] == round(100 * (1 - v.energy_used_j / sc.fleet.energy_budget_j))
+    # Flight time x power bounds: between hover power and the 25 m/s power for the airborne time
+    airborne = samples[:, 3] > 0.05
+    t_air = airborne.sum() * PHYSICS_DT_S
+    pm = sc.power_model
+    assert pm.power_w(10.2) * t_air * 0.95 < v.energy_used_j < pm.power_w(25.0) * t_air * 1.05
+
+
+def test_rssi_matches_the_channel_model(scan_flight):
+    sc, wire, v, samples, msgs = scan_flight
+    rssi = [r.msg for _, r in msgs if r.msg.get_type() == "UAVLOC_RSSI_BATCH"]
+    assert all(r.component == 191 for _, r in msgs if r.msg.get_type() == "UAVLOC_RSSI_BATCH")
+    for m in rssi:
+        m._header = mav.MAVLink_header(m.id, srcSystem=1, srcComponent=191)
+    slots = decode_rssi_batches(rssi, sc.frame, epoch_unix_s=EPOCH)
+    assert len(slots) > 500
+    world = v.world
+    people = world.positions(slots.t_s)  # (N, S, 2)
+    idx = np.array([world.index_of(e) for e in slots.emitter_id])
+    xy = people[np.arange(len(slots)), idx]
+    d = np.sqrt(np.sum((xy - slots.xyz_m[:, :2]) ** 2, axis=1) + slots.xyz_m[:, 2] ** 2)
+    assert d.max() <= sc.fleet.comm_range_m + 0.5
+    resid = slots.rssi_dbm - world.channel.median_rssi_dbm(d)
+    se = sc.channel.shadowing_sigma_db / np.sqrt(sc.channel.samples_per_slot)  # slot mean of 10 samples
+    assert abs(resid.mean()) < 4 * se / np.sqrt(len(resid)) + 0.02
+    assert resid.std() == pytest.approx(se, rel=0.1)
+    # exactly the (slot, person) pairs within range are reported: check at the physics step times
+    slot = sc.channel.slot_s
+    reported = set(zip(np.round(slots.t_s / slot).astype(int).tolist(), slots.emitter_id.tolist()))
+    air = samples[samples[:, 3] > 0.0]
+    air = air[:: max(1, len(air) // 400)]
+    ppl = world.positions(air[:, 0])  # (T, S, 2)
+    d3 = np.sqrt(np.sum((ppl - air[:, None, 1:3]) ** 2, axis=2) + air[:, None, 3] ** 2)
+    k, j = np.nonzero(d3 <= sc.fleet.comm_range_m)
+    expected = set(zip(np.round(air[k, 0] / slot).astype(int).tolist(), world.emitter_ids[j].tolist()))
+    assert len(expected) > 20
+    grid = set(np.round(air[:, 0] / slot).astype(int).tolist())
+    assert {p for p in reported if p[0] in grid} == expected
+
+
+def test_same_seed_same_flight_and_rssi():
+    sc = PAPER.replace(fleet={"autopilot": "px4"})
+    wire = to_wire(scan_missions(sc, plan_scan(sc))[1], "px4")
+    runs = []
+    for _ in range(2):
+        v = _vehicle(sc, sysid=2, seed=5)
+        s, m = _fly(v, wire, t_end_s=120.0, chunk_s=0.7)
+        runs.append((s, [x.msg.pack(mav.MAVLink(None, 2, 191)) for _, x in m
+                         if x.msg.get_type() == "UAVLOC_RSSI_BATCH"]))
+    np.testing.assert_array_equal(runs[0][0][-1], runs[1][0][-1])
+    assert runs[0][1] == runs[1][1] and len(runs[0][1]) > 10
+
+
+def _cmd(v, command, *p):
+    p = list(p) + [0.0] * (7 - len(p))
+    out = v.handle(mav.MAVLink_command_long_message(1, 1, command, 0, *p), GCS, 0.0)
+    return [r.msg for r in out if r.msg.get_type() == "COMMAND_ACK"][0].result
+
+
+def test_guided_takeoff_rtl_and_land_by_command():
+    sc = PAPER
+    v = _vehicle(sc)
+    assert _cmd(v, mav.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, 30) == mav.MAV_RESULT_DENIED  # disarmed
+    assert _cmd(v, mav.MAV_CMD_COMPONENT_ARM_DISARM, 1) == mav.MAV_RESULT_ACCEPTED
+    assert _cmd(v, mav.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, 30) == mav.MAV_RESULT_FAILED  # not GUIDED
+    assert _cmd(v, mav.MAV_CMD_DO_SET_MODE, 1, 4) == mav.MAV_RESULT_ACCEPTED  # GUIDED
+    assert _cmd(v, mav.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, 30) == mav.MAV_RESULT_ACCEPTED
+    v.advance(12.0)
+    assert v.position_xyz_m[2] == pytest.approx(30.0, abs=0.6) and not v.landed
+    assert _cmd(v, mav.MAV_CMD_COMPONENT_ARM_DISARM, 0) == mav.MAV_RESULT_FAILED  # in the air
+    v.kin.pos[:2] = [300.0, -200.0]  # as if it had flown there
+    assert _cmd(v, mav.MAV_CMD_NAV_RETURN_TO_LAUNCH) == mav.MAV_RESULT_ACCEPTED
+    v.advance(120.0)
+    assert v.landed and not v.armed and np.linalg.norm(v.position_xyz_m) < 1.5
+    assert _cmd(v, mav.MAV_CMD_NAV_LAND) == mav.MAV_RESULT_FAILED  # already on the ground
+    assert _cmd(v, 31010) == mav.MAV_RESULT_UNSUPPORTED
+
+
+def test_px4_mode_encoding_and_takeoff_amsl():
+    sc = PAPER.replace(fleet={"autopilot": "px4"})
+    v = _vehicle(sc)
+    assert _cmd(v, mav.MAV_CMD_COMPONENT_ARM_DISARM, 1) == mav.MAV_RESULT_ACCEPTED
+    assert _cmd(v, mav.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, float("nan"), float("nan"), float("nan"), 20.0) == 0
+    v.advance(10.0)
+    assert v.mode == "LOITER" and v.position_xyz_m[2] == pytest.approx(20.0, abs=0.6)
+    hb = v.heartbeat_reply().msg
+    assert hb.autopilot == mav.MAV_AUTOPILOT_PX4 and hb.custom_mode == (4 << 16) | (3 << 24)
+    assert hb.base_mode & mav.MAV_MODE_FLAG_SAFETY_ARMED
+    assert _cmd(v, mav.MAV_CMD_DO_SET_MODE, 1, 4, 5) == mav.MAV_RESULT_ACCEPTED and v.mode == "RTL"
+
+
+def test_set_current_and_mission_current():
+    sc = PAPER
+    v = _vehicle(sc)
+    wire = to_wire(scan_missions(sc, plan_scan(sc))[0], "ardupilot")
+    v.mission.stores[0] = wire
+    assert _cmd(v, mav.MAV_CMD_DO_SET_MISSION_CURRENT, 3) == mav.MAV_RESULT_ACCEPTED
+    assert v.current_seq == 3 and v.mode == "STABILIZE"  # does not switch into AUTO
+    assert _cmd(v, mav.MAV_CMD_DO_SET_MISSION_CURRENT, len(wire)) == mav.MAV_RESULT_FAILED
+    out = v.handle(mav.MAVLink_mission_set_current_message(1, 1, 2), GCS, 0.0)
+    assert out[0].msg.get_type() == "MISSION_CURRENT" and out[0].msg.seq == 2
+    mc = v.mission_current_reply().msg
+    assert mc.total == len(wire) - 1 and mc.mission_state == mav.MISSION_STATE_NOT_STARTED
