@@ -12,6 +12,8 @@ import numpy as np
 
 from uavloc_gcs.errors import FileFormatError
 
+FILE_MODE = 0o644
+
 
 def read_text(path: str | Path) -> str:
     """The file's text, or FileFormatError naming the file."""
@@ -35,6 +37,7 @@ def write_text(path: str | Path, text: str) -> Path:
     try:
         with os.fdopen(fd, "w", encoding="utf-8", newline="") as fh:
             fh.write(text)
+        os.chmod(tmp, FILE_MODE)  # mkstemp makes 0600; mission files are meant to be shared
         os.replace(tmp, p)
     except BaseException:
         with contextlib.suppress(OSError):

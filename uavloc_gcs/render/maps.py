@@ -30,6 +30,8 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.patches import Circle, Polygon as MplPolygon
 
+from . import palette
+
 __all__ = [
     "new_map", "origin_caption", "vehicle_colors", "draw_area", "draw_polygons", "draw_polylines",
     "draw_points", "draw_circles", "draw_launch", "add_scale_bar", "add_north_arrow", "add_legend",
@@ -38,18 +40,11 @@ __all__ = [
 
 AREA_COLOR = "#444444"
 LAUNCH_COLOR = "#d62728"
-# Colour-blind-safe (Okabe-Ito) first, then tab20 for large fleets.
-_PALETTE = ["#0072B2", "#E69F00", "#009E73", "#CC79A7", "#56B4E9", "#D55E00", "#F0E442", "#000000"]
 
 
 def vehicle_colors(n: int) -> list[str]:
-    """``n`` distinct colours, one per vehicle (stable: vehicle k always gets the same one)."""
-    if n <= len(_PALETTE):
-        return _PALETTE[:n]
-    from matplotlib import colormaps
-
-    cmap = colormaps["tab20"]
-    return _PALETTE + [cmap(k % 20) for k in range(n - len(_PALETTE))]
+    """``n`` distinct colours '#rrggbb', one per vehicle (vehicle k always gets the same one)."""
+    return palette.vehicle_colors(n)
 
 
 def origin_caption(lat_deg: float, lon_deg: float) -> str:
@@ -245,6 +240,7 @@ def save_figure(fig: Figure, path: str | Path) -> Path:
     try:
         with os.fdopen(fd, "wb") as fh, matplotlib.rc_context({"svg.hashsalt": "uavloc"}):
             fig.savefig(fh, format=fmt, metadata=metadata)
+        os.chmod(tmp, 0o644)  # mkstemp makes 0600
         os.replace(tmp, p)
     except BaseException:
         with contextlib.suppress(OSError):

@@ -1,0 +1,95 @@
+"""``uavloc plan SCENARIO.toml --out DIR``: scan missions per vehicle, GeoJSON, KML and a picture."""
+
+from __future__ import annotations
+
+import argparse
+import logging
+from pathlib import Path
+
+log = logging.getLogger(__name__)
+
+HELP = "plan the initial scan: .plan/.waypoints per vehicle, scan.geojson, scan.kml, preview.png"
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("plan", help=HELP, description=HELP + ". Writes nothing if anything fails.")
+    p.add_argument("scenario", metavar="SCENARIO.toml", help="scenario file (see examples/)")
+    p.add_argument("--out", metavar="DIR", default="plans", help="output directory (default: plans)")
+    p.add_argument("--coverage", choices=["double", "single"],
+                   help="override scan.coverage: 'double' (lanes <= R apart, every point heard from two "
+                        "lanes; default) or 'single' (the paper's sqrt(2) R spacing)")
+    p.add_argument("--lane-spacing", type=float, metavar="M", help="override scan.lane_spacing_m (metres)")
+    p.add_argument("--svg", action="store_true", help="also write preview.svg")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from mission_io import geojson, kml
+    from mission_io import plan as plan_file
+    from mission_io import waypoints as wpl_file
+
+    from ..render.maps import save_figure
+    from ..render.scan_plot import scan_figure
+    from ..scan import plan_scan, scan_missions
+    from ..scenario import load_scenario
+    from ._output import atomic_output_dir
+
+    sc = load_scenario(args.scenario)
+    scan_changes = {}
+    if args.coverage:
+        scan_changes["coverage"] = args.coverage
+    if args.lane_spacing is not None:
+        scan_changes["lane_spacing_m"] = args.lane_spacing
+    if scan_changes:
+        sc = sc.replace(scan=scan_changes)
+    plan = plan_scan(sc)
+    missions = scan_missions(sc, plan)
+    fc = geojson.scan_feature_collection(sc, plan)
+    written = []
+    with atomic_output_dir(args.out) as tmp:
+        for v, mission in zip(plan.vehicles, missions):
+            stem = f"uav{v.index + 1}"
+            plan_file.write(tmp / f"{stem}.plan", mission)
+            wpl_file.write(tmp / f"{stem}.waypoints", mission)
+            written += [f"{stem}.plan", f"{stem}.waypoints"]
+        geojson.write(tmp / "scan.geojson", fc)
+        kml.write(tmp / "scan.kml", kml.from_feature_collection(fc))
+        fig = scan_figure(sc, plan)
+        save_figure(fig, tmp / "preview.png")
+        written += ["scan.geojson", "scan.kml", "preview.png"]
+        if args.svg:
+            save_figure(fig, tmp / "preview.svg")
+            written.append("preview.svg")
+    print(summary(sc, plan, missions))
+    print(f"\nWrote {len(written)} files to {Path(args.out)}/: {', '.join(written)}")
+    print(f"Look at them: uavloc preview {Path(args.out) / 'uav1.plan'}   (or open preview.png; "
+          "scan.kml opens in Google Earth)")
+    return 0
+
+
+def summary(sc, plan, missions) -> str:
+    """The text printed after planning: the scan layout and one row per vehicle."""
+    from ..render.terminal import format_table
+
+    f = sc.fleet
+    usable = sc.usable_energy_j
+    idle = f.vehicles - len(plan.vehicles)
+    head = [
+        f"Scan plan '{sc.name}' ({sc.source}): {f.vehicles} {'ArduPilot' if f.autopilot == 'ardupilot' else 'PX4'} "
+        f"vehicles at {f.altitude_m:g} m and {f.speed_m_s:g} m/s, launch {sc.launch_latlon_deg[0]:.6f}, "
+        f"{sc.launch_latlon_deg[1]:.6f}",
+        f"Lanes {plan.lane_spacing_m:.1f} m apart at bearing {plan.lane_heading_deg:.0f} deg, "
+        f"{plan.coverage} coverage (every point within R = {plan.range_m:.1f} m of "
+        f"{'two lanes' if plan.coverage == 'double' else 'a lane'}).",
+    ]
+    if idle:
+        head.append(f"{idle} vehicle(s) have nothing to scan (more vehicles than lanes) and get no mission.")
+    rows = []
+    for v, m in zip(plan.vehicles, missions):
+        mins, secs = divmod(int(round(v.duration_s)), 60)
+        rows.append([f"uav{v.index + 1}", len(m.waypoints()), len(m.items), round(v.length_m / 1000, 2),
+                     f"{mins}:{secs:02d}", round(v.energy_j / 1000, 1), round(100 * v.energy_j / usable, 1)])
+    table = format_table(["vehicle", "waypoints", "items", "length km", "time m:s", "energy kJ", "% budget"], rows)
+    foot = (f"% budget = share of the usable {usable / 1000:.1f} kJ per vehicle ({f.energy_budget_j / 1000:g} kJ "
+            f"minus {f.energy_reserve_fraction:.0%} reserve); times at cruise speed, climb and turns not included.")
+    return "\n".join(head) + "\n\n" + table + "\n" + foot
