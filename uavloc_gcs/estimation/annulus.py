@@ -16,8 +16,9 @@ import math
 import numpy as np
 from scipy.stats import norm
 
-N_RAYS = 180
-MAX_RINGS = 240  # the tightest rings only: fewer constraints can only enlarge the set (stays valid)
+N_RAYS = 90
+MAX_RINGS = 120  # the tightest rings only: fewer constraints can only enlarge the set (stays valid)
+REACH_RINGS = 64
 
 
 def annulus_bound_m(
@@ -50,6 +51,27 @@ def annulus_bound_m(
         keep = np.union1d(np.argsort(outer)[: MAX_RINGS // 2], np.argsort(-inner)[: MAX_RINGS // 2])
         a_xy_m, inner, outer = a_xy_m[keep], inner[keep], outer[keep]
     return _farthest_on_rays(np.asarray(estimate_xy_m, float), a_xy_m, inner, outer)
+
+
+def reach_bound_m(
+    estimate_xy_m: np.ndarray,
+    t_ref_s: float,
+    t_s: np.ndarray,
+    a_xy_m: np.ndarray,
+    h_m: np.ndarray,
+    comm_range_m: float,
+    max_speed_m_s: float,
+) -> float:
+    """Farthest distance [m] from the estimate to a point within the communication range of every
+    slot (ground radius sqrt(D^2 - h^2) + v_max |t_i - t_ref|): a sure bound, whatever the noise.
+    inf if the range is unknown; NaN if the discs do not intersect (inconsistent data)."""
+    if not math.isfinite(comm_range_m) or len(t_s) == 0:
+        return math.inf
+    outer = np.sqrt(np.maximum(comm_range_m**2 - h_m**2, 0.0)) + max_speed_m_s * np.abs(t_s - t_ref_s)
+    if len(t_s) > REACH_RINGS:  # equal-sized discs: spread-out ones constrain most
+        keep = np.unique(np.linspace(0, len(t_s) - 1, REACH_RINGS).astype(int))
+        a_xy_m, outer = a_xy_m[keep], outer[keep]
+    return _farthest_on_rays(np.asarray(estimate_xy_m, float), a_xy_m, np.zeros_like(outer), outer)
 
 
 def _farthest_on_rays(e: np.ndarray, c: np.ndarray, inner: np.ndarray, outer: np.ndarray) -> float:

@@ -24,13 +24,15 @@ import numpy as np
 
 from ..errors import EstimationError
 from ..observations import SlotBatch
-from .annulus import annulus_bound_m
-from .fit import Problem, inflation_factor, prepare, principal_line, start_points
+from .annulus import annulus_bound_m, reach_bound_m
+from .fit import Problem, inflation_factor, leg_lines, mirror_point, prepare, start_points
 from .model import ChannelModel, radius_of_probability
 
 MIN_SLOTS = 3
 AMBIGUITY_MASS = 0.05
 TX_PRIOR_SIGMA_DB = 6.0
+PROBE_NFEV = 6
+PROBE_MERGE_M = 3.0
 
 
 @dataclass(frozen=True)
@@ -149,6 +151,8 @@ def estimate_emitter(
     pos, vel, cov = _at(theta, cov_c, moving, t_ref - data.t_c)
     beta = theta[-1] if problem.tx else 0.0
     mode_r = _mode_radius(cov, moving, max_speed_m_s, t_ref - data.t_c)
+    # where the phone was heard at all bounds everything, e.g. the lateral error right under a track
+    reach = reach_bound_m(pos, t_ref, data.t_s, data.a_xy, data.h_m, channel.comm_range_m, max_speed_m_s)
     mirror = None
     if len(modes) > 1:
         (m_theta, _), (m_cov_c, m_logmass) = modes[1], laplace[1]
@@ -159,6 +163,8 @@ def estimate_emitter(
     radius = mode_r
     if ambiguous:
         radius = max(mode_r, float(np.linalg.norm(mirror.position_xy_m - pos)) + mirror.radius95_m)
+    if math.isfinite(reach):
+        radius, mode_r = min(radius, reach), min(mode_r, reach)
     bound = annulus_bound_m(pos, t_ref, data.t_s, data.a_xy, data.h_m, data.y + beta, data.n_samples,
                             channel.log_range_sigma, max_speed_m_s)
     return Estimate(
@@ -182,16 +188,42 @@ def estimate_all(slots: SlotBatch, channel: ChannelModel, *, max_speed_m_s: floa
 
 
 def _distinct_modes(problem: Problem, starts: list[np.ndarray]) -> list[tuple[np.ndarray, float]]:
-    """Local optima from all starts, best first, duplicates (< 1 m apart) removed."""
-    fits = sorted((problem.fit(s) for s in starts), key=lambda f: f[1])
-    modes: list[tuple[np.ndarray, float]] = []
-    for theta, cost in fits:
-        if np.all(np.isfinite(theta)) and all(np.linalg.norm(theta[:2] - m[0][:2]) > 1.0 for m in modes):
-            modes.append((theta, cost))
-    if not modes:
+    """Local optima from all starts, best first, duplicates (< 1 m apart) removed.
+
+    After the first start, the best solution is also mirrored across every straight leg (person
+    and velocity reflected at the leg's time): a person close to one leg of several has a local
+    mirror there that the global mirror start does not reach. Later starts first get a few
+    iterations; one that is by then next to a known optimum is dropped (it was converging there).
+    """
+    modes = [problem.fit(starts[0])]
+    legs = leg_lines(problem.data)
+    more = list(starts[1:])
+    if len(legs) >= 2:
+        more += [_mirror_state(problem, modes[0][0], c, d, t - problem.data.t_c) for c, d, t in legs]
+    for s in more:
+        theta, cost = problem.fit(s, max_nfev=PROBE_NFEV)
+        if any(np.linalg.norm(theta[:2] - m[0][:2]) < PROBE_MERGE_M for m in modes):
+            continue
+        modes.append(problem.fit(theta))
+    modes.sort(key=lambda f: f[1])
+    out: list[tuple[np.ndarray, float]] = []
+    for theta, cost in modes:
+        if np.all(np.isfinite(theta)) and all(np.linalg.norm(theta[:2] - m[0][:2]) > 1.0 for m in out):
+            out.append((theta, cost))
+    if not out:
         raise EstimationError("the fit diverged from every start point")
-    center, direction, _ = principal_line(problem.data)
-    return modes
+    return out
+
+
+def _mirror_state(problem: Problem, theta: np.ndarray, center, direction, tau: float) -> np.ndarray:
+    out = theta.copy()
+    v = theta[2:4] if problem.moving else np.zeros(2)
+    p_leg = mirror_point(theta[:2] + v * tau, center, direction)
+    v_m = mirror_point(v, np.zeros(2), direction)
+    out[:2] = p_leg - v_m * tau
+    if problem.moving:
+        out[2:4] = v_m
+    return out
 
 
 def _laplace(problem: Problem, theta: np.ndarray, cost: float, factor: float) -> tuple[np.ndarray, float]:

@@ -4,7 +4,7 @@ Objective (negative log posterior x 2) over theta = (x, y[, vx, vy][, beta]) at 
 
     sum_i w_i (y_i - ln d_i(theta) + beta)^2           data, w_i = n_i / s^2
   + |v|^2 / sigma_v^2                                   velocity prior, sigma_v = v_max / 2 per axis
-  + ((|v| - v_max)+ / 0.01 m/s)^2                       the speed bound, hard in practice
+  + ((|v| - v_max)+ / 0.05 m/s)^2                       the speed bound (overshoot ~<= 0.05 m/s)
   + (beta / sigma_beta)^2                               transmit-offset prior (when estimated)
   + |p - c|^2 / (10 km)^2                               a vague position prior: keeps degenerate
                                                         geometry (a hovering vehicle) finite
@@ -22,10 +22,11 @@ from scipy.optimize import least_squares
 
 from .model import ChannelModel, geometry, log_range_jacobian
 
-SPEED_BOUND_SOFTNESS_M_S = 0.01
+SPEED_BOUND_SOFTNESS_M_S = 0.05
 POSITION_PRIOR_SIGMA_M = 1.0e4
-GRID_SLOTS = 150
-GRID_SIDE = 21
+GRID_SLOTS = 80
+GRID_SIDE = 17
+START_SEPARATION_M = 10.0
 
 
 @dataclass(frozen=True)
@@ -127,10 +128,10 @@ class Problem:
         """Normalised data residuals (unit variance under the model)."""
         return self.residuals(theta)[: len(self.data.t_s)]
 
-    def fit(self, theta0: np.ndarray) -> tuple[np.ndarray, float]:
+    def fit(self, theta0: np.ndarray, max_nfev: int = 200) -> tuple[np.ndarray, float]:
         """Local MAP fit from theta0: (theta, 2 x negative log posterior)."""
-        sol = least_squares(self.residuals, theta0, jac=self.jacobian, method="lm", xtol=1e-10, ftol=1e-10,
-                            max_nfev=200)
+        sol = least_squares(self.residuals, theta0, jac=self.jacobian, method="lm", xtol=1e-6, ftol=1e-7,
+                            max_nfev=max_nfev)
         return sol.x, float(2.0 * sol.cost)
 
 
@@ -147,6 +148,37 @@ def mirror_point(p: np.ndarray, center: np.ndarray, direction: np.ndarray) -> np
     """Reflection of p across the line through center along direction."""
     normal = np.array([-direction[1], direction[0]])
     return p - 2.0 * np.dot(p - center, normal) * normal
+
+
+def leg_lines(data: Prepared, *, min_slots: int = 20, max_legs: int = 3) -> list[tuple[np.ndarray, np.ndarray, float]]:
+    """Straight legs in the slots: (centre, unit direction, mean time) of up to ``max_legs`` of the
+    longest runs of one vehicle without a gap (> 1 s) or a heading change beyond 30 degrees."""
+    order = np.lexsort((data.t_s, data.vehicle))
+    a, t, veh = data.a_xy[order], data.t_s[order], data.vehicle[order]
+    if len(t) < 2:
+        return []
+    step = np.diff(a, axis=0)
+    heading = np.unwrap(np.arctan2(step[:, 1], step[:, 0]))
+    brk = (np.diff(t) > 1.0) | (veh[1:] != veh[:-1]) | (np.hypot(step[:, 0], step[:, 1]) < 1e-9)
+    seg = np.concatenate([[0], np.cumsum(brk)])
+    # within a segment, a new leg whenever the heading leaves its 30-degree bin
+    bins = np.floor((heading - heading[0]) / np.radians(30.0))
+    leg = seg * 1000 + np.concatenate([[bins[0]], bins]).astype(int)
+    change = np.concatenate([[True], leg[1:] != leg[:-1]])
+    ids = np.cumsum(change)
+    counts = np.bincount(ids)
+    out = []
+    for k in np.argsort(-counts)[:max_legs]:
+        if counts[k] < min_slots:
+            break
+        m = ids == k
+        pts = a[m]
+        d = pts[-1] - pts[0]
+        norm = float(np.hypot(*d))
+        if norm < 1.0:
+            continue
+        out.append((pts.mean(axis=0), d / norm, float(t[m].mean())))
+    return out
 
 
 def start_points(problem: Problem) -> list[np.ndarray]:
@@ -182,7 +214,7 @@ def start_points(problem: Problem) -> list[np.ndarray]:
         if problem.tx:
             lnd_p = 0.5 * np.log(np.sum((p - d.a_xy) ** 2, axis=1) + d.h_m**2)
             theta[-1] = float(np.average(lnd_p - d.y, weights=d.w))
-        if not any(np.linalg.norm(theta[:2] - q[:2]) < 1.0 for q in out):
+        if not any(np.linalg.norm(theta[:2] - q[:2]) < START_SEPARATION_M for q in out):
             out.append(theta)
     return out
 

@@ -25,12 +25,13 @@ class ChannelModel:
     path_loss_exponent: float = 2.0
     shadowing_sigma_db: float = 4.0
     reference_distance_m: float = 1.0
+    comm_range_m: float = math.inf  # 3-D range within which a phone is heard at all (a sure bound)
 
     @staticmethod
     def from_scenario(sc) -> "ChannelModel":
         ch = sc.channel
         return ChannelModel(ch.reference_power_dbm, ch.path_loss_exponent, ch.shadowing_sigma_db,
-                            ch.reference_distance_m)
+                            ch.reference_distance_m, sc.fleet.comm_range_m)
 
     @property
     def nepers_per_db(self) -> float:
