@@ -51,6 +51,8 @@ def run(args: argparse.Namespace) -> int:
 
     if args.width < 20:
         raise ConfigError(f"--width must be at least 20 columns, got {args.width}")
+    if args.png and Path(args.png).suffix.lower() not in (".png", ".svg"):
+        raise ConfigError(f"--png {args.png}: the picture must end in .png or .svg")
     mission, kind = load_mission(args.file)
     positional = [it for it in mission.items if it.frame in GLOBAL_FRAMES]
     has_home = not (math.isnan(mission.home_lat_deg) or math.isnan(mission.home_lon_deg))
@@ -135,9 +137,4 @@ def _picture(args, mission, route_xy, fence_xy, origin) -> None:
     sub = origin_caption(*origin) if origin else None
     fig = mission_figure([route_xy], [Path(args.file).name], title=f"Mission {Path(args.file).name}",
                          subtitle=sub, fence_xy=fence_xy)
-    suffix = Path(args.png).suffix.lower()
-    if suffix not in (".png", ".svg"):
-        from ..errors import ConfigError
-
-        raise ConfigError(f"--png {args.png}: the picture must end in .png or .svg")
     save_figure(fig, args.png)
