@@ -56,6 +56,7 @@ class _PeerCodecs:
 
     def __init__(self, sysid: int, key: bytes | None, link_id: int):
         self.rx = mav.MAVLink(None)
+        self.rx.robust_parsing = True  # bad CRC / bad signature -> BAD_DATA, not an exception
         self.tx = {c: mav.MAVLink(None, srcSystem=sysid, srcComponent=c) for c in (1, 191)}
         self.last_heard_wall_s = -float("inf")  # set by the first valid message
         if key is not None:

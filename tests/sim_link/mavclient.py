@@ -14,6 +14,7 @@ class MavClient(asyncio.DatagramProtocol):
     def __init__(self, sysid: int = 255, compid: int = 190, key: bytes | None = None):
         self.codec = mav.MAVLink(None, srcSystem=sysid, srcComponent=compid)
         self.rx = mav.MAVLink(None)
+        self.rx.robust_parsing = True
         if key is not None:
             ts = int((time.time() - 1420070400) * 1e5)
             for c in (self.codec, self.rx):
