@@ -127,6 +127,9 @@ class SearchPolicy:
         self.time_limit_s = scenario.planner.time_limit_s if time_limit_s is None else float(time_limit_s)
         self.max_iter = max_iter  # None: stop on the time limit; set it (and a long time limit) for
         # run-to-run determinism
+        # NM (the paper's variant) believes people are static: speed bound 0, so its radius does not
+        # grow with the data's age. Its true error on moving people shows what that belief costs.
+        self.model_speed_m_s = scenario.people.max_speed_m_s if model_motion else 0.0
         self.channel = ChannelModel.from_scenario(scenario)
         self.required_m = scenario.people.required_accuracy_m
         self.area_xy_m = scenario.area_xy_m()
@@ -168,7 +171,7 @@ class SearchPolicy:
             t0 = time.perf_counter()
             try:
                 est = estimate_emitter(
-                    p.batches[0], self.channel, max_speed_m_s=self.scenario.people.max_speed_m_s,
+                    p.batches[0], self.channel, max_speed_m_s=self.model_speed_m_s,
                     t_ref_s=p.last_slot_t_s, model_motion=self.model_motion, previous=p.estimate)
                 p.estimate, p.error = est, ""
             except EstimationError as exc:
@@ -215,7 +218,11 @@ class SearchPolicy:
             return True
         if pending - planned:  # someone new needs a look
             return True
-        return bool(changed & (pending | planned))
+        # Estimates shift while a vehicle is passing a person; re-routing it mid-look would only
+        # thrash. The look's end (see update) or a fix triggers the replan instead.
+        lead_s = 2.0 * self.range_m / self.speed_m_s
+        relevant = {e for e in changed if not (e in self._awaiting and t_s >= self._awaiting[e] - lead_s)}
+        return bool(relevant & (pending | planned))
 
     # -- planning --------------------------------------------------------------------------
     def replan(self, t_s: float, vehicles: list) -> SearchPlan:

@@ -1,0 +1,280 @@
+"""Fast in-process mission simulation (no sockets): scan -> localize -> plan -> fly -> replan -> home.
+
+The same :class:`sim_link.world.World` (people, channel) and the same
+:class:`uavloc_gcs.search.SearchPolicy` (estimator + planner) as the daemon drive it; only the
+vehicles are idealized: each flies its current path as a polyline at the constant cruise speed
+(pass-through waypoints, turns not modelled), hears one slot every ``channel.slot_s`` seconds
+(``World.hear_track``), and hovers when it has nothing to do. Energy is the scenario's power model
+(flight at cruise speed, hovering at P(0)).
+
+Timeline: every vehicle flies its part of the initial scan (``uavloc_gcs.scan.plan_scan``) from
+the launch point, waits (hovering) for the others, then the adaptive phase starts: every ``dt_s``
+the slots heard are given to the policy, which re-estimates and, when it asks, replans from the
+vehicles' current positions and remaining energy. The mission ends when every person heard is
+located (or given up) and every vehicle is home; the completion time is the moment the last
+vehicle lands (computed exactly from the path, not rounded to the step).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from uavloc_gcs.scan import plan_scan
+from uavloc_gcs.scenario import Scenario
+from uavloc_gcs.search import SearchPolicy
+
+from .world import World
+
+METHODS = {
+    # name: (model_motion, optimizer)
+    "MLE-EPSO (M)": (True, "epso"),
+    "MLE-EPSO (NM)": (False, "epso"),
+    "MLE-PSO": (True, "pso"),
+    "MLE-GA": (True, "ga"),
+}
+DEFAULT_MAX_TIME_S = 3600.0
+
+
+@dataclass(frozen=True)
+class PersonResult:
+    """One true person at the end of a mission. Errors in metres; NaN where not estimated."""
+
+    emitter_id: int
+    heard: bool
+    located: bool
+    fix_t_s: float  # NaN if never located
+    error_m: float  # believed position at its reference time vs truth at that time
+    claimed_radius_m: float  # the method's own error claim (95 % radius or annulus bound)
+
+
+@dataclass(frozen=True)
+class MissionResult:
+    method: str
+    people: int
+    seed: int
+    completion_time_s: float  # last vehicle home [s]
+    scan_time_s: float  # adaptive phase start [s]
+    planner_runtime_s: float  # decision-making compute (planner; RL: training + decisions) [s]
+    estimator_runtime_s: float
+    replans: int
+    energy_j: tuple[float, ...]  # per vehicle, used
+    persons: tuple[PersonResult, ...]
+    error_times_s: np.ndarray = field(repr=False, default_factory=lambda: np.zeros(0))
+    max_error_m: np.ndarray = field(repr=False, default_factory=lambda: np.zeros(0))
+
+    @property
+    def located_fraction(self) -> float:
+        return float(np.mean([p.located for p in self.persons])) if self.persons else 1.0
+
+    @property
+    def max_final_error_m(self) -> float:
+        errs = [p.error_m for p in self.persons]
+        return float(np.max(errs)) if errs else 0.0
+
+
+class Flight:
+    """A vehicle flying a polyline at constant speed from ``t0_s``; hovers at the end of it."""
+
+    def __init__(self, path_xy_m: np.ndarray, t0_s: float, speed_m_s: float):
+        self.path = np.asarray(path_xy_m, dtype=float).reshape(-1, 2)
+        self.t0_s = float(t0_s)
+        self.speed = float(speed_m_s)
+        seg = np.linalg.norm(np.diff(self.path, axis=0), axis=1)
+        self.cum_m = np.concatenate([[0.0], np.cumsum(seg)])
+
+    @property
+    def length_m(self) -> float:
+        return float(self.cum_m[-1])
+
+    @property
+    def end_t_s(self) -> float:
+        return self.t0_s + self.length_m / self.speed
+
+    def flown_m(self, t_s) -> np.ndarray:
+        return np.clip((np.asarray(t_s, dtype=float) - self.t0_s) * self.speed, 0.0, self.length_m)
+
+    def position(self, t_s) -> np.ndarray:
+        """(2,) or (N, 2) position [m] at time(s) t_s."""
+        s = self.flown_m(t_s)
+        x = np.interp(s, self.cum_m, self.path[:, 0])
+        y = np.interp(s, self.cum_m, self.path[:, 1])
+        return np.stack([x, y], axis=-1)
+
+
+class Vehicle:
+    """Energy and flight bookkeeping of one simulated vehicle."""
+
+    def __init__(self, index: int, sc: Scenario):
+        self.index = index  # world/MAVLink vehicle number (1-based)
+        self.id = str(index)
+        self.sc = sc
+        self.flight = Flight(np.zeros((1, 2)), 0.0, sc.fleet.speed_m_s)
+        self.energy_j = 0.0
+        self.accounted_t_s = 0.0
+        self.home_t_s: float | None = None
+
+    def fly(self, path_xy_m: np.ndarray, t_s: float) -> None:
+        self.account(t_s)
+        self.flight = Flight(path_xy_m, t_s, self.sc.fleet.speed_m_s)
+        self.home_t_s = None
+
+    def account(self, t_s: float) -> None:
+        """Charge flight and hover energy from the last accounting time up to ``t_s``."""
+        if t_s <= self.accounted_t_s:
+            return
+        pw = self.sc.power_model
+        if self.home_t_s is not None:  # landed
+            self.accounted_t_s = t_s
+            return
+        f = self.flight
+        flown = float(f.flown_m(t_s) - f.flown_m(self.accounted_t_s))
+        fly_s = flown / f.speed
+        self.energy_j += float(pw.leg_energy_j(flown, f.speed)) + pw.hover_energy_j(
+            max(0.0, t_s - self.accounted_t_s - fly_s))
+        self.accounted_t_s = t_s
+
+    def land_if_home(self, t_s: float) -> None:
+        """Mark the vehicle landed if its path ends at the launch point and it got there by t_s."""
+        f = self.flight
+        if self.home_t_s is None and np.allclose(f.path[-1], 0.0) and f.end_t_s <= t_s:
+            self.account(f.end_t_s)
+            self.home_t_s = f.end_t_s
+
+    def state(self, t_s: float):
+        """The planner's view (planning.VehicleState): position now, home, usable energy left."""
+        from uavloc_gcs.planning import VehicleState
+
+        self.account(t_s)
+        xy = self.flight.position(t_s)
+        left = max(0.0, self.sc.usable_energy_j - self.energy_j)
+        return VehicleState(self.id, (float(xy[0]), float(xy[1])), (0.0, 0.0), left)
+
+
+def slot_times(t_from_s: float, t_to_s: float, slot_s: float) -> np.ndarray:
+    """Slot start times k*slot_s in [t_from_s, t_to_s)."""
+    k0 = math.ceil(t_from_s / slot_s - 1e-9)
+    k1 = math.ceil(t_to_s / slot_s - 1e-9)
+    return np.arange(k0, k1) * slot_s
+
+
+def hear(world: World, vehicles: list[Vehicle], t_from_s: float, t_to_s: float):
+    """Slots every vehicle hears in [t_from_s, t_to_s) along its current flight."""
+    from uavloc_gcs.observations import SlotBatch
+
+    sc = world.scenario
+    t = slot_times(t_from_s, t_to_s, sc.channel.slot_s)
+    if len(t) == 0:
+        return SlotBatch.empty()
+    out = []
+    for v in vehicles:
+        tt = t if v.home_t_s is None else t[t < v.home_t_s]
+        if len(tt) == 0:
+            continue
+        xy = v.flight.position(tt)
+        xyz = np.column_stack([xy, np.full(len(tt), sc.fleet.altitude_m)])
+        out.append(world.hear_track(v.index, tt, xyz))
+    return SlotBatch.concat(out)
+
+
+def person_results(world: World, statuses: list, t_end_s: float) -> tuple[PersonResult, ...]:
+    """Compare what the policy believes (PersonStatus list) with the truth."""
+    by_id = {s.emitter_id: s for s in statuses}
+    out = []
+    for i, eid in enumerate(world.emitter_ids):
+        s = by_id.get(int(eid))
+        if s is None or s.xy_m is None:
+            out.append(PersonResult(int(eid), s is not None, False, math.nan, math.nan, math.nan))
+            continue
+        t_ref = s.t_ref_s if s.t_ref_s is not None else t_end_s
+        truth = world.positions(t_ref)[i]
+        err = float(np.hypot(s.xy_m[0] - truth[0], s.xy_m[1] - truth[1]))
+        claim = float(getattr(s.estimate, "radius95_m", math.nan))
+        out.append(PersonResult(int(eid), True, s.located, math.nan if s.fix_t_s is None else s.fix_t_s, err,
+                                claim))
+    return tuple(out)
+
+
+def max_error_m(world: World, statuses: list) -> float:
+    """Largest believed-vs-true error over all true people (NaN while someone is unheard)."""
+    res = person_results(world, statuses, 0.0)
+    errs = [p.error_m for p in res]
+    return float(np.max(errs)) if errs and not any(math.isnan(e) for e in errs) else math.nan
+
+
+def simulate_mission(
+    scenario: Scenario,
+    world: World,
+    method: str = "MLE-EPSO (M)",
+    *,
+    seed: int = 0,
+    dt_s: float = 1.0,
+    scan_update_s: float = 10.0,
+    time_limit_s: float | None = None,
+    max_iter: int | None = None,
+    max_time_s: float = DEFAULT_MAX_TIME_S,
+) -> MissionResult:
+    """Fly one mission with one of :data:`METHODS` and report completion time, run times, errors."""
+    if method not in METHODS:
+        raise ValueError(f"unknown method {method!r}; expected one of {', '.join(METHODS)}")
+    model_motion, optimizer = METHODS[method]
+    policy = SearchPolicy(scenario, model_motion=model_motion, optimizer=optimizer,
+                          local_search=scenario.planner.local_search, seed=seed, time_limit_s=time_limit_s, max_iter=max_iter)
+    scan = plan_scan(scenario)
+    m = scenario.fleet.vehicles
+    vehicles = [Vehicle(i + 1, scenario) for i in range(m)]
+    for vs in scan.vehicles:
+        vehicles[vs.index].fly(np.vstack([np.zeros((1, 2)), vs.waypoints_xy_m]), 0.0)
+    t_scan = max((v.flight.end_t_s for v in vehicles), default=0.0)
+
+    err_t, err_v = [], []
+    t = 0.0
+    while t < t_scan:  # the scan: listen, re-estimate now and then for the error curve
+        t_next = min(t + scan_update_s, t_scan)
+        policy.ingest(hear(world, vehicles, t, t_next))
+        policy.update(t_next)
+        t = t_next
+        err_t.append(t)
+        err_v.append(max_error_m(world, policy.people(t)))
+
+    replans = 0
+    changed = policy.update(t)
+    while True:
+        for v in vehicles:
+            v.land_if_home(t)
+        all_home = all(v.home_t_s is not None for v in vehicles)
+        if policy.done(t) and all_home:
+            break
+        force = all(v.home_t_s is not None or v.flight.end_t_s <= t for v in vehicles) and not policy.done(t)
+        if t >= max_time_s:
+            break
+        if force or policy.needs_replan(t, changed) or (policy.done(t) and policy.current_plan is None):
+            plan = policy.replan(t, [v.state(t) for v in vehicles])
+            replans += 1
+            for task, v in zip(plan.tasks, vehicles):
+                start = v.flight.position(t).reshape(1, 2)
+                v.fly(np.vstack([start, task.waypoints_xy_m]), t)
+        t_next = t + dt_s
+        if policy.done(t):  # nothing left to learn: jump to the last landing
+            t_next = max(t_next, max(v.flight.end_t_s for v in vehicles))
+        policy.ingest(hear(world, vehicles, t, t_next))
+        t = t_next
+        changed = policy.update(t)
+        err_t.append(t)
+        err_v.append(max_error_m(world, policy.people(t)))
+
+    for v in vehicles:
+        v.land_if_home(math.inf)
+    t_end = max((v.home_t_s if v.home_t_s is not None else t) for v in vehicles)
+    for v in vehicles:
+        v.account(t_end)
+    statuses = policy.people(t_end)
+    return MissionResult(
+        method=method, people=len(world), seed=seed, completion_time_s=float(t_end), scan_time_s=float(t_scan),
+        planner_runtime_s=policy.planner_runtime_s, estimator_runtime_s=policy.estimator_runtime_s,
+        replans=replans, energy_j=tuple(v.energy_j for v in vehicles),
+        persons=person_results(world, statuses, t_end),
+        error_times_s=np.asarray(err_t), max_error_m=np.asarray(err_v))

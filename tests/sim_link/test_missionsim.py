@@ -1,0 +1,74 @@
+"""Fast mission simulation: flight model, energy, and whole missions on a small scenario."""
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from sim_link.missionsim import METHODS, Flight, Vehicle, simulate_mission, slot_times
+from sim_link.world import World
+from uavloc_gcs.scenario import load_scenario
+
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
+
+
+@pytest.fixture(scope="module")
+def small():
+    return load_scenario(EXAMPLES / "small.toml")
+
+
+def test_flight_is_a_constant_speed_polyline():
+    f = Flight(np.array([[0, 0], [30, 0], [30, 40]]), 10.0, 10.0)
+    assert f.length_m == pytest.approx(70.0)
+    assert f.end_t_s == pytest.approx(17.0)
+    assert np.allclose(f.position(10.0), [0, 0])
+    assert np.allclose(f.position(12.0), [20, 0])
+    assert np.allclose(f.position(14.0), [30, 10])
+    assert np.allclose(f.position(100.0), [30, 40])  # hovers at the end
+    assert np.allclose(f.position(np.array([5.0, 13.0])), [[0, 0], [30, 0]])
+
+
+def test_slot_times_tile_time_without_gaps_or_overlap():
+    a, b = slot_times(0.0, 1.0, 0.025), slot_times(1.0, 2.5, 0.025)
+    both = np.concatenate([a, b])
+    assert len(a) == 40 and len(both) == 100
+    assert np.allclose(np.diff(both), 0.025)
+
+
+def test_energy_counts_flight_and_hover(small):
+    v = Vehicle(1, small)
+    v.fly(np.array([[0, 0], [200, 0]]), 0.0)  # 10 s at 20 m/s, then hover
+    v.account(15.0)
+    pw = small.power_model
+    expect = pw.leg_energy_j(200.0, 20.0) + pw.hover_energy_j(5.0)
+    assert v.energy_j == pytest.approx(expect)
+    st = v.state(15.0)
+    assert st.energy_j == pytest.approx(small.usable_energy_j - expect)
+    assert st.start_xy_m == pytest.approx((200.0, 0.0))
+
+
+@pytest.mark.parametrize("method", list(METHODS))
+def test_every_method_finishes_home_and_locates_static_people(small, method):
+    world = World(small, seed=11, people=3, motion="static")
+    res = simulate_mission(small, world, method, seed=1, time_limit_s=20.0, max_iter=15)
+    assert res.method == method and res.people == 3
+    assert res.completion_time_s >= res.scan_time_s > 0
+    assert all(e <= small.usable_energy_j * 1.01 for e in res.energy_j)
+    assert res.located_fraction == 1.0
+    req = small.people.required_accuracy_m
+    for p in res.persons:
+        assert p.heard and p.located and p.claimed_radius_m <= req
+        assert p.error_m < 2 * req  # a 95 % radius: 2x is far outside it
+    assert np.all(np.diff(res.error_times_s) >= 0)
+    assert math.isfinite(res.max_error_m[-1])
+
+
+def test_mission_is_deterministic_and_moving_people_are_tracked(small):
+    runs = [simulate_mission(small, World(small, seed=4, people=3, motion="random_waypoint"), "MLE-EPSO (M)",
+                             seed=2, time_limit_s=20.0, max_iter=15) for _ in range(2)]
+    a, b = runs
+    assert a.completion_time_s == b.completion_time_s
+    assert [p.error_m for p in a.persons] == [p.error_m for p in b.persons]
+    assert a.located_fraction == 1.0
+    assert a.max_final_error_m < 2 * small.people.required_accuracy_m
