@@ -266,6 +266,12 @@ class FakeFleet:
         until = time.monotonic() + wall
         ep.up.down_until_wall_s = ep.down.down_until_wall_s = until
 
+    def set_faults(self, faults: FaultConfig | LinkFaults | None, i: int | None = None) -> None:
+        """Change the link faults of vehicle ``i`` (all vehicles if None) from now on."""
+        lf = LinkFaults.of(faults)
+        for ep in self._endpoints if i is None else [self._endpoints[i - 1]]:
+            ep.up.cfg, ep.down.cfg = lf.to_vehicle, lf.to_gcs
+
     def reboot(self, i: int, *, keep_mission: bool | None = None) -> None:
         """Power-cycle vehicle ``i``: silent for a moment, then on the ground, disarmed; the mission
         is kept on ArduPilot-like and lost on PX4-like vehicles unless ``keep_mission`` says."""
