@@ -75,7 +75,19 @@ def reach_bound_m(
 
 
 def _farthest_on_rays(e: np.ndarray, c: np.ndarray, inner: np.ndarray, outer: np.ndarray) -> float:
-    phi = np.linspace(0.0, 2.0 * np.pi, N_RAYS, endpoint=False)
+    """Largest feasible distance along N_RAYS rays from e, refined around the best coarse rays
+    (a thin sliver of the set, e.g. the lens of one pass, falls between coarse rays)."""
+    step = 2.0 * np.pi / N_RAYS
+    phi = np.arange(N_RAYS) * step
+    rho = _ray_extent(e, c, inner, outer, phi)
+    top = phi[np.argsort(np.nan_to_num(rho, nan=-1.0))[-3:]]
+    fine = (top[:, None] + np.linspace(-step, step, 25)[None, :]).ravel()
+    rho = np.concatenate([rho, _ray_extent(e, c, inner, outer, fine)])
+    return math.nan if np.all(np.isnan(rho)) else float(np.nanmax(rho))
+
+
+def _ray_extent(e, c, inner, outer, phi) -> np.ndarray:
+    """Per ray: the farthest distance inside every ring (NaN where the ray misses the set)."""
     u = np.column_stack([np.cos(phi), np.sin(phi)])  # (K, 2)
     ec = e - c  # (N, 2)
     b = u @ ec.T  # (K, N): u . (e - c)
@@ -99,6 +111,4 @@ def _farthest_on_rays(e: np.ndarray, c: np.ndarray, inner: np.ndarray, outer: np
             break
         rho = np.where(inside.any(axis=1), np.where(inside, e1, np.inf).min(axis=1), rho)
     ok = (rho >= lo - 1e-9) & (hi >= lo)
-    if not ok.any():
-        return math.nan
-    return float(rho[ok].max())
+    return np.where(ok, rho, np.nan)

@@ -25,7 +25,7 @@ import numpy as np
 from ..errors import EstimationError
 from ..observations import SlotBatch
 from .annulus import annulus_bound_m, reach_bound_m
-from .fit import Problem, inflation_factor, leg_lines, mirror_point, prepare, start_points
+from .fit import Problem, inflation_factor, leg_lines, mirror_point, prepare, principal_line, start_points
 from .model import ChannelModel, radius_of_probability
 
 MIN_SLOTS = 3
@@ -190,16 +190,18 @@ def estimate_all(slots: SlotBatch, channel: ChannelModel, *, max_speed_m_s: floa
 def _distinct_modes(problem: Problem, starts: list[np.ndarray]) -> list[tuple[np.ndarray, float]]:
     """Local optima from all starts, best first, duplicates (< 1 m apart) removed.
 
-    After the first start, the best solution is also mirrored across every straight leg (person
-    and velocity reflected at the leg's time): a person close to one leg of several has a local
-    mirror there that the global mirror start does not reach. Later starts first get a few
+    The solution from the first start is also mirrored across every straight leg (person and
+    velocity reflected at the leg's time): a person close to one leg of several has a local
+    mirror there that the global mirror start does not reach, and a person near a single track
+    has one just across it. Later starts first get a few
     iterations; one that is by then next to a known optimum is dropped (it was converging there).
     """
     modes = [problem.fit(starts[0])]
     legs = leg_lines(problem.data)
-    more = list(starts[1:])
-    if len(legs) >= 2:
-        more += [_mirror_state(problem, modes[0][0], c, d, t - problem.data.t_c) for c, d, t in legs]
+    if not legs:
+        center, direction, _ = principal_line(problem.data)
+        legs = [(center, direction, problem.data.t_c)]
+    more = list(starts[1:]) + [_mirror_state(problem, modes[0][0], c, d, t - problem.data.t_c) for c, d, t in legs]
     for s in more:
         theta, cost = problem.fit(s, max_nfev=PROBE_NFEV)
         if any(np.linalg.norm(theta[:2] - m[0][:2]) < PROBE_MERGE_M for m in modes):
