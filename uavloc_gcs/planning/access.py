@@ -38,11 +38,13 @@ def _norm(v: np.ndarray) -> np.ndarray:
     return np.sqrt(v[..., 0] ** 2 + v[..., 1] ** 2)
 
 
-def best_point_between(a, b, c, r, q_init=None, newton_steps: int = 30):
+def best_point_between(a, b, c, r, q_init=None, newton_steps: int = 30, eps_m: float = 0.0):
     """Point ``q`` with ``|q - c| <= r`` minimizing ``|a - q| + |q - b|`` (all broadcastable,
-    ``(..., 2)`` metres; ``r`` ``(...)``). Returns ``(q, cost_m)``.
+    ``(..., 2)`` metres; ``r`` ``(...)``). Returns ``(q, cost_m)`` (cost unsmoothed).
 
-    ``q_init`` (optional) warm-starts the Newton iteration on the circle.
+    ``q_init`` (optional) warm-starts the Newton iteration on the circle. ``eps_m`` > 0 minimizes
+    the smoothed ``sqrt(|a-q|^2+eps^2) + sqrt(|q-b|^2+eps^2)`` instead, whose unconstrained
+    minimizer is the midpoint of ``ab`` (used by the final refinement, see ``fitness.refine``).
     """
     a = np.asarray(a, dtype=float)
     b = np.asarray(b, dtype=float)
@@ -56,77 +58,91 @@ def best_point_between(a, b, c, r, q_init=None, newton_steps: int = 30):
         u = np.where(ab2 > 0, ((c - a) * ab).sum(-1) / np.where(ab2 > 0, ab2, 1.0), 0.0)
     u = np.clip(u, 0.0, 1.0)
     foot = a + u[..., None] * ab
-    inside = _norm(foot - c) <= r
+    if eps_m > 0:
+        mid = 0.5 * (a + b)
+        mid_in = _norm(mid - c) <= r
+        # With smoothing the interior optimum is the midpoint; otherwise it is on the circle.
+        foot = np.where(mid_in[..., None], mid, foot)
+        inside = mid_in
+    if eps_m <= 0:
+        # A tolerance, so that a neighbour lying on this circle (overlapping disks) counts as
+        # inside: the circle search would converge only linearly to that kink.
+        dist = _norm(foot - c)
+        inside = dist <= r * (1 + 1e-9) + 1e-9
+        with np.errstate(invalid="ignore", divide="ignore"):
+            shrink = np.where(dist > r, r / np.where(dist > 0, dist, 1.0), 1.0)
+        foot = c + (foot - c) * shrink[..., None]
     q = foot.copy()
     out = ~inside
     if np.any(out):
         q[out] = _circle_point(a[out], b[out], c[out], r[out],
                                None if q_init is None else np.broadcast_to(q_init, a.shape)[out],
-                               newton_steps)
+                               newton_steps, eps_m)
     cost = _norm(q - a) + _norm(b - q)
     return q, cost
 
 
-def _circle_point(a, b, c, r, q_init, steps: int):
-    """Reflection point on the circle (c, r) for a, b outside the disk whose segment misses it."""
-    ua, ub = a - c, b - c
-    th_a = np.arctan2(ua[:, 1], ua[:, 0])
-    th_b = np.arctan2(ub[:, 1], ub[:, 0])
-    d = np.mod(th_b - th_a + np.pi, _TWO_PI) - np.pi  # signed short arc a -> b
+def _circle_point(a, b, c, r, q_init, steps: int, eps_m: float = 0.0):
+    """Reflection point on the circle (c, r) for a, b outside the disk whose segment misses it.
+
+    Safeguarded Newton on the arc parameter ``s`` in [0, 1] (angle ``th_a + s d``); the derivative
+    is negative at ``s = 0`` and positive at ``s = 1``, and the bracket shrinks every step.
+    Complex numbers stand for points to keep the number of numpy operations small.
+    """
+    az = a[:, 0] + 1j * a[:, 1]
+    bz = b[:, 0] + 1j * b[:, 1]
+    cz = c[:, 0] + 1j * c[:, 1]
+    ua, ub = az - cz, bz - cz
+    ea = ua / np.abs(ua)
+    d = np.angle(ub * np.conj(ua))  # signed short arc a -> b
     lo = np.zeros_like(d)
     hi = np.ones_like(d)
     if q_init is not None:
-        v = q_init - c
-        th = np.arctan2(v[:, 1], v[:, 0])
-        s = np.mod(th - th_a + np.pi, _TWO_PI) - np.pi
+        v = (q_init[:, 0] + 1j * q_init[:, 1]) - cz
         with np.errstate(invalid="ignore", divide="ignore"):
-            s = np.where(d != 0, s / d, 0.5)
+            s = np.where(d != 0, np.angle(v * np.conj(ua)) / d, 0.5)
         s = np.where((s > 0) & (s < 1), s, 0.5)
     else:
-        # Initial guess: weight each end by the inverse of its distance (exact when symmetric).
-        na, nb = _norm(ua), _norm(ub)
+        na, nb = np.abs(ua), np.abs(ub)
         s = na / (na + nb)
     best_s = s
     best_f = np.full_like(s, np.inf)
+    eps2 = eps_m * eps_m
     for _ in range(steps):
-        th = th_a + s * d
-        e = np.stack([np.cos(th), np.sin(th)], axis=-1)
-        t = np.stack([-e[:, 1], e[:, 0]], axis=-1)
-        q = c + r[:, None] * e
-        g = np.zeros_like(s)
-        h = np.zeros_like(s)
-        f = np.zeros_like(s)
-        for p in (a, b):
-            w = q - p
-            n = np.maximum(_norm(w), 1e-12)
-            f += n
-            w = w / n[:, None]
-            tw = (t * w).sum(-1)
-            g += r * tw
-            h += -r * (e * w).sum(-1) + r * r * (1.0 - tw * tw) / n
+        e = ea * np.exp(1j * (s * d))
+        q = cz + r * e
+        ec = np.conj(e)
+        za = (q - az) * ec  # real part: w.e, imaginary part: w.t (t = i e)
+        zb = (q - bz) * ec
+        na = np.sqrt(za.real**2 + za.imag**2 + eps2)
+        nb = np.sqrt(zb.real**2 + zb.imag**2 + eps2)
+        np.maximum(na, 1e-12, out=na)
+        np.maximum(nb, 1e-12, out=nb)
+        f = na + nb
+        ga, gb = r * za.imag, r * zb.imag
+        g = (ga / na + gb / nb) * d
+        h = ((r * r - r * za.real) / na - ga * ga / na**3
+             + (r * r - r * zb.real) / nb - gb * gb / nb**3) * (d * d)
         better = f < best_f
         best_f = np.where(better, f, best_f)
         best_s = np.where(better, s, best_s)
-        g *= d
-        h *= d * d
         neg = g < 0
         lo = np.where(neg, s, lo)
         hi = np.where(neg, hi, s)
         with np.errstate(invalid="ignore", divide="ignore"):
             s_new = s - g / h
-        bad = ~((h > 0) & (s_new > lo) & (s_new < hi))
+        bad = ~((h > 0) & (s_new >= lo) & (s_new <= hi))
         s_next = np.where(bad, 0.5 * (lo + hi), s_new)
         done = np.max(np.abs(s_next - s)) < 1e-9
         s = s_next
         if done:
             break
-    # The last step is not evaluated; compare it with the best evaluated iterate.
-    th = th_a + s * d
-    q = c + r[:, None] * np.stack([np.cos(th), np.sin(th)], axis=-1)
-    f = _norm(q - a) + _norm(q - b)
+    # The last step is not evaluated yet; compare it with the best evaluated iterate.
+    q = cz + r * ea * np.exp(1j * (s * d))
+    f = np.sqrt(np.abs(q - az) ** 2 + eps2) + np.sqrt(np.abs(q - bz) ** 2 + eps2)
     s = np.where(f < best_f, s, best_s)
-    th = th_a + s * d
-    return c + r[:, None] * np.stack([np.cos(th), np.sin(th)], axis=-1)
+    q = cz + r * ea * np.exp(1j * (s * d))
+    return np.stack([q.real, q.imag], axis=-1)
 
 
 def single_visit_length_m(problem: RoutingProblem) -> np.ndarray:
@@ -148,3 +164,60 @@ def single_visit_length_m(problem: RoutingProblem) -> np.ndarray:
         t = _norm(q - s) / problem.speed_m_s
         c = c0 + vel * t[..., None]
     return cost
+
+
+def best_point_in_intersection(a, b, centres, radii) -> tuple[np.ndarray, float] | None:
+    """Point in the intersection of disks (``centres`` (k, 2), ``radii`` (k,)) minimizing
+    ``|a - q| + |q - b|``; None if the disks do not intersect.
+
+    Used to move a run of consecutive access points that coincide as one point: coordinate
+    descent cannot split such a run (the sum of norms is not differentiable there), but the joint
+    minimizer is one of: a point of segment ``ab`` inside all disks, the best point of one circle
+    if it lies in all other disks, or a crossing point of two circles inside all disks.
+    """
+    a = np.asarray(a, float)
+    b = np.asarray(b, float)
+    C = np.asarray(centres, float)
+    R = np.asarray(radii, float)
+    tol = 1e-9
+    # Segment case: intersect the parameter intervals of segment ∩ disk.
+    ab = b - a
+    L2 = float(ab @ ab)
+    if L2 > 0:
+        lo, hi = 0.0, 1.0
+        for c, r in zip(C, R):
+            # |a + u ab - c|^2 <= r^2  ->  L2 u^2 + 2 u ab.(a-c) + |a-c|^2 - r^2 <= 0
+            bq = 2 * float(ab @ (a - c))
+            cq = float((a - c) @ (a - c)) - r * r
+            disc = bq * bq - 4 * L2 * cq
+            if disc < 0:
+                lo, hi = 1.0, 0.0
+                break
+            sq = np.sqrt(disc)
+            lo = max(lo, (-bq - sq) / (2 * L2))
+            hi = min(hi, (-bq + sq) / (2 * L2))
+        if lo <= hi:
+            q = a + 0.5 * (lo + hi) * ab
+            return q, float(np.sqrt(L2))
+    cands = []
+    qs, _ = best_point_between(a[None], b[None], C, R)
+    cands.extend(qs)
+    k = len(C)
+    for i in range(k):
+        for j in range(i + 1, k):
+            d = float(np.linalg.norm(C[j] - C[i]))
+            if d == 0 or d > R[i] + R[j] or d < abs(R[i] - R[j]):
+                continue
+            x = (d * d + R[i] ** 2 - R[j] ** 2) / (2 * d)
+            y = np.sqrt(max(R[i] ** 2 - x * x, 0.0))
+            e = (C[j] - C[i]) / d
+            nrm = np.array([-e[1], e[0]])
+            cands.append(C[i] + x * e + y * nrm)
+            cands.append(C[i] + x * e - y * nrm)
+    best = None
+    for q in cands:
+        if np.all(np.linalg.norm(C - q, axis=1) <= R + tol):
+            cost = float(np.linalg.norm(q - a) + np.linalg.norm(b - q))
+            if best is None or cost < best[1]:
+                best = (q, cost)
+    return best

@@ -11,11 +11,12 @@ are disks of radius 0, so one coordinate-descent sweep over the sequence handles
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 
 import numpy as np
 
-from .access import _norm, best_point_between
+from .access import _norm, best_point_between, best_point_in_intersection
 from .problem import Plan, Route, RoutingProblem
 
 # Penalty [s of makespan per s of flight beyond a vehicle's energy]: makes any energy overrun cost
@@ -24,6 +25,8 @@ ENERGY_PENALTY = 100.0
 SEARCH_SWEEPS = 4
 SEARCH_NEWTON = 4
 FINAL_NEWTON = 20
+SMOOTHING_M = (10.0, 1.0, 0.1, 0.01)
+SMOOTH_SWEEPS = 15
 
 
 @dataclass
@@ -136,8 +139,11 @@ class Evaluator:
         return (cum - np.take_along_axis(cum, lay.route_start, axis=1)) / self.speed
 
     def access_points(self, lay: Layout, sweeps: int, newton: int, Q: np.ndarray | None = None,
-                      tol_m: float = 0.0) -> np.ndarray:
-        """Coordinate descent on the access points (P, L, 2); ``tol_m`` > 0 stops early."""
+                      tol_m: float = 0.0, eps_m: float = 0.0,
+                      deadline: float | None = None) -> np.ndarray:
+        """Coordinate descent on the access points (P, L, 2); ``tol_m`` > 0 stops early, so does
+        ``deadline`` (perf_counter); ``eps_m`` > 0 descends on the smoothed lengths
+        sqrt(d^2 + eps^2)."""
         R = self.node_r[lay.seq]
         if Q is None:
             Q = self.node_xy[lay.seq].copy()
@@ -149,15 +155,18 @@ class Evaluator:
                     continue
                 a, b, old = Q[p, j - 1], Q[p, j + 1], Q[p, j]
                 c, r = C[p, j], R[p, j]
-                q, cost = best_point_between(a, b, c, r, q_init=old, newton_steps=newton)
+                q, cost = best_point_between(a, b, c, r, q_init=old, newton_steps=newton,
+                                             eps_m=eps_m)
                 old_cost = _norm(old - a) + _norm(b - old)
                 old_ok = _norm(old - c) <= r * (1 + 1e-12) + 1e-9
-                keep = old_ok & (old_cost <= cost)
+                keep = old_ok & (old_cost <= cost) & (eps_m == 0)
                 new = np.where(keep[:, None], old, q)
                 if tol_m:
                     moved = max(moved, float(np.max(_norm(new - old))))
                 Q[p, j] = new
             if tol_m and moved < tol_m:
+                break
+            if deadline is not None and time.perf_counter() > deadline:
                 break
         return Q
 
@@ -179,19 +188,101 @@ class Evaluator:
         fitness = makespan + ENERGY_PENALTY * excess
         return Evaluation(fitness, makespan, lengths, excess <= 1e-9, Q, lay)
 
-    def refine(self, order: np.ndarray, counts: np.ndarray, max_sweeps: int = 2000,
-               tol_m: float = 1e-7) -> Evaluation:
-        """Converged access points of one or more solutions (used for final plans)."""
+    def refine(self, order: np.ndarray, counts: np.ndarray, max_sweeps: int = 300,
+               tol_m: float = 1e-7, points: np.ndarray | None = None,
+               deadline: float | None = None) -> Evaluation:
+        """Converged access points of one or more solutions (used for final plans).
+
+        ``points`` (n, 2) warm-starts the targets' access points. Past ``deadline``
+        (perf_counter) the smoothing passes below are skipped (the result stays valid, it may be
+        a little longer where disks overlap).
+        """
         order = np.atleast_2d(order)
         counts = np.atleast_2d(counts)
         lay = self.layout(order, counts)
-        Q = self.access_points(lay, max_sweeps, FINAL_NEWTON, tol_m=tol_m)
+        Q = self.node_xy[lay.seq].copy()
+        if points is not None:
+            for p in range(Q.shape[0]):
+                tm = lay.seq[p] < self.n
+                Q[p, tm] = points[lay.seq[p, tm]]
+        Q = self.access_points(lay, max_sweeps, FINAL_NEWTON, Q=Q, tol_m=1e-4, deadline=deadline)
+        # Coordinate descent can stall where consecutive access points coincide (the length is
+        # not differentiable there, typically at a crossing of two overlapping circles).
+        # Continuation on smoothed lengths, whose block minimizers are unique and differentiable,
+        # pulls such points apart; the last pass is unsmoothed and only ever shortens the route.
+        best = Q.copy()
+        best_len = self._score(lay, Q).lengths_m.sum(axis=1)
+        for eps in SMOOTHING_M:
+            if deadline is not None and time.perf_counter() > deadline:
+                break
+            Q = self.access_points(lay, SMOOTH_SWEEPS, FINAL_NEWTON, Q=Q, tol_m=0.01 * eps,
+                                   eps_m=eps, deadline=deadline)
+        Q = self.access_points(lay, max_sweeps, FINAL_NEWTON, Q=Q, tol_m=tol_m, deadline=deadline)
+        for _ in range(5):
+            if not self._merge_runs(lay, Q):
+                break
+            Q = self.access_points(lay, max_sweeps, FINAL_NEWTON, Q=Q, tol_m=tol_m,
+                                   deadline=deadline)
+        new_len = self._score(lay, Q).lengths_m.sum(axis=1)
+        worse = new_len > best_len
+        Q[worse] = best[worse]
         self.nfev += order.shape[0]
         return self._score(lay, Q)
 
-    def plan(self, order: np.ndarray, counts: np.ndarray, lower_bound_s: float) -> Plan:
-        """The converged plan of one solution."""
-        ev = self.refine(order, counts)
+    def _merge_runs(self, lay: Layout, Q: np.ndarray, tol_m: float = 1e-6) -> bool:
+        """Move each run of coinciding consecutive access points jointly (see
+        ``best_point_in_intersection``); True if some run moved."""
+        C = self._centres(lay, Q)
+        R = self.node_r[lay.seq]
+        is_t = lay.seq < self.n
+        changed = False
+        for p in range(Q.shape[0]):
+            same = (_norm(np.diff(Q[p], axis=0)) < tol_m) & is_t[p, :-1] & is_t[p, 1:]
+            j = 0
+            L = Q.shape[1]
+            while j < L - 1:
+                if not same[j]:
+                    j += 1
+                    continue
+                e = j
+                while e < L - 1 and same[e]:
+                    e += 1
+                # Slots j..e coincide.
+                a, b = Q[p, j - 1], Q[p, e + 1]
+                cur = float(_norm(Q[p, j] - a) + _norm(b - Q[p, e]))
+                res = best_point_in_intersection(a, b, C[p, j:e + 1], R[p, j:e + 1])
+                if res is not None and res[1] < cur - 1e-9:
+                    Q[p, j:e + 1] = res[0]
+                    changed = True
+                else:
+                    changed |= self._split_run(Q[p], C[p], R[p], j, e, cur)
+                j = e + 1
+        return changed
+
+    @staticmethod
+    def _split_run(q: np.ndarray, c: np.ndarray, r: np.ndarray, j: int, e: int, cur: float) -> bool:
+        """Try pulling a stuck run j..e apart: a greedy forward pass towards the next centres,
+        then coordinate descent on the run alone; keep it only if the run gets shorter."""
+        trial = q.copy()
+        for t in range(j, e + 1):
+            nxt = c[t + 1] if t < e else trial[e + 1]
+            trial[t], _ = best_point_between(trial[t - 1], nxt, c[t], r[t])
+        for _ in range(200):
+            old = trial[j:e + 1].copy()
+            for t in range(j, e + 1):
+                trial[t], _ = best_point_between(trial[t - 1], trial[t + 1], c[t], r[t])
+            if np.max(_norm(trial[j:e + 1] - old)) < 1e-9:
+                break
+        new = float(_norm(np.diff(trial[j - 1:e + 2], axis=0)).sum())
+        if new < cur - 1e-9:
+            q[j:e + 1] = trial[j:e + 1]
+            return True
+        return False
+
+    def plan(self, order: np.ndarray, counts: np.ndarray, lower_bound_s: float,
+             points: np.ndarray | None = None, deadline: float | None = None) -> Plan:
+        """The converged plan of one solution (``points``, ``deadline``: see ``refine``)."""
+        ev = self.refine(order, counts, points=points, deadline=deadline)
         pb = self.problem
         Q = ev.points_xy_m[0]
         lay = ev.layout

@@ -91,8 +91,6 @@ def solve(problem: RoutingProblem, *, method: str = "epso", rng=None, time_limit
     gen = _rng(rng)
     ev = Evaluator(problem)
     lb = lower_bound_s(problem)
-    # Leave ~10 % of the budget for the final polish and refinement.
-    deadline = t_start + 0.9 * time_limit_s
 
     if method in ("ortools", "pyvrp"):
         from . import anchors  # optional extra, imported lazily
@@ -112,6 +110,12 @@ def solve(problem: RoutingProblem, *, method: str = "epso", rng=None, time_limit
         seeds.append(warm_routes(problem, ev, warm_start))
     if local_search:
         seeds.append(greedy_routes(problem, ev))
+
+    # Keep back time for the final access-point refinement and, with local search, a last
+    # polish of the best solution.
+    reserve = 0.1 * time_limit_s
+    polish = 0.05 * time_limit_s if local_search else 0.0
+    deadline = t_start + time_limit_s - reserve - polish
 
     def cb(x, fun, nit):
         if callback is None:
@@ -133,13 +137,14 @@ def solve(problem: RoutingProblem, *, method: str = "epso", rng=None, time_limit
             ev, rng=gen, deadline=deadline, max_iter=max_iter, local_search=local_search,
             seeds=seeds, callback=cb, opts=opts)
         order, counts = x[:ev.n].astype(int), x[ev.n:].astype(int)
+    points = None
     if local_search:
         # Polish the final answer once more (cheap, and keeps the result locally optimal).
-        routes, _ = LocalSearch(ev).run(ev.to_routes(order, counts), t_start + 0.97 * time_limit_s)
-        o2, c2 = ev.from_routes(routes)
-        if ev.refine(o2, c2).fitness[0] <= ev.refine(order, counts).fitness[0]:
-            order, counts = o2, c2
-    plan = ev.plan(order, counts, lb)
+        ls = LocalSearch(ev)
+        routes, _ = ls.run(ev.to_routes(order, counts), t_start + time_limit_s - reserve)
+        order, counts = ev.from_routes(routes)
+        points = ls.evaluate(routes)[1]
+    plan = ev.plan(order, counts, lb, points=points, deadline=t_start + time_limit_s)
     return _result(ev, order, counts, plan, nit, message, t_start, np.asarray(x))
 
 

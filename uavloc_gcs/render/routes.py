@@ -23,7 +23,7 @@ def plan_figure(problem: RoutingProblem, plan: Plan, *, title: str = "Route plan
     if len(centres):
         draw_circles(ax, centres, problem.radii_m, label="access disk (at t0)", color="#7f7f7f",
                      alpha=0.12)
-        draw_points(ax, centres, "person (predicted, t0)", color="#444444", marker="x", size=22,
+        draw_points(ax, centres, "person (predicted, t0)", color="#444444", marker="o", size=12,
                     annotations=[t.id for t in problem.targets])
         vel = problem.velocities_m_s
         moving = np.linalg.norm(vel, axis=1) > 0
@@ -33,6 +33,19 @@ def plan_figure(problem: RoutingProblem, plan: Plan, *, title: str = "Route plan
                             arrowprops=dict(arrowstyle="->", color="#444444", lw=0.8))
     colors = vehicle_colors(len(problem.vehicles))
     by_id = {r.vehicle_id: r for r in plan.routes}
+    # Moving people: the disk where the vehicle meets it, dashed.
+    tindex = {t.id: i for i, t in enumerate(problem.targets)}
+    met_c, met_r = [], []
+    for r in plan.routes:
+        for tid, t_s in zip(r.target_ids, r.access_times_s):
+            t = problem.targets[tindex[tid]]
+            if t.velocity_m_s != (0.0, 0.0):
+                dt = float(t_s) - problem.t0_s
+                met_c.append((t.xy_m[0] + t.velocity_m_s[0] * dt, t.xy_m[1] + t.velocity_m_s[1] * dt))
+                met_r.append(t.radius_m)
+    if met_c:
+        draw_circles(ax, np.array(met_c), met_r, label="access disk when met", color="#7f7f7f",
+                     linestyle="--", fill=False)
     lines, labels = [], []
     for v in problem.vehicles:
         r = by_id.get(v.id)

@@ -1,0 +1,63 @@
+"""``uavloc route INSTANCE.json``: plan routes for a routing instance (see planning/jsonio.py)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "route",
+        help="plan follow-up routes (EPSO/PSO/GA or the OR-Tools/PyVRP anchors) for an instance",
+        description="Assign people to vehicles and order them to minimize the time the last vehicle "
+                    "is home, passing within each person's access disk, within each vehicle's energy. "
+                    "Writes the plan as JSON to stdout or --out and a summary to stderr.",
+    )
+    p.add_argument("instance", help="instance JSON (speed_m_s, t0_s, vehicles, targets)")
+    p.add_argument("--solver", default="epso", choices=["epso", "pso", "ga", "ortools", "pyvrp"])
+    p.add_argument("--time-limit", type=float, default=1.0, metavar="S", help="search time [s] (default 1)")
+    p.add_argument("--seed", type=int, default=0, metavar="N", help="random seed (default 0)")
+    p.add_argument("--no-local-search", action="store_true",
+                   help="plain optimizer as in the paper (EPSO/PSO/GA only)")
+    p.add_argument("--out", metavar="FILE", help="write the plan JSON here instead of stdout")
+    p.add_argument("--png", metavar="FILE", help="draw the routes with their disks (.png or .svg)")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from ..errors import FileFormatError
+    from ..planning import solve
+    from ..planning.jsonio import dumps_result, loads_problem
+    from ._output import atomic_write_text
+
+    try:
+        text = Path(args.instance).read_text(encoding="utf-8")
+    except OSError as err:
+        raise FileFormatError(f"cannot read: {err.strerror}", path=args.instance) from None
+    problem = loads_problem(text, path=args.instance)
+    result = solve(problem, method=args.solver, rng=args.seed, time_limit_s=args.time_limit,
+                   local_search=not args.no_local_search)
+    out = dumps_result(result, args.solver)
+    if args.out:
+        atomic_write_text(args.out, out)
+    else:
+        sys.stdout.write(out)
+    if args.png:
+        from ..render.routes import save_plan_picture
+
+        save_plan_picture(problem, result.plan, args.png, title=f"Route plan ({args.solver})")
+    plan = result.plan
+    gap = plan.makespan_s / plan.lower_bound_s - 1 if plan.lower_bound_s > 0 else 0.0
+    print(f"{args.solver}: makespan {plan.makespan_s:.2f} s (lower bound {plan.lower_bound_s:.2f} s, "
+          f"gap {100 * gap:.1f} %), {len(problem.targets)} people on {len(problem.vehicles)} vehicles, "
+          f"{result.runtime_s:.2f} s", file=sys.stderr)
+    for r in plan.routes:
+        print(f"  {r.vehicle_id}: {len(r.target_ids)} people, {r.duration_s:.1f} s, {r.energy_j / 1000:.1f} kJ"
+              f"  {' '.join(r.target_ids)}", file=sys.stderr)
+    if not result.success:
+        print(f"warning: {result.message}", file=sys.stderr)
+        return 1
+    return 0
