@@ -49,6 +49,9 @@ GLOBAL_FRAMES = frozenset(
      FRAME_GLOBAL_TERRAIN_ALT, FRAME_GLOBAL_TERRAIN_ALT_INT}
 )
 
+# Commands without a position: PX4 accepts them only with MAV_FRAME_MISSION.
+FRAMELESS_COMMANDS = frozenset({NAV_RETURN_TO_LAUNCH, DO_JUMP, DO_CHANGE_SPEED, DO_SET_MISSION_CURRENT})
+
 # MAV_MISSION_TYPE
 MISSION_TYPE_MISSION = 0
 
@@ -202,7 +205,9 @@ def _item_to_wire(it: MissionItem, seq: int, ap: Autopilot, *, index: int) -> Wi
     for k, p in enumerate(it.params, start=1):
         if math.isinf(p):
             raise MissionEncodingError(f"item {index + 1}: param{k} is infinite")
-    if it.is_positional:
+    # Mission Planner files give every item the plan's altitude frame (RTL and DO_CHANGE_SPEED with
+    # frame 3); PX4 rejects those commands unless they use MAV_FRAME_MISSION, so they are frameless.
+    if it.is_positional and not (ap == "px4" and it.command in FRAMELESS_COMMANDS):
         if not (-90.0 <= it.lat_deg <= 90.0) or not (-180.0 <= it.lon_deg <= 180.0):
             raise MissionEncodingError(
                 f"item {index + 1}: position ({it.lat_deg}, {it.lon_deg}) is not a valid lat/lon"
