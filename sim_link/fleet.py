@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from uavloc_gcs.dialect import mavlink as mav
+from uavloc_gcs.errors import LinkError
 from uavloc_gcs.scenario import Scenario
 
 from .clock import SimClock
@@ -293,7 +294,13 @@ class FakeFleet:
         self.loop = asyncio.get_running_loop()
         for ep in self._endpoints:
             port = 0 if self.base_port == 0 else self.base_port + ep.vehicle.sysid
-            await self.loop.create_datagram_endpoint(lambda e=ep: e, local_addr=(self.host, port))
+            try:
+                await self.loop.create_datagram_endpoint(lambda e=ep: e, local_addr=(self.host, port))
+            except OSError as exc:
+                await self.aclose()
+                raise LinkError(f"cannot bind UDP {self.host}:{port} ({exc.strerror or exc}); is another "
+                                "simulator running? choose another --base-port",
+                                vehicle=f"uav{ep.vehicle.sysid}", operation="bind") from None
         self.clock.start()
         self._stop_event = asyncio.Event()
         self._task = asyncio.create_task(self._run(), name="fake-fleet")
