@@ -40,7 +40,9 @@ def run(args: argparse.Namespace) -> int:
     import numpy as np
 
     from sim_link.faults import FaultConfig
-    from sim_link.fleet import FakeFleet
+    from sim_link.world import World
+
+    from ._fleet import start_fleet_process
 
     from ..errors import ConfigError
     from ..link import parse_signing_key
@@ -72,22 +74,21 @@ def run(args: argparse.Namespace) -> int:
         old.unlink(missing_ok=True)
 
     faults = FaultConfig(loss=args.loss) if args.loss else None
-    fleet = FakeFleet(sc, speedup=sc.simulation.speedup, seed=sc.simulation.seed, base_port=args.base_port,
-                      faults=faults, signing_key=key)
     print(f"uavloc demo: scenario '{sc.name}', {sc.fleet.vehicles} {sc.fleet.autopilot} vehicles, "
           f"{sc.simulation.people} simulated people, speed-up {sc.simulation.speedup:g}x")
-    fleet.start_in_thread()
+    fleet = start_fleet_process(sc, speedup=sc.simulation.speedup, seed=sc.simulation.seed,
+                                base_port=args.base_port, faults=faults, signing_key=key)
     try:
-        world = fleet.world
+        world = World(sc, seed=sc.simulation.seed)  # the fleet's world, rebuilt from the same seed
 
         def truth(people, epoch_unix_s: float):
             """True position of every simulated person at the time its estimate refers to."""
             shift = epoch_unix_s - fleet.epoch_unix_s
-            t_end = max(0.0, fleet.now_s())
-            out_xy = {}
-            ids = [int(e) for e in world.emitter_ids]
+            refs = [p.t_ref_s for p in people if math.isfinite(p.t_ref_s)]
+            t_end = max(refs, default=0.0) + shift
             by_id = {p.emitter_id: p for p in people}
-            for i, eid in enumerate(ids):
+            out_xy = {}
+            for i, eid in enumerate(int(e) for e in world.emitter_ids):
                 p = by_id.get(eid)
                 t = t_end if p is None or not math.isfinite(p.t_ref_s) else p.t_ref_s + shift
                 out_xy[eid] = tuple(np.asarray(world.positions(t))[i][:2].tolist())

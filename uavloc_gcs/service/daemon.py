@@ -21,6 +21,7 @@ loss window).
 from __future__ import annotations
 
 import asyncio
+import dataclasses
 import logging
 import math
 import time
@@ -41,6 +42,7 @@ from .vehicle import VehicleAgent
 
 log = logging.getLogger(__name__)
 
+MISSION_STATE_COMPLETE = 5
 WAYPOINT_TOLERANCE_M = 10.0  # a replanned look this close to the uploaded one is "unchanged"
 LAND_WAIT_S = 300.0  # mission seconds to wait for the fleet to land after sending it home
 
@@ -231,7 +233,9 @@ class Daemon:
         """Upload every scan (or re-adopt the missions found after a restart), then start."""
         from ..scan import plan_scan, scan_missions  # noqa: PLC0415
 
-        scans = scan_missions(self.sc, plan_scan(self.sc))
+        # The scan ends hovering at its last waypoint (no RTL): the adaptive phase starts from
+        # there, as the experiments model it; the autopilot's own link-loss failsafe still applies.
+        scans = [_without_final_rtl(m) for m in scan_missions(self.sc, plan_scan(self.sc))]
         ap = self.sc.fleet.autopilot
         wires = {vid: to_wire(m, ap) for vid, m in zip(sorted(self.vehicles), scans)}
         to_start = []
@@ -345,10 +349,13 @@ class Daemon:
         if v.phase == "waiting for operator" and a.tel.armed and a.in_mission_mode:
             v.phase = "scanning"
             self._event("start", f"vehicle {v.id} started by the operator", v.id)
-        past_end = (seq is not None and v.end_seq and seq >= v.end_seq and self.wall() >= v.ignore_seq_until_wall)
-        if v.phase == "scanning" and (past_end or a.tel.mission_state == 5):
+        fresh = self.wall() >= v.ignore_seq_until_wall
+        past_end = seq is not None and v.end_seq and seq >= v.end_seq and fresh
+        complete = fresh and (a.tel.mission_state == MISSION_STATE_COMPLETE or (
+            past_end and a.tel.ground_speed_m_s < 1.0 and not a.on_ground()))
+        if v.phase == "scanning" and complete:
             v.scan_done = True
-            v.phase = "returning (scan done)"
+            v.phase = "hovering (scan done)"
             self._event("scan", f"vehicle {v.id} finished its scan", v.id)
         elif v.phase == "localizing" and past_end:
             v.phase = "returning"
@@ -439,18 +446,22 @@ class Daemon:
         if self.opt.planner_time_limit_s is None and self._planner_limit_s is not None:
             # under a speed-up, a second of planning is many seconds of flight: keep it ~2 mission s
             self.policy.time_limit_s = min(self._planner_limit_s, max(0.05, 2.0 / self._rate.rate))
+        w0 = self.wall()
         plan = await asyncio.to_thread(self.policy.replan, t, states)
         self._replans += 1
         self.store.add_plan(t, {"t_s": t, "makespan_s": plan.makespan_s, "runtime_s": plan.planner_runtime_s,
+                                "wall_s": self.wall() - w0, "time_limit_s": getattr(self.policy, "time_limit_s", None),
+                                "clock_rate": self._rate.rate,
                                 "tasks": [{"vehicle": task.vehicle_id, "targets": list(task.target_ids),
                                            "waypoints_xy_m": np.asarray(task.waypoints_xy_m).tolist(),
+                                           "access_times_s": list(task.access_times_s),
                                            "eta_s": task.eta_s} for task in plan.tasks]})
         jobs = []
         for task in plan.tasks:
             v = self.vehicles[int(task.vehicle_id)]
             pts = np.asarray(task.waypoints_xy_m, dtype=float).reshape(-1, 2)[:-1]  # last row is home
             if len(pts) == 0:
-                if v.purpose == "look" and not v.phase.startswith("returning") and not v.home:
+                if not v.phase.startswith("returning") and not v.home:
                     jobs.append(self._send_home(v))
                 continue
             if v.purpose == "look" and tuple(task.target_ids) == v.targets and _close(pts, v.look_xy_m):
@@ -528,6 +539,13 @@ class _ClockRate:
         dw = tel.unix_wall_s - first[1]
         if dw > 0.5:
             self.rate = max(1e-3, (tel.unix_s - first[0]) / dw)
+
+
+def _without_final_rtl(plan):
+    items = plan.items
+    if items and items[-1].command == NAV_RETURN_TO_LAUNCH:
+        return dataclasses.replace(plan, items=items[:-1])
+    return plan
 
 
 def _end_seq(items: Sequence[WireItem]) -> int:

@@ -1,0 +1,80 @@
+"""Run the fake fleet in a child process (its own interpreter, so its own GIL and core).
+
+The demo's daemon and the fleet would otherwise share one interpreter lock: the planner's and
+estimator's bursts would delay the fake vehicles' answers, which looks like a slow radio link.
+The child sends back its endpoints and clock epoch; the parent rebuilds the same deterministic
+world (``sim_link.world.World(scenario, seed=...)``) when it needs the truth.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import multiprocessing as mp
+from dataclasses import dataclass
+
+from ..errors import LinkError
+
+START_TIMEOUT_S = 30.0
+
+
+@dataclass
+class FleetProcess:
+    endpoints: list  # [(name, connection)]
+    epoch_unix_s: float
+    speedup: float
+    _proc: mp.process.BaseProcess
+    _stop: object
+    _commands: object = None
+
+    def drop_link(self, vehicle: int, seconds: float) -> None:
+        """Drop every datagram to and from ``vehicle`` for ``seconds`` of mission time."""
+        self._commands.put(("drop_link", vehicle, seconds))
+
+    def reboot(self, vehicle: int, keep_mission: bool | None = None) -> None:
+        self._commands.put(("reboot", vehicle, keep_mission))
+
+    def stop(self, timeout_s: float = 5.0) -> None:
+        self._stop.set()
+        self._proc.join(timeout_s)
+        if self._proc.is_alive():
+            self._proc.terminate()
+            self._proc.join(timeout_s)
+
+
+def _child(scenario, kwargs: dict, queue, stop, commands) -> None:
+    from sim_link.fleet import FakeFleet
+
+    async def main() -> None:
+        fleet = FakeFleet(scenario, **kwargs)
+        try:
+            await fleet.start()
+        except OSError as exc:
+            queue.put(("error", f"cannot open the fake vehicles' UDP ports ({exc.strerror}); "
+                                "try another --base-port"))
+            return
+        queue.put(("ok", fleet.endpoints, fleet.epoch_unix_s, fleet.speedup))
+        while not stop.is_set():
+            while not commands.empty():
+                name, *cargs = commands.get()
+                getattr(fleet, name)(*cargs)
+            await asyncio.sleep(0.02)
+        await fleet.aclose()
+
+    asyncio.run(main())
+
+
+def start_fleet_process(scenario, **kwargs) -> FleetProcess:
+    """Start ``sim_link.fleet.FakeFleet(scenario, **kwargs)`` in a child process."""
+    ctx = mp.get_context("spawn")
+    queue, stop, commands = ctx.Queue(), ctx.Event(), ctx.Queue()
+    proc = ctx.Process(target=_child, args=(scenario, kwargs, queue, stop, commands), name="uavloc-fake-fleet", daemon=True)
+    proc.start()
+    try:
+        msg = queue.get(timeout=START_TIMEOUT_S)
+    except Exception:  # queue.Empty
+        proc.terminate()
+        raise LinkError(f"the fake fleet did not start within {START_TIMEOUT_S:g} s", operation="demo") from None
+    if msg[0] != "ok":
+        proc.join(5)
+        raise LinkError(msg[1], operation="demo")
+    return FleetProcess(msg[1], msg[2], msg[3], proc, stop, commands)
