@@ -1,0 +1,112 @@
+"""Telemetry budget: bytes per second a fake vehicle sends while flying its scan mission.
+
+Every message a vehicle emits (all streams, STATUSTEXT, MISSION_ITEM_REACHED and the
+UAVLOC_RSSI_BATCH of its companion) is packed as MAVLink 2 exactly as on the wire and counted
+per simulated second, from arming to landing. No sockets: the vehicles run in-process on the
+scenario's world, so the numbers are deterministic for a seed.
+
+    python -m sim_link.budget examples/paper.toml [--seed 1] [--signed]
+"""
+
+from __future__ import annotations
+
+import argparse
+from dataclasses import dataclass
+
+import numpy as np
+
+from uavloc_gcs.dialect import mavlink as mav
+from uavloc_gcs.mission import to_wire
+from uavloc_gcs.scan import plan_scan, scan_missions
+from uavloc_gcs.scenario import Scenario, load_scenario
+
+from .flavour import FLAVOURS
+from .vehicle import PHYSICS_DT_S, FakeVehicle, VehicleConfig
+
+RADIO_BYTES_S = 57_600 / 10  # a 57.6 kbit/s serial radio link carries 5760 bytes/s (8N1 framing)
+SIGNATURE_BYTES = 13
+
+
+@dataclass(frozen=True)
+class VehicleBudget:
+    vehicle: int
+    flight_s: float
+    mean_bytes_s: float
+    peak_bytes_s: float  # busiest 1 s window
+    bytes_by_type: dict
+    rssi_entries: int
+    rssi_messages: int
+
+
+def measure(scenario: Scenario, *, seed: int | None = None, signed: bool = False,
+            vehicles: list[int] | None = None) -> list[VehicleBudget]:
+    """Fly each vehicle's scan mission (or only ``vehicles``, 1-based) and count its downlink
+    bytes per simulated second."""
+    from .world import World
+
+    world = World(scenario, seed=seed)
+    f = scenario.fleet
+    flavour = FLAVOURS[f.autopilot]
+    out = []
+    for idx, plan in enumerate(scan_missions(scenario, plan_scan(scenario)), start=1):
+        if vehicles is not None and idx not in vehicles:
+            continue
+        cfg = VehicleConfig(idx, flavour, scenario.frame, cruise_speed_m_s=f.speed_m_s,
+                            max_accel_m_s2=f.max_acceleration_m_s2, energy_budget_j=f.energy_budget_j,
+                            power=scenario.power_model, slot_s=scenario.channel.slot_s, epoch_unix_s=1.8e9)
+        v = FakeVehicle(cfg, world)
+        v.mission.stores[0] = to_wire(plan, f.autopilot)
+        v.executor.reset()
+        v.set_mode("AUTO")
+        v.arm()
+        codecs = {c: mav.MAVLink(None, srcSystem=idx, srcComponent=c) for c in (1, 191)}
+        per_s: dict[int, int] = {}
+        by_type: dict[str, int] = {}
+        entries = msgs = 0
+        t = 0.0
+        while not (v.landed and not v.armed and t > 5.0) and t < 7200.0:
+            t += 1.0
+            for r in v.advance(t):
+                n = len(r.msg.pack(codecs[r.component])) + (SIGNATURE_BYTES if signed else 0)
+                sec = int(np.floor(v.t_s - 1e-9))
+                per_s[sec] = per_s.get(sec, 0) + n
+                name = r.msg.get_type()
+                by_type[name] = by_type.get(name, 0) + n
+                if name == "UAVLOC_RSSI_BATCH":
+                    entries += r.msg.count
+                    msgs += 1
+        series = np.array([per_s.get(s, 0) for s in range(int(t))], dtype=float)
+        out.append(VehicleBudget(idx, t, float(series.mean()), float(series.max()),
+                                 {k: by_type[k] / t for k in sorted(by_type, key=lambda k: -by_type[k])},
+                                 entries, msgs))
+    return out
+
+
+def report(budgets: list[VehicleBudget]) -> str:
+    lines = ["| vehicle | flight [s] | mean [B/s] | peak 1 s [B/s] | of 57.6 kbit/s (peak) | RSSI B/s | entries/msg |",
+             "|---|---|---|---|---|---|---|"]
+    for b in budgets:
+        rssi = b.bytes_by_type.get("UAVLOC_RSSI_BATCH", 0.0)
+        per = b.rssi_entries / b.rssi_messages if b.rssi_messages else 0.0
+        lines.append(f"| uav{b.vehicle} | {b.flight_s:.0f} | {b.mean_bytes_s:.0f} | {b.peak_bytes_s:.0f} | "
+                     f"{100 * b.peak_bytes_s / RADIO_BYTES_S:.0f} % | {rssi:.0f} | {per:.1f} |")
+    worst = max(budgets, key=lambda b: b.mean_bytes_s)
+    lines.append("")
+    lines.append("mean bytes/s by message (uav%d): " % worst.vehicle
+                 + ", ".join(f"{k} {v:.0f}" for k, v in worst.bytes_by_type.items()))
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="python -m sim_link.budget", description=__doc__,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("scenario")
+    p.add_argument("--seed", type=int, default=None)
+    p.add_argument("--signed", action="store_true", help="count the 13-byte MAVLink 2 signature too")
+    a = p.parse_args(argv)
+    print(report(measure(load_scenario(a.scenario), seed=a.seed, signed=a.signed)))
+    return 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    raise SystemExit(main())

@@ -1,0 +1,18 @@
+"""The paper scenario's telemetry fits a 57.6 kbit/s radio with margin (SPEC §4)."""
+
+from __future__ import annotations
+
+from uavloc_gcs.scenario import load_scenario
+from sim_link.budget import RADIO_BYTES_S, measure, report
+
+
+def test_paper_scan_telemetry_fits_a_57k6_radio_with_margin():
+    sc = load_scenario("examples/paper.toml")
+    (b,) = measure(sc, vehicles=[2], signed=True)  # the vehicle that hears the most people
+    assert 150 < b.flight_s < 400
+    assert b.bytes_by_type["UAVLOC_RSSI_BATCH"] > 0 and b.rssi_entries / b.rssi_messages > 8
+    assert b.mean_bytes_s < 0.25 * RADIO_BYTES_S
+    assert b.peak_bytes_s < 0.6 * RADIO_BYTES_S
+    # position at 5 Hz: 28-byte payload + 12 bytes of MAVLink 2 framing (+13 signature)
+    assert abs(b.bytes_by_type["GLOBAL_POSITION_INT"] - 5 * (28 + 12 + 13)) < 10
+    assert "uav2" in report([b])
