@@ -1,0 +1,154 @@
+"""``uavloc localize``: CSV and .tlog in, estimates.csv / .geojson / .png out; bad rows named."""
+
+import csv
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from sim_link.world import World
+from uavloc_gcs.estimation.slots_csv import COLUMNS, dumps_slots_csv, loads_slots_csv
+from uavloc_gcs.errors import FileFormatError
+from uavloc_gcs.observations import SlotBatch
+from uavloc_gcs.scenario import load_scenario
+
+ROOT = Path(__file__).resolve().parents[1]
+SMALL = ROOT / "examples" / "small.toml"
+
+
+def uavloc(*args, cwd=None):
+    return subprocess.run([sys.executable, "-m", "uavloc_gcs", *map(str, args)], capture_output=True, text=True,
+                          cwd=cwd or ROOT, timeout=120)
+
+
+@pytest.fixture(scope="module")
+def flight():
+    """Two vehicles over examples/small.toml, three static people; slots + world."""
+    sc = load_scenario(SMALL)
+    world = World.with_people(sc, [[120.0, 90.0], [330.0, 200.0], [420.0, 60.0]], seed=2)
+
+    def lanes(vehicle, pts):
+        t, x = [], []
+        t0 = 0.0
+        for a, b in zip(pts[:-1], pts[1:]):
+            a, b = np.asarray(a, float), np.asarray(b, float)
+            n = int(np.linalg.norm(b - a) / 20.0 / 0.05)
+            f = np.arange(n) / n
+            t.append(t0 + f * n * 0.05)
+            x.append(a + np.outer(f, b - a))
+            t0 += n * 0.05
+        t, xy = np.concatenate(t), np.vstack(x)
+        return world.hear_track(vehicle, t, np.column_stack([xy, np.full(len(t), 100.0)]))
+
+    slots = SlotBatch.concat([lanes(1, [(0, 50), (500, 50), (500, 150), (0, 150)]),
+                              lanes(2, [(0, 250), (500, 250), (250, 300), (250, 0)])])
+    return sc, world, slots
+
+
+def _read_estimates(path):
+    with open(path, newline="") as fh:
+        return list(csv.DictReader(fh))
+
+
+def test_the_shipped_example_localizes(tmp_path):
+    r = uavloc("localize", "examples/slots_small.csv", "--scenario", "examples/small.toml", "--out", tmp_path / "o")
+    assert r.returncode == 0, r.stderr
+    assert len(_read_estimates(tmp_path / "o" / "estimates.csv")) == 3
+
+
+def test_csv_and_tlog_in_estimates_out(tmp_path, flight):
+    """The same flight as a slot CSV and as a .tlog of UAVLOC_RSSI_BATCH messages gives the same
+    estimates, each covering the truth, plus the GeoJSON and the picture."""
+    from uavloc_gcs.dialect import mavlink
+    from uavloc_gcs.dialect.rssi import encode_rssi_batches
+    from uavloc_gcs.link.tlog import TlogWriter
+
+    sc, world, slots = flight
+    epoch = 1_700_000_000.0
+    tlog = tmp_path / "flight.tlog"
+    w = TlogWriter(tlog)
+    for v in (1, 2):
+        codec = mavlink.MAVLink(None, srcSystem=v, srcComponent=191)
+        for m in encode_rssi_batches(slots.take(slots.vehicle == v), sc.frame, epoch_unix_s=epoch):
+            w.write(m.pack(codec), t_us=int(m.time_usec))
+    w.close()
+    src = tmp_path / "slots.csv"
+    src.write_text(dumps_slots_csv(slots, sc.frame))
+    a = uavloc("localize", tlog, "--scenario", SMALL, "--out", tmp_path / "a")
+    b = uavloc("localize", src, "--scenario", SMALL, "--out", tmp_path / "b")
+    assert a.returncode == 0 and b.returncode == 0, a.stderr + b.stderr
+    out = tmp_path / "b"
+    assert {p.name for p in out.iterdir()} == {"estimates.csv", "estimates.geojson", "estimates.png"}
+    ra, rb = _read_estimates(tmp_path / "a" / "estimates.csv"), _read_estimates(out / "estimates.csv")
+    assert list(rb[0])[:11] == ["emitter_id", "lat_deg", "lon_deg", "vel_east_m_s", "vel_north_m_s", "radius95_m",
+                                "annulus_bound_m", "t_ref_s", "ambiguous", "mirror_lat_deg", "mirror_lon_deg"]
+    assert {int(r["emitter_id"]) for r in rb} == set(world.emitter_ids.tolist())
+    assert [r["emitter_id"] for r in ra] == [r["emitter_id"] for r in rb]
+    for x, y in zip(ra, rb):
+        truth = world.positions(0.0)[world.index_of(int(y["emitter_id"]))]
+        ex, nx = sc.frame.to_local(float(x["lat_deg"]), float(x["lon_deg"]))
+        ey, ny = sc.frame.to_local(float(y["lat_deg"]), float(y["lon_deg"]))
+        assert np.hypot(ey - truth[0], ny - truth[1]) <= float(y["radius95_m"])
+        assert np.hypot(ex - ey, nx - ny) < 1.0  # the wire's cm/ms quantisation only
+        assert float(x["radius95_m"]) == pytest.approx(float(y["radius95_m"]), rel=0.05)
+    gj = json.loads((out / "estimates.geojson").read_text())
+    kinds = [f["properties"]["kind"] for f in gj["features"]]
+    assert kinds.count("estimate") == 3 and kinds.count("track") == 2
+    assert (out / "estimates.png").read_bytes()[:4] == b"\x89PNG"
+    assert str(world.emitter_ids[0]) in b.stdout
+
+
+GOOD = ",".join(COLUMNS) + "\n1.0,1,47.3977,8.5456,100,42,-80.5,10\n"
+
+
+@pytest.mark.parametrize("line, field", [
+    ("1.0,1,47.3977,8.5456,100,42,-80.5,ten", "n_samples"),
+    ("1.0,1,97.3977,8.5456,100,42,-80.5,10", "lat_deg"),
+    ("1.0,1,47.3977,8.5456,100,42,nan,10", "rssi_dbm"),
+    ("1.0,1,47.3977,8.5456,100,42,-80.5,0", "n_samples"),
+    ("1.0,x,47.3977,8.5456,100,42,-80.5,10", "vehicle_id"),
+])
+def test_malformed_rows_are_named_by_line_and_field(line, field):
+    with pytest.raises(FileFormatError, match=f"bad.csv, line 3, field '{field}'"):
+        loads_slots_csv(GOOD + line + "\n", load_scenario(SMALL).frame, path="bad.csv")
+
+
+def test_cli_reports_a_bad_row_in_one_sentence_and_writes_nothing(tmp_path):
+    src = tmp_path / "bad.csv"
+    src.write_text(GOOD + "1.0,1,47.3977,8.5456,100,42,-80.5,ten\n")
+    out = tmp_path / "out"
+    r = uavloc("localize", src, "--scenario", SMALL, "--out", out)
+    assert r.returncode == 2
+    assert "bad.csv, line 3, field 'n_samples'" in r.stderr
+    assert r.stderr.count("\n") == 1  # one sentence, no traceback
+    assert not out.exists()
+
+
+def test_header_and_field_count_errors():
+    frame = load_scenario(SMALL).frame
+    with pytest.raises(FileFormatError, match="line 1.*header"):
+        loads_slots_csv("t,vehicle\n", frame, path="x.csv")
+    with pytest.raises(FileFormatError, match="line 3.*8 comma-separated fields, got 3"):
+        loads_slots_csv(",".join(COLUMNS) + "\n\n1,2,3\n", frame, path="x.csv")
+    with pytest.raises(FileFormatError, match="empty file"):
+        loads_slots_csv("# only a comment\n", frame)
+    assert len(loads_slots_csv(",".join(COLUMNS) + "\n", frame)) == 0
+
+
+def test_csv_round_trip_keeps_the_slots(flight):
+    sc, _, slots = flight
+    back = loads_slots_csv(dumps_slots_csv(slots, sc.frame), sc.frame)
+    s = slots.sorted_by_time()
+    assert np.array_equal(back.emitter_id, s.emitter_id) and np.array_equal(back.vehicle, s.vehicle)
+    assert np.allclose(back.xyz_m, s.xyz_m, atol=0.01) and np.allclose(back.rssi_dbm, s.rssi_dbm, atol=0.005)
+
+
+def test_missing_input_file(tmp_path, capsys):
+    from uavloc_gcs.cli import main
+
+    assert main(["localize", str(tmp_path / "nope.csv"), "--scenario", str(SMALL), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert "nope.csv" in err and "not found" in err and not (tmp_path / "o").exists()
