@@ -25,8 +25,8 @@ ENERGY_PENALTY = 100.0
 SEARCH_SWEEPS = 4
 SEARCH_NEWTON = 4
 FINAL_NEWTON = 20
-SMOOTHING_M = (10.0, 1.0, 0.1, 0.01)
-SMOOTH_SWEEPS = 15
+SMOOTHING_M = (10.0, 1.0, 0.1, 0.01, 0.001)
+SMOOTH_SWEEPS = 100
 
 
 @dataclass
@@ -212,7 +212,7 @@ class Evaluator:
         # pulls such points apart; the last pass is unsmoothed and only ever shortens the route.
         best = Q.copy()
         best_len = self._score(lay, Q).lengths_m.sum(axis=1)
-        for eps in SMOOTHING_M:
+        for eps in SMOOTHING_M if self._has_coincident(lay, Q) else ():
             if deadline is not None and time.perf_counter() > deadline:
                 break
             Q = self.access_points(lay, SMOOTH_SWEEPS, FINAL_NEWTON, Q=Q, tol_m=0.01 * eps,
@@ -228,6 +228,12 @@ class Evaluator:
         Q[worse] = best[worse]
         self.nfev += order.shape[0]
         return self._score(lay, Q)
+
+    def _has_coincident(self, lay: Layout, Q: np.ndarray, tol_m: float = 0.01) -> bool:
+        """Whether two consecutive target access points (nearly) coincide somewhere."""
+        is_t = lay.seq < self.n
+        both = is_t[:, :-1] & is_t[:, 1:]
+        return bool(np.any(both & (_norm(np.diff(Q, axis=1)) < tol_m)))
 
     def _merge_runs(self, lay: Layout, Q: np.ndarray, tol_m: float = 1e-6) -> bool:
         """Move each run of coinciding consecutive access points jointly (see
