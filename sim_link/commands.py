@@ -25,6 +25,11 @@ ACCEPTED, DENIED, UNSUPPORTED, FAILED = (
 FORCE_MAGIC = 21196
 
 
+def _i(x: float, default: int = 0) -> int:
+    """An integer parameter; NaN (MAVLink's "unset", which MAVSDK sends for unused params) -> default."""
+    return int(round(x)) if math.isfinite(x) else default
+
+
 def _ack(peer: Peer, command: int, result: int) -> Reply:
     return Reply(mav.MAVLink_command_ack_message(command, result, 0, 0, peer.sysid, peer.compid), peer)
 
@@ -53,7 +58,7 @@ def handle_set_mode(v: "FakeVehicle", msg, peer: Peer) -> list[Reply]:
 def _dispatch(v: "FakeVehicle", cmd: int, p: list, extra: list) -> int:
     px4 = v.flavour.name == "px4"
     if cmd == mav.MAV_CMD_COMPONENT_ARM_DISARM:
-        force = int(round(p[1])) == FORCE_MAGIC
+        force = _i(p[1]) == FORCE_MAGIC
         ok = v.arm(force) if p[0] >= 0.5 else v.disarm(force)
         return ACCEPTED if ok else FAILED
     if cmd == mav.MAV_CMD_NAV_TAKEOFF:
@@ -69,14 +74,14 @@ def _dispatch(v: "FakeVehicle", cmd: int, p: list, extra: list) -> int:
             return FAILED
         return ACCEPTED if v.takeoff(p[6]) else FAILED
     if cmd == mav.MAV_CMD_DO_SET_MODE:
-        if not int(p[0]) & mav.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED:
+        if not _i(p[0]) & mav.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED:
             return UNSUPPORTED
-        mode = v.flavour.mode_from_custom(int(p[1]), int(p[2]) if px4 else None)
+        mode = v.flavour.mode_from_custom(_i(p[1]), _i(p[2]) if px4 else None)
         if mode is None:
             return FAILED
         return ACCEPTED if v.set_mode(mode) else FAILED
     if cmd == mav.MAV_CMD_MISSION_START:
-        first = int(p[0])
+        first = _i(p[0])
         if first > 0 and not v.set_current(first):
             return FAILED
         return ACCEPTED if v.set_mode("AUTO") else FAILED
@@ -85,26 +90,26 @@ def _dispatch(v: "FakeVehicle", cmd: int, p: list, extra: list) -> int:
     if cmd == mav.MAV_CMD_NAV_LAND:
         return ACCEPTED if v.set_mode("LAND") else FAILED
     if cmd == mav.MAV_CMD_DO_SET_MISSION_CURRENT:
-        if not v.set_current(int(p[0]), reset=p[1] >= 0.5):
+        if not v.set_current(_i(p[0], -1), reset=p[1] >= 0.5):
             return FAILED
         extra.append(v.mission_current_reply())
         return ACCEPTED
     if cmd == mav.MAV_CMD_DO_CHANGE_SPEED:
-        if p[1] > 0:
+        if math.isfinite(p[1]) and p[1] > 0:
             v.speed_m_s = float(p[1])
         return ACCEPTED
     if cmd == mav.MAV_CMD_SET_MESSAGE_INTERVAL:
-        v.set_interval(int(p[0]), float(p[1]))
+        v.set_interval(_i(p[0], -1), float(p[1]) if math.isfinite(p[1]) else 0.0)
         return ACCEPTED
     if cmd in (mav.MAV_CMD_REQUEST_MESSAGE, mav.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES,
                mav.MAV_CMD_GET_HOME_POSITION):
         msg_id = {mav.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES: mav.MAVLINK_MSG_ID_AUTOPILOT_VERSION,
-                  mav.MAV_CMD_GET_HOME_POSITION: mav.MAVLINK_MSG_ID_HOME_POSITION}.get(cmd, int(p[0]))
+                  mav.MAV_CMD_GET_HOME_POSITION: mav.MAVLINK_MSG_ID_HOME_POSITION}.get(cmd, _i(p[0], -1))
         replies = v.message_replies(msg_id)
         if not replies:
             return UNSUPPORTED
         extra.extend(Reply(r.msg, None, r.component) for r in replies)
         return ACCEPTED
     if cmd == mav.MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN:
-        return ACCEPTED if int(p[0]) == 1 and not v.armed else (DENIED if v.armed else UNSUPPORTED)
+        return ACCEPTED if _i(p[0]) == 1 and not v.armed else (DENIED if v.armed else UNSUPPORTED)
     return UNSUPPORTED

@@ -127,7 +127,11 @@ class _VehicleEndpoint(asyncio.DatagramProtocol):
             if self.fleet.route and getattr(msg, "target_system", 0) != self.vehicle.sysid:
                 self._forward(data, addr)
             peer = Peer(addr, msg.get_srcSystem(), msg.get_srcComponent())
-            replies += self.vehicle.handle(msg, peer, wall)
+            try:
+                replies += self.vehicle.handle(msg, peer, wall)
+            except Exception:  # a malformed message must not take the vehicle down
+                self.stats.bad_packets += 1
+                log.exception("uav%d: error handling %s", self.vehicle.sysid, msg.get_type())
         self.send(replies)
 
     def _forward(self, data: bytes, from_addr) -> None:

@@ -208,6 +208,8 @@ class FakeVehicle(TelemetryMixin):
             seq = 1
         if not 0 <= seq < len(items):
             return False
+        if reset:
+            self.executor.jumps_done.clear()  # MAV_CMD_DO_SET_MISSION_CURRENT param2: reset DO_JUMP counters
         self.executor.reset(seq)
         return True
 

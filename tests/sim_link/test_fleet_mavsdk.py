@@ -128,3 +128,41 @@ def test_mavsdk_upload_and_download_on_a_lossy_link(autopilot, faults):
 
     fleet = None
     asyncio.run(asyncio.wait_for(main(), 90))
+
+
+@pytest.mark.parametrize("autopilot", ["ardupilot", "px4"])
+def test_mavsdk_arms_starts_and_follows_the_mission_to_the_end(autopilot):
+    """MAVSDK's own progress tracking (MISSION_CURRENT / MISSION_ITEM_REACHED) sees the flight end."""
+    from mavsdk.asyncio.plugins.action import ActionAsync
+
+    sc = SMALL.replace(fleet={"vehicles": 1, "autopilot": autopilot})
+    items = _mission(sc, autopilot, n=4)
+    seen = []
+
+    async def main():
+        async with FakeFleet(sc, speedup=60, seed=2, base_port=0) as fleet:
+            url = fleet.endpoints[0][1].replace("udpout:", "udpout://")
+            async with Mavsdk(Configuration.create_with_component_type(ComponentType.GROUND_STATION)) as m:
+                await m.add_any_connection(url)
+                system = await m.first_autopilot(timeout_s=5.0)
+                mr, action = MissionRawAsync(system), ActionAsync(system)
+                try:
+                    await mr.upload_mission(_to_mavsdk(items))
+                    await action.arm()
+                    await mr.start_mission()
+                    for _ in range(200):
+                        p = await mr.mission_progress()
+                        seen.append((p.current, p.total))
+                        if await mr.is_mission_finished():
+                            break
+                        await asyncio.sleep(0.05)
+                finally:
+                    mr.destroy()
+                    action.destroy()
+            v = fleet.vehicle(1)
+            return v
+
+    v = asyncio.run(asyncio.wait_for(main(), 60))
+    currents = [c for c, _ in seen]
+    assert currents == sorted(currents) and len(set(currents)) >= 3  # progress only moves forward
+    assert v.executor.complete and v.landed and not v.armed

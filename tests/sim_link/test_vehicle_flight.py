@@ -194,3 +194,23 @@ def test_set_current_and_mission_current():
     assert out[0].msg.get_type() == "MISSION_CURRENT" and out[0].msg.seq == 2
     mc = v.mission_current_reply().msg
     assert mc.total == len(wire) - 1 and mc.mission_state == mav.MISSION_STATE_NOT_STARTED
+
+
+def test_command_int_and_nan_parameters():
+    v = _vehicle(PAPER)
+    nan = float("nan")
+    out = v.handle(mav.MAVLink_command_long_message(1, 1, mav.MAV_CMD_COMPONENT_ARM_DISARM, 0, 1, nan, nan, nan,
+                                                    nan, nan, nan), GCS, 0.0)
+    assert out[0].msg.result == mav.MAV_RESULT_ACCEPTED and v.armed
+    out = v.handle(mav.MAVLink_command_int_message(1, 1, 0, mav.MAV_CMD_DO_SET_MODE, 0, 0, 1, 4, nan, nan, 0, 0, 0),
+                   GCS, 0.0)
+    assert out[0].msg.command == mav.MAV_CMD_DO_SET_MODE and out[0].msg.result == 0 and v.mode == "GUIDED"
+    assert out[0].to == GCS and (out[0].msg.target_system, out[0].msg.target_component) == (255, 190)
+    out = v.handle(mav.MAVLink_command_long_message(1, 1, mav.MAV_CMD_REQUEST_MESSAGE, 0,
+                                                    mav.MAVLINK_MSG_ID_AUTOPILOT_VERSION, nan, nan, nan, nan, nan,
+                                                    nan), GCS, 0.0)
+    kinds = [r.msg.get_type() for r in out]
+    assert kinds == ["COMMAND_ACK", "AUTOPILOT_VERSION"]
+    assert out[1].msg.capabilities & mav.MAV_PROTOCOL_CAPABILITY_MISSION_INT
+    assert v.handle(mav.MAVLink_command_long_message(2, 1, mav.MAV_CMD_COMPONENT_ARM_DISARM, 0, 0, 0, 0, 0, 0, 0, 0),
+                    GCS, 0.0) == []  # for another system
