@@ -80,6 +80,7 @@ async def upload_mission(link: Link, target_system: int, target_component: int, 
         timeout_s = DEFAULT_TIMEOUT_S  # until the first request; then the item timeout
         highest_sent = -1
         last_is_resend = False
+        last_requested = -1
         give_up_at = time.monotonic() + GIVE_UP_S
         if progress:
             progress("upload", 0, n)
@@ -95,9 +96,11 @@ async def upload_mission(link: Link, target_system: int, target_component: int, 
                         f"vehicle stopped requesting items for {GIVE_UP_S:g} s", vehicle=vehicle,
                         operation="mission upload", seq=highest_sent + 1 if highest_sent + 1 < n else None) from None
                 await link.send(last_sent)
+                log.debug("vehicle %s upload: timeout, re-sent %s", vehicle, last_sent.get_type())
                 resends += 1
                 last_is_resend = True
                 continue
+            log.debug("vehicle %s upload: %s %s", vehicle, msg.get_type(), getattr(msg, "seq", getattr(msg, "type", "")))
             if not for_us(msg, mav.srcSystem) or getattr(msg, "mission_type", mission_type) != mission_type:
                 continue
             if msg.get_type() == "MISSION_ACK":
@@ -112,7 +115,8 @@ async def upload_mission(link: Link, target_system: int, target_component: int, 
                         # ArduPilot NACKs our re-sent item k because it already has it: its
                         # request for k+1 was lost. Send k+1 now rather than wait ~1 s for its
                         # re-request; if we guessed wrong it NACKs again and re-requests.
-                        last_sent = item_message(mav, target_system, target_component, items[highest_sent + 1])
+                        highest_sent += 1
+                        last_sent = item_message(mav, target_system, target_component, items[highest_sent])
                         await link.send(last_sent)
                         last_is_resend = False
                     continue
@@ -130,9 +134,11 @@ async def upload_mission(link: Link, target_system: int, target_component: int, 
             last_sent = item_message(mav, target_system, target_component, items[seq])
             await link.send(last_sent)
             timeout_s = ITEM_TIMEOUT_S
+            if seq != last_requested:  # the vehicle moved on (or restarted): progress
+                give_up_at = time.monotonic() + GIVE_UP_S
+                last_requested = seq
             if seq > highest_sent:
                 highest_sent = seq
-                give_up_at = time.monotonic() + GIVE_UP_S
                 if progress:
                     progress("upload", seq + 1, n)
 
