@@ -3,7 +3,9 @@
 Monte Carlo over flight geometries (one leg, two parallel legs 100 m apart flown as a
 boustrophedon, two crossing legs), lateral offsets uniform from 0 to R, static and moving phones
 (velocity uniform over the disk |v| <= v_max) and i.i.d. or correlated (Gudmundson, 20 m)
-shadowing, all heard through ``sim_link.World`` with the paper's channel. For each family it
+shadowing, all heard through ``sim_link.World`` with the paper's channel; plus the fixed
+lawnmower geometry of science.md §2 (legs at y = 80 and 240 m, person at y = 100/130/160 m moving
+at (1, 0.5) m/s), whose CRB table the information code reproduces (tests/uavloc_gcs/estimation). For each family it
 prints, measured in the same run:
 
 - RMSE of the position at the last slot's time; "near": the error to the nearer of the estimate
@@ -48,11 +50,16 @@ TURN_S = 5.0
 @dataclass(frozen=True)
 class Family:
     name: str
-    geometry: str  # one_leg | parallel | crossing
+    geometry: str  # one_leg | parallel | crossing | lawnmower
     moving: bool
     correlated: bool = False
     model_motion: bool = True
+    target_y_m: float | None = None  # lawnmower: the person's fixed north coordinate
 
+
+# science.md §2's reference: legs at y = 80 and 240 m joined by a turn, person at x = 600 m moving
+# at (1, 0.5) m/s; its CRB table (10 samples/slot) is 9.7 / 6.1 / 9.8 m at the mission start
+LAWNMOWER_VELOCITY = np.array([1.0, 0.5])
 
 FAMILIES = [
     Family("one leg, static", "one_leg", False),
@@ -62,6 +69,9 @@ FAMILIES = [
     Family("two parallel, moving", "parallel", True),
     Family("crossing, static", "crossing", False),
     Family("crossing, moving", "crossing", True),
+    Family("lawnmower y=100, moving", "lawnmower", True, target_y_m=100.0),
+    Family("lawnmower y=130, moving", "lawnmower", True, target_y_m=130.0),
+    Family("lawnmower y=160, moving", "lawnmower", True, target_y_m=160.0),
     Family("one leg, moving, corr.", "one_leg", True, True),
     Family("two parallel, moving, corr.", "parallel", True, True),
     Family("crossing, moving, corr.", "crossing", True, True),
@@ -83,9 +93,16 @@ def _leg(start, end, t0, speed, slot_s, alt):
 
 
 def _legs(geometry: str, rng: np.random.Generator, reach: float, sc):
-    """Vehicle legs for one run; the person starts at CENTER."""
+    """Vehicle legs for one run; the person starts at CENTER (lawnmower: the fixed reference)."""
     v, slot, alt = sc.fleet.speed_m_s, sc.channel.slot_s, sc.fleet.altitude_m
     half = reach + 60.0
+    if geometry == "lawnmower":
+        out, t0 = [], 0.0
+        for a, b in [((0, 80), (1120, 80)), ((1120, 80), (1120, 240)), ((1120, 240), (0, 240))]:
+            t, x = _leg(a, b, t0, v, slot, alt)
+            out.append((t, x))
+            t0 = t[-1] + slot
+        return out
     if geometry == "one_leg":
         y = CENTER[1] - rng.uniform(0.0, reach)
         return [_leg([CENTER[0] - half, y], [CENTER[0] + half, y], 0.0, v, slot, alt)]
@@ -132,11 +149,13 @@ def run_family(fam: Family, runs: int, seed: int, sc) -> dict:
     rng = np.random.default_rng(seed)
     err, near, r95, bound, amb, ms, infos, crb2 = [], [], [], [], [], [], [], []
     for k in range(runs):
-        vel = np.zeros(2)
-        if fam.moving:
+        vel, start = np.zeros(2), CENTER
+        if fam.target_y_m is not None:
+            vel, start = LAWNMOWER_VELOCITY, np.array([600.0, fam.target_y_m])
+        elif fam.moving:
             ang, rad = rng.uniform(0, 2 * np.pi), vmax * math.sqrt(rng.uniform())
             vel = rad * np.array([math.cos(ang), math.sin(ang)])
-        world = World.with_people(sc, [CENTER], [vel], seed=seed * 100_003 + k)
+        world = World.with_people(sc, [start], [vel], seed=seed * 100_003 + k)
         slots = SlotBatch.concat([world.hear_track(1, t, x) for t, x in _legs(fam.geometry, rng, reach, sc)])
         if len(slots) < 3:
             continue

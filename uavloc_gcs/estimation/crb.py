@@ -14,7 +14,7 @@ import numpy as np
 
 from ..observations import SlotBatch
 from .estimate import TX_PRIOR_SIGMA_DB
-from .fit import POSITION_PRIOR_SIGMA_M
+from .fit import POSITION_PRIOR_SIGMA_M, VELOCITY_PRIOR_FRACTION
 from .model import ChannelModel, fisher_information
 
 
@@ -47,7 +47,7 @@ def prior_information(channel: ChannelModel, *, max_speed_m_s: float, model_moti
     j = np.zeros((p, p))
     j[0, 0] = j[1, 1] = POSITION_PRIOR_SIGMA_M**-2
     if model_motion:
-        j[2, 2] = j[3, 3] = (max(max_speed_m_s, 1e-3) / 2.0) ** -2
+        j[2, 2] = j[3, 3] = (max(max_speed_m_s, 1e-3) * VELOCITY_PRIOR_FRACTION) ** -2
     if estimate_tx_power:
         j[-1, -1] = (TX_PRIOR_SIGMA_DB * channel.nepers_per_db) ** -2
     return j

@@ -23,6 +23,7 @@ from scipy.optimize import leastsq
 from .model import ChannelModel, geometry, log_range_jacobian
 
 SPEED_BOUND_SOFTNESS_M_S = 0.05
+VELOCITY_PRIOR_FRACTION = 0.5  # sigma_v / v_max per axis
 POSITION_PRIOR_SIGMA_M = 1.0e4
 GRID_SLOTS = 80
 GRID_SIDE = 17
@@ -70,7 +71,7 @@ class Problem:
 
     @property
     def sigma_v(self) -> float:
-        return max(self.max_speed_m_s, 1e-3) / 2.0
+        return max(self.max_speed_m_s, 1e-3) * VELOCITY_PRIOR_FRACTION
 
     def residuals(self, theta: np.ndarray) -> np.ndarray:
         d = self.data

@@ -87,3 +87,32 @@ def test_access_radius_is_monotone_in_the_required_accuracy():
     assert radii[0] == 0.0  # no single pass gets a moving person to half a metre
     assert all(b >= a for a, b in zip(radii, radii[1:]))
     assert 0 < radii[-1] <= math.sqrt(150**2 - 100**2)
+
+
+@pytest.mark.parametrize("y_m, static_10, cv_pos_10, cv_vel_10", [
+    (100.0, 5.5, 9.7, 0.31), (130.0, 3.2, 6.1, 0.13), (160.0, 3.2, 9.8, 0.16)])
+def test_fisher_information_reproduces_the_reference_crb_table(y_m, static_10, cv_pos_10, cv_vel_10):
+    """science.md §2: legs at y = 80 and 240 m joined by a turn at x = 1120 m, 25 m/s, h = 100 m,
+    D = 150 m, person at x = 600 m (static, or moving at (1, 0.5) m/s; bound at t = 0), 10 samples/slot."""
+    pts = [(0, 80), (1120, 80), (1120, 240), (0, 240)]
+    t, xy, t0 = [], [], 0.0
+    for a, b in zip(pts[:-1], pts[1:]):
+        a, b = np.asarray(a, float), np.asarray(b, float)
+        n = int(np.linalg.norm(b - a) / 25 / 0.025)
+        f = np.arange(n) / n
+        t.append(t0 + f * n * 0.025)
+        xy.append(a + np.outer(f, b - a))
+        t0 += n * 0.025
+    t, xy = np.concatenate(t), np.vstack(xy)
+    for v, expected in ((np.zeros(2), static_10), (np.array([1.0, 0.5]), cv_pos_10)):
+        pos = np.array([600.0, y_m]) + np.outer(t, v)
+        d = np.sqrt(np.sum((pos - xy) ** 2, axis=1) + 100.0**2)
+        m = d <= 150.0
+        s = SlotBatch.from_columns(t[m], np.ones(m.sum()), np.column_stack([xy[m], np.full(m.sum(), 100.0)]),
+                                   np.zeros(m.sum()), CH.rssi_dbm(d[m]), np.full(m.sum(), 10))
+        moving = bool(np.any(v))
+        j = data_information(s, CH, [600.0, y_m], v, 0.0, model_motion=moving)
+        assert position_rmse_bound_m(j) == pytest.approx(expected, abs=0.06)
+        if moving:
+            cov = np.linalg.inv(j)
+            assert math.sqrt(cov[2, 2] + cov[3, 3]) == pytest.approx(cv_vel_10, abs=0.01)
