@@ -55,6 +55,8 @@ class Family:
     correlated: bool = False
     model_motion: bool = True
     target_y_m: float | None = None  # lawnmower: the person's fixed north coordinate
+    tx_spread_db: float = 0.0  # phones' transmit power offsets ~ N(0, spread^2)
+    estimate_tx: bool = False
 
 
 # science.md §2's reference: legs at y = 80 and 240 m joined by a turn, person at x = 600 m moving
@@ -72,6 +74,8 @@ FAMILIES = [
     Family("lawnmower y=100, moving", "lawnmower", True, target_y_m=100.0),
     Family("lawnmower y=130, moving", "lawnmower", True, target_y_m=130.0),
     Family("lawnmower y=160, moving", "lawnmower", True, target_y_m=160.0),
+    Family("crossing, moving, tx 3 dB, est.", "crossing", True, tx_spread_db=3.0, estimate_tx=True),
+    Family("crossing, moving, tx 3 dB, nominal", "crossing", True, tx_spread_db=3.0),
     Family("one leg, moving, corr.", "one_leg", True, True),
     Family("two parallel, moving, corr.", "parallel", True, True),
     Family("crossing, moving, corr.", "crossing", True, True),
@@ -142,10 +146,12 @@ def correlated_information(slots: SlotBatch, channel: ChannelModel, truth, vel, 
 
 
 def run_family(fam: Family, runs: int, seed: int, sc) -> dict:
-    sc = sc.replace(simulation={"correlated_shadowing": fam.correlated, "shadowing_decorrelation_m": 20.0})
+    sc = sc.replace(simulation={"correlated_shadowing": fam.correlated, "shadowing_decorrelation_m": 20.0,
+                                "tx_power_spread_db": fam.tx_spread_db})
     channel = ChannelModel.from_scenario(sc)
     vmax, reach = sc.people.max_speed_m_s, sc.horizontal_range_m
-    prior = prior_information(channel, max_speed_m_s=vmax, model_motion=fam.model_motion)
+    prior = prior_information(channel, max_speed_m_s=vmax, model_motion=fam.model_motion,
+                              estimate_tx_power=fam.estimate_tx)
     rng = np.random.default_rng(seed)
     err, near, r95, bound, amb, ms, infos, crb2 = [], [], [], [], [], [], [], []
     for k in range(runs):
@@ -160,7 +166,8 @@ def run_family(fam: Family, runs: int, seed: int, sc) -> dict:
         if len(slots) < 3:
             continue
         t0 = time.thread_time()
-        est = estimate_emitter(slots, channel, max_speed_m_s=vmax, model_motion=fam.model_motion)
+        est = estimate_emitter(slots, channel, max_speed_m_s=vmax, model_motion=fam.model_motion,
+                               estimate_tx_power=fam.estimate_tx)
         ms.append(1e3 * (time.thread_time() - t0))
         truth, tvel = world.positions(est.t_ref_s)[0], world.velocities(est.t_ref_s)[0]
         e = float(np.linalg.norm(est.position_xy_m - truth))
@@ -172,7 +179,8 @@ def run_family(fam: Family, runs: int, seed: int, sc) -> dict:
         if fam.correlated:
             info = correlated_information(slots, channel, truth, tvel, est.t_ref_s, 20.0, sc.channel.samples_per_slot)
         else:
-            info = data_information(slots, channel, truth, tvel, est.t_ref_s, model_motion=fam.model_motion)
+            info = data_information(slots, channel, truth, tvel, est.t_ref_s, model_motion=fam.model_motion,
+                                    estimate_tx_power=fam.estimate_tx)
         infos.append(info)
         crb2.append(position_rmse_bound_m(info + prior) ** 2)
     err, near, r95, bound = np.array(err), np.array(near), np.array(r95), np.array(bound)
@@ -207,13 +215,13 @@ def main(args: argparse.Namespace) -> int:
     fams = [f for f in FAMILIES if not args.family or any(s in f.name for s in args.family)]
     print(f"uavloc bench localize: {args.runs} runs per family, paper channel (eta 2, sigma 4 dB, 10 samples/slot), "
           f"h {sc.fleet.altitude_m:g} m, R {sc.horizontal_range_m:.1f} m, v_max {sc.people.max_speed_m_s} m/s")
-    head = f"{'family':30s} {'runs':>4s} {'RMSE m':>7s} {'near m':>7s} {'BCRB m':>7s} {'ratio':>6s} " \
+    head = f"{'family':34s} {'runs':>4s} {'RMSE m':>7s} {'near m':>7s} {'BCRB m':>7s} {'ratio':>6s} " \
            f"{'eff':>6s} {'cov95':>6s} {'covAnn':>6s} {'ambig':>6s} {'r95/RMSE':>8s} {'ms':>6s}"
     print(head)
     print("-" * len(head))
     for i, fam in enumerate(fams):
         r = run_family(fam, args.runs, args.seed + 1000 * i, sc)
-        print(f"{r['family']:30s} {r['runs']:4d} {r['rmse']:7.2f} {r['rmse_near']:7.2f} {r['vt']:7.2f} "
+        print(f"{r['family']:34s} {r['runs']:4d} {r['rmse']:7.2f} {r['rmse_near']:7.2f} {r['vt']:7.2f} "
               f"{r['ratio']:6.2f} {r['eff']:6.2f} {r['cover95']:6.2f} {r['cover_annulus']:6.2f} {r['ambiguous']:6.2f} "
               f"{r['median_r95_over_rmse']:8.2f} {r['ms']:6.1f}")
     print(f"\nsolve time, one emitter, 1,000 slots: {time_1000_slots(sc):.1f} ms (median of 30)")
