@@ -7,6 +7,7 @@ named constants next to the MAVLink devguide's values.
 """
 
 from .autopilots import ARDUPILOT, PX4, Flavour, flavour_for, flavour_named
+from . import command
 from .command import (arm, command_long, disarm, return_to_launch, set_current_item, set_message_interval,
                       set_mode, start_mission, takeoff)
 from .connection import Link, LinkStats, Subscription, open_link, parse_signing_key
@@ -24,3 +25,7 @@ __all__ = [
     "clear_mission", "download_mission", "UploadResult", "upload_mission",
     "TlogWriter", "iter_tlog", "parse_connection",
 ]
+
+from .telemetry import StatusText, VehicleState, VehicleTracker  # noqa: E402
+
+__all__ += ["StatusText", "VehicleState", "VehicleTracker"]

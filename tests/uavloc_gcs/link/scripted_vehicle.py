@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import asyncio
 import random
+import time
 from dataclasses import dataclass, field
 
 from uavloc_gcs.dialect import mavlink
@@ -67,7 +68,7 @@ class ScriptedVehicle(asyncio.DatagramProtocol):
         if signing_key is not None:
             self.mav.signing.secret_key = signing_key
             self.mav.signing.sign_outgoing = True
-            self.mav.signing.timestamp = 1
+            self.mav.signing.timestamp = int((time.time() - 1420070400) * 1e5)
         self.state = VehicleState()
         self.telemetry_interval_s = telemetry_interval_s
         self.command_results = command_results or {}
