@@ -277,18 +277,20 @@ class FakeFleet:
         for ep in self._endpoints if i is None else [self._endpoints[i - 1]]:
             ep.up.cfg, ep.down.cfg = lf.to_vehicle, lf.to_gcs
 
-    def reboot(self, i: int, *, keep_mission: bool | None = None) -> None:
-        """Power-cycle vehicle ``i``: silent for a moment, then on the ground, disarmed; the mission
-        is kept on ArduPilot-like and lost on PX4-like vehicles unless ``keep_mission`` says."""
+    def reboot(self, i: int, *, keep_mission: bool | None = None, silence_s: float = REBOOT_SILENCE_S) -> None:
+        """Power-cycle vehicle ``i``: silent for ``silence_s`` of mission time, then on the ground,
+        disarmed; the mission is kept on ArduPilot-like and lost on PX4-like vehicles unless
+        ``keep_mission`` says otherwise."""
         ep = self._endpoints[i - 1]
         if self.loop is not None and self.loop.is_running():
-            self.loop.call_soon_threadsafe(self._reboot_now, ep, keep_mission)
+            self.loop.call_soon_threadsafe(self._reboot_now, ep, keep_mission, silence_s)
         else:
-            self._reboot_now(ep, keep_mission)
+            self._reboot_now(ep, keep_mission, silence_s)
 
-    def _reboot_now(self, ep: _VehicleEndpoint, keep_mission: bool | None) -> None:
+    def _reboot_now(self, ep: _VehicleEndpoint, keep_mission: bool | None,
+                    silence_s: float = REBOOT_SILENCE_S) -> None:
         ep.vehicle.reboot(keep_mission)
-        ep.offline_until_s = self.clock.now_s() + REBOOT_SILENCE_S
+        ep.offline_until_s = self.clock.now_s() + silence_s
         for pc in ep.peers.values():  # a rebooted autopilot starts new sequence numbers
             for codec in pc.tx.values():
                 codec.seq = 0
@@ -336,6 +338,7 @@ class FakeFleet:
             for ep in self._endpoints:
                 out = ep.vehicle.advance(t) + ep.vehicle.tick_protocols(wall)
                 ep.send(out)
+                await asyncio.sleep(0)  # let receivers on this loop drain their sockets between bursts
                 stale = [a for a, pc in ep.peers.items() if wall - pc.last_heard_wall_s > 10 * self.peer_timeout_s]
                 for a in stale:
                     del ep.peers[a]

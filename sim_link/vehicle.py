@@ -187,6 +187,7 @@ class FakeVehicle(TelemetryMixin):
             self.hold_xyz_m = self.kin.pos.copy()
         if mode == "RTL":
             self.rtl_phase = "climb"
+        log.debug("uav%d: mode %s -> %s", self.sysid, self.mode, mode)
         self.mode = mode
         self._out.append(self.heartbeat_reply())
         return True
@@ -231,6 +232,7 @@ class FakeVehicle(TelemetryMixin):
     def reboot(self, keep_mission: bool | None = None) -> None:
         """Power-cycle: on the ground where it is, disarmed, default mode, mission kept or lost."""
         keep = self.flavour.keep_mission_on_reboot if keep_mission is None else keep_mission
+        log.info("uav%d: reboot (mission %s)", self.sysid, "kept" if keep else "lost")
         self.kin.pos[2] = 0.0
         self.kin.stop()
         if not keep:
@@ -244,12 +246,15 @@ class FakeVehicle(TelemetryMixin):
     # ---------------------------------------------------------------- simulation
     def advance(self, t_s: float) -> list[Reply]:
         """Simulate up to mission time ``t_s`` in fixed physics steps; returns the telemetry due."""
+        slot_t: list = []
+        slot_xyz: list = []
         while self.t_s + PHYSICS_DT_S <= t_s + 1e-9:
             p0, t0 = self.kin.pos.copy(), self.t_s
             self._physics(PHYSICS_DT_S)
             self.t_s = t0 + PHYSICS_DT_S
-            self._hear(t0, p0, self.t_s, self.kin.pos)
+            self._slots(t0, p0, self.t_s, self.kin.pos, slot_t, slot_xyz)
             self._telemetry_due()
+        self._hear(slot_t, slot_xyz)
         out, self._out = self._out, []
         return out
 
@@ -375,25 +380,31 @@ class FakeVehicle(TelemetryMixin):
     def _set_speed(self, speed_m_s: float) -> None:
         self.speed_m_s = speed_m_s
 
-    def _hear(self, t0: float, p0: np.ndarray, t1: float, p1: np.ndarray) -> None:
-        """RSSI slots starting in [t0, t1): positions interpolated along the physics step."""
+    def _slots(self, t0: float, p0: np.ndarray, t1: float, p1: np.ndarray, ts: list, xyz: list) -> None:
+        """Queue the RSSI slots starting in [t0, t1), positions interpolated along the physics step."""
         if self.world is None or not self.cfg.rssi:
             return
         slot = self.cfg.slot_s
-        k0 = self.next_slot_t_s
+        k = self.next_slot_t_s
         times = []
-        while k0 < t1 - 1e-9:
-            times.append(k0)
-            k0 = round((k0 + slot) / slot) * slot
-        self.next_slot_t_s = k0
+        while k < t1 - 1e-9:
+            times.append(k)
+            k = round((k + slot) / slot) * slot
+        self.next_slot_t_s = k
         if not times or self.landed:
             return
-        ts = np.array(times)
-        w = ((ts - t0) / (t1 - t0))[:, None]
-        xyz = p0[None, :] * (1 - w) + p1[None, :] * w
-        heard = self.world.hear_track(self.sysid, ts, xyz)
-        self.rssi_slots += len(heard)
-        for m in self.batcher.add(heard):
-            self._out.append(Reply(m, None, COMPANION_COMPONENT_ID))
-        for m in self.batcher.flush(now_s=t1):
+        w = ((np.array(times) - t0) / (t1 - t0))[:, None]
+        ts.extend(times)
+        xyz.append(p0[None, :] * (1 - w) + p1[None, :] * w)
+
+    def _hear(self, ts: list, xyz: list) -> None:
+        """Ask the world what the queued slots hear (one call per advance) and batch the result."""
+        if self.world is None or not self.cfg.rssi:
+            return
+        if ts:
+            heard = self.world.hear_track(self.sysid, np.array(ts), np.vstack(xyz))
+            self.rssi_slots += len(heard)
+            for m in self.batcher.add(heard):
+                self._out.append(Reply(m, None, COMPANION_COMPONENT_ID))
+        for m in self.batcher.flush(now_s=self.t_s):
             self._out.append(Reply(m, None, COMPANION_COMPONENT_ID))

@@ -39,6 +39,11 @@ class MavClient(asyncio.DatagramProtocol):
 
     def connection_made(self, transport) -> None:
         self.transport = transport
+        sock = transport.get_extra_info("socket")
+        if sock is not None:  # sped-up telemetry arrives in bursts; the kernel caps this at rmem_max
+            import socket
+
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4 << 20)
 
     def datagram_received(self, data: bytes, addr) -> None:
         for m in self.rx.parse_buffer(data) or []:
@@ -83,6 +88,20 @@ class MavClient(asyncio.DatagramProtocol):
         self.drain()
         self.send(mav.MAVLink_command_long_message(target, 1, command, 0, *p))
         return await self.recv("COMMAND_ACK", timeout=timeout, where=lambda m: m.command == command)
+
+    async def upload(self, target: int, items, *, timeout: float = 3.0):
+        """A plain mission upload (answers MISSION_REQUEST and MISSION_REQUEST_INT with
+        MISSION_ITEM_INT); returns the final MISSION_ACK."""
+        self.drain()
+        self.send(mav.MAVLink_mission_count_message(target, 1, len(items), 0))
+        while True:
+            m = await self.recv(("MISSION_REQUEST", "MISSION_REQUEST_INT", "MISSION_ACK"), timeout=timeout)
+            if m.get_type() == "MISSION_ACK":
+                return m
+            w = items[m.seq]
+            self.send(mav.MAVLink_mission_item_int_message(
+                target, 1, w.seq, w.frame, w.command, w.current, w.autocontinue,
+                w.param1, w.param2, w.param3, w.param4, w.x, w.y, w.z, 0))
 
     def close(self) -> None:
         if self.transport is not None:

@@ -53,18 +53,6 @@ def _items(sc, autopilot):
     return to_wire(plan)
 
 
-async def upload(c: MavClient, sysid: int, items, *, request_type: str):
-    c.drain()
-    c.send(mav.MAVLink_mission_count_message(sysid, 1, len(items), 0))
-    while True:
-        m = await c.recv((request_type, "MISSION_ACK"))
-        if m.get_type() == "MISSION_ACK":
-            return m
-        w = items[m.seq]
-        c.send(mav.MAVLink_mission_item_int_message(sysid, 1, w.seq, w.frame, w.command, w.current, w.autocontinue,
-                                                    w.param1, w.param2, w.param3, w.param4, w.x, w.y, w.z, 0))
-
-
 @pytest.mark.parametrize("autopilot", ["ardupilot", "px4"])
 def test_pymavlink_client_uploads_and_flies_a_mission(autopilot):
     async def main():
@@ -74,8 +62,9 @@ def test_pymavlink_client_uploads_and_flies_a_mission(autopilot):
             await c.recv("HEARTBEAT")
             items = _items(sc, autopilot)
             req = "MISSION_REQUEST" if autopilot == "ardupilot" else "MISSION_REQUEST_INT"
-            ack = await upload(c, 1, items, request_type=req)
+            ack = await c.upload(1, items)
             assert ack.type == mav.MAV_MISSION_ACCEPTED
+            assert {m.get_type() for m in c.log if m.get_type().startswith("MISSION_REQUEST")} == {req}
             assert (await c.command(1, mav.MAV_CMD_COMPONENT_ARM_DISARM, 1)).result == mav.MAV_RESULT_ACCEPTED
             assert (await c.command(1, mav.MAV_CMD_MISSION_START)).result == mav.MAV_RESULT_ACCEPTED
             reached = []

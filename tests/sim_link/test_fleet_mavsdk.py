@@ -18,6 +18,7 @@ from mavsdk.asyncio import ComponentType, Configuration, Mavsdk  # noqa: E402
 from mavsdk.asyncio.plugins.mission_raw import MissionRawAsync  # noqa: E402
 from mavsdk.plugins.mission_raw import MissionItem  # noqa: E402
 
+pytestmark = pytest.mark.mavsdk
 SMALL = load_scenario("examples/small.toml")
 
 

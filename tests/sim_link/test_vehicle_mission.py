@@ -8,7 +8,6 @@ import pytest
 
 from uavloc_gcs.dialect import mavlink as mav
 from uavloc_gcs.mission import WireItem, flight_mission, to_wire
-from uavloc_gcs.scenario import load_scenario
 from sim_link.flavour import ARDUPILOT, PX4
 from sim_link.mission_server import MissionServer, Peer
 

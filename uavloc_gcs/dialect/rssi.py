@@ -179,6 +179,13 @@ class RssiBatcher:
         """Messages that are complete at mission time ``now_s`` (all pending ones if ``force``)."""
         if not self._pending:
             return []
+        if not force:  # cheap test first: nothing can be complete yet
+            n = sum(len(b) for b in self._pending)
+            t_first = min(float(b.t_s.min()) for b in self._pending)
+            t_last = max(float(b.t_s.max()) for b in self._pending)
+            if (n < MAX_ENTRIES and t_last - t_first <= self.window_s
+                    and (now_s is None or now_s - t_first <= self.window_s)):
+                return []
         pending = SlotBatch.concat(self._pending)
         msgs = encode_rssi_batches(pending, self.frame, epoch_unix_s=self.epoch_unix_s,
                                    slot_s=self.slot_s, window_s=self.window_s)
