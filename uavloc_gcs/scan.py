@@ -42,7 +42,8 @@ from .mission import MissionPlan, flight_mission
 
 log = logging.getLogger(__name__)
 
-__all__ = ["VehicleScan", "ScanPlan", "plan_scan", "scan_missions", "lane_spacing_for", "coverage_counts"]
+__all__ = ["VehicleScan", "ScanPlan", "plan_scan", "scan_missions", "fence_xy_m", "lane_spacing_for",
+           "coverage_counts"]
 
 _EDGE_INSET_M = 0.5  # double coverage: outer lanes this far inside the edge (clipping stays robust)
 
@@ -397,15 +398,40 @@ def _check_energy(scenario, plan: ScanPlan) -> None:
             )
 
 
+FENCE_MARGIN_M = 30.0  # room for tracking error and corner blending around the planned path
+
+
+def fence_xy_m(scenario, plan: ScanPlan, margin_m: float = FENCE_MARGIN_M) -> np.ndarray:
+    """Inclusion geofence (K, 2), counter-clockwise: the area, or, when the flight leaves it.
+
+    The scan leaves the area polygon on the way from and to the launch point, over the notches of
+    concave areas and where lanes are lengthened to keep double coverage; a fence equal to the
+    area would then make PX4 reject the mission (waypoints outside the fence) and ArduPilot
+    breach it in flight. So the fence is the area when every route, widened by ``margin_m``,
+    stays inside it, else the convex hull of the area and all routes, grown by ``margin_m``.
+    """
+    from shapely.geometry import MultiLineString, MultiPoint, Polygon
+
+    area_xy = scenario.area_xy_m()
+    area = Polygon(area_xy)
+    routes = [v.route_xy_m() for v in plan.vehicles]
+    if routes and MultiLineString([r for r in routes if len(r) >= 2]).buffer(margin_m).within(area):
+        return area_xy
+    pts = np.vstack([area_xy] + routes)
+    # Simplifying drops near-collinear hull vertices (it may cut up to 0.5 m, added back below).
+    hull = MultiPoint(pts).convex_hull.simplify(0.5).buffer(margin_m + 0.5, join_style="mitre", mitre_limit=2.0)
+    return _ccw(np.asarray(hull.exterior.coords)[:-1])
+
+
 def scan_missions(scenario, plan: ScanPlan) -> list[MissionPlan]:
     """One MAVLink mission per planned vehicle: takeoff, speed, pass-through waypoints, RTL.
 
-    Home is the launch point; the area polygon is attached as the inclusion geofence (clockwise,
-    as QGroundControl writes it).
+    Home is the launch point. The inclusion geofence (clockwise, as QGroundControl writes it) is
+    :func:`fence_xy_m`: the area, or a hull around the area and every route when they leave it.
     """
     frame = scenario.frame
     fleet = scenario.fleet
-    fence = tuple(tuple(map(float, v)) for v in reversed(frame.to_wgs84_latlon(scenario.area_xy_m())))
+    fence = tuple(tuple(map(float, v)) for v in reversed(frame.to_wgs84_latlon(fence_xy_m(scenario, plan))))
     out = []
     for v in plan.vehicles:
         latlon = frame.to_wgs84_latlon(v.waypoints_xy_m) if len(v.waypoints_xy_m) else np.zeros((0, 2))
