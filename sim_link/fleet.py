@@ -41,6 +41,12 @@ PEER_TIMEOUT_S = 30.0
 REBOOT_SILENCE_S = 2.0  # simulated seconds a rebooting vehicle is silent
 
 
+class BindError(LinkError, OSError):
+    """A vehicle's UDP port could not be bound: a LinkError, and an OSError for callers catching those."""
+
+    __str__ = BaseException.__str__  # the sentence, not OSError's "[Errno 98] ..."
+
+
 @dataclass
 class LinkStats:
     rx_packets: int = 0
@@ -304,9 +310,11 @@ class FakeFleet:
                 await self.loop.create_datagram_endpoint(lambda e=ep: e, local_addr=(self.host, port))
             except OSError as exc:
                 await self.aclose()
-                raise LinkError(f"cannot bind UDP {self.host}:{port} ({exc.strerror or exc}); is another "
+                err = BindError(f"cannot bind UDP {self.host}:{port} ({exc.strerror or exc}); is another "
                                 "simulator running? choose another --base-port",
-                                vehicle=f"uav{ep.vehicle.sysid}", operation="bind") from None
+                                vehicle=f"uav{ep.vehicle.sysid}", operation="bind")
+                err.errno, err.strerror = exc.errno, exc.strerror
+                raise err from None
         self.clock.start()
         self._stop_event = asyncio.Event()
         self._task = asyncio.create_task(self._run(), name="fake-fleet")
