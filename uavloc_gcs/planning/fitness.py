@@ -22,8 +22,8 @@ from .problem import Plan, Route, RoutingProblem
 # Penalty [s of makespan per s of flight beyond a vehicle's energy]: makes any energy overrun cost
 # far more than it could save.
 ENERGY_PENALTY = 100.0
-SEARCH_SWEEPS = 4
-SEARCH_NEWTON = 4
+SEARCH_SWEEPS = 2
+SEARCH_NEWTON = 2
 FINAL_NEWTON = 20
 SMOOTHING_M = (10.0, 1.0, 0.1, 0.01, 0.001)
 SMOOTH_SWEEPS = 100
@@ -72,6 +72,69 @@ class Evaluator:
         order = np.argsort(veh * 2.0 + (keys - veh), axis=1, kind="stable")
         counts = np.stack([np.count_nonzero(veh == v, axis=1) for v in range(self.m)], axis=1)
         return order, counts
+
+    def split(self, order: np.ndarray) -> np.ndarray:
+        """Counts (P, m) of the best min-max split of giant tours ``order`` (P, n) into m
+        consecutive routes (route v to vehicle v), by dynamic programming over the split points.
+
+        Route lengths here are estimates: centre-to-centre lengths minus each visited disk's radius
+        (edge access saves between 0 and 2 r per disk); energy limits add a large penalty.
+        """
+        order = np.atleast_2d(order)
+        P, n, m = order.shape[0], self.n, self.m
+        pos = self.node_xy[order]  # (P, n, 2)
+        rad = self.node_r[order]
+        step = _norm(np.diff(pos, axis=1))  # (P, n-1)
+        D = np.concatenate([np.zeros((P, 1)), np.cumsum(step, axis=1)], axis=1)  # (P, n)
+        R = np.concatenate([np.zeros((P, 1)), np.cumsum(rad, axis=1)], axis=1)  # (P, n+1)
+        i = np.arange(n + 1)
+        valid = i[:, None] <= i[None, :]  # chunk [i, j)
+        nonempty = i[:, None] < i[None, :]
+        ii = np.minimum(i, n - 1)
+        jj = np.maximum(i - 1, 0)
+        f_prev = None
+        args = []
+        for v in range(m):
+            s_xy = self.node_xy[n + v]
+            h_xy = self.node_xy[n + m + v]
+            to_first = _norm(pos[:, ii] - s_xy)  # (P, n+1): start -> element i
+            from_last = _norm(pos[:, jj] - h_xy)  # (P, n+1): element j-1 -> home
+            inner = D[:, jj][:, None, :] - D[:, ii][:, :, None]
+            L = to_first[:, :, None] + inner + from_last[:, None, :] - (R[:, None, :] - R[:, :, None])
+            L = np.where(nonempty[None], L, float(_norm(s_xy - h_xy)))
+            if self.max_len[v] < np.inf:
+                L = L + ENERGY_PENALTY * np.maximum(L - self.max_len[v], 0.0)
+            if f_prev is None:
+                f_v = L[:, 0, :]
+                args.append(np.zeros((P, n + 1), dtype=int))
+            else:
+                M = np.maximum(f_prev[:, :, None], L)
+                M = np.where(valid[None], M, np.inf)
+                a = np.argmin(M, axis=1)
+                f_v = np.take_along_axis(M, a[:, None, :], axis=1)[:, 0, :]
+                args.append(a)
+            f_prev = f_v
+        counts = np.zeros((P, m), dtype=int)
+        j = np.full(P, n)
+        for v in range(m - 1, 0, -1):
+            start = args[v][np.arange(P), j]
+            counts[:, v] = j - start
+            j = start
+        counts[:, 0] = j
+        return counts
+
+    def decode_tour_keys(self, keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Random keys in [0, 1) read as a giant tour (argsort), then the optimal split."""
+        keys = np.atleast_2d(keys)
+        order = np.argsort(keys, axis=1, kind="stable")
+        return order, self.split(order)
+
+    @staticmethod
+    def encode_tour_keys(order: np.ndarray) -> np.ndarray:
+        """Keys in [0, 1) whose argsort is ``order``."""
+        x = np.empty(len(order))
+        x[np.asarray(order, dtype=int)] = (np.arange(len(order)) + 0.5) / len(order)
+        return x
 
     def encode_keys(self, routes: list[list[int]]) -> np.ndarray:
         """Random keys (n,) reproducing ``routes`` (lists of target indices per vehicle)."""
@@ -226,8 +289,27 @@ class Evaluator:
         new_len = self._score(lay, Q).lengths_m.sum(axis=1)
         worse = new_len > best_len
         Q[worse] = best[worse]
+        if self.moving:
+            self._meet_moving(lay, Q)
         self.nfev += order.shape[0]
         return self._score(lay, Q)
+
+    def _meet_moving(self, lay: Layout, Q: np.ndarray, passes: int = 20) -> None:
+        """Make every access point lie in its disk at the time the vehicle gets there.
+
+        Projects each point onto its disk at its current access time, then recomputes the times.
+        A point moved by dq shifts later times by at most dq / V and their centres by
+        |v| dq / V, so the violation shrinks by about |v| / V per pass."""
+        R = self.node_r[lay.seq]
+        for _ in range(passes):
+            C = self._centres(lay, Q)
+            off = Q - C
+            d = _norm(off)
+            over = d > R
+            if not np.any(d - R > 1e-10):
+                break
+            scale = np.where(over, R / np.where(d > 0, d, 1.0), 1.0)
+            Q[:] = C + off * scale[..., None]
 
     def _has_coincident(self, lay: Layout, Q: np.ndarray, tol_m: float = 0.01) -> bool:
         """Whether two consecutive target access points (nearly) coincide somewhere."""

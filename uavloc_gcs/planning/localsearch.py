@@ -105,7 +105,7 @@ class LocalSearch:
             tmask = lay.seq[0] < ev.n
             Q0[0, tmask] = points[lay.seq[0, tmask]]
             sweeps = 4
-        Q = ev.access_points(lay, sweeps, 6, Q=Q0)
+        Q = ev.access_points(lay, sweeps, 4, Q=Q0)
         ev.nfev += 1
         sc = ev._score(lay, Q)
         C = ev._centres(lay, Q)[0]
@@ -157,7 +157,7 @@ class LocalSearch:
         U, W, R, POS = map(np.concatenate, (U, W, R, POS))
         tgt = np.array(rc)
         _, ins = best_point_between(U[None], W[None], cen[tgt][:, None], rad[tgt][:, None],
-                                    newton_steps=8)
+                                    newton_steps=4)
         ins = ins - _norm(W - U)[None]
         new_v = lengths[R][None] + ins
         new_c = (Lc - rem_gain)[:, None]
@@ -179,9 +179,9 @@ class LocalSearch:
             base_o = _norm(cur_o - prev_o) + _norm(next_o - cur_o)
             # Put c's target i into the other slot, and the other target into c's slot i.
             _, into_o = best_point_between(prev_o[None], next_o[None], cen[tgt][:, None],
-                                           rad[tgt][:, None], newton_steps=8)
+                                           rad[tgt][:, None], newton_steps=4)
             _, into_c = best_point_between(xc[idx - 1][:, None], xc[idx + 1][:, None],
-                                           cen[ot][None], rad[ot][None], newton_steps=8)
+                                           cen[ot][None], rad[ot][None], newton_steps=4)
             base_c = (_norm(xc[idx] - xc[idx - 1]) + _norm(xc[idx + 1] - xc[idx]))[:, None]
             new_c2 = Lc - base_c + into_c
             new_o2 = lengths[ov][None] - base_o[None] + into_o
@@ -189,10 +189,17 @@ class LocalSearch:
             sc2 = np.where(ok2, np.maximum(new_c2, new_o2), np.inf)
             b2 = np.unravel_index(int(np.argmin(sc2)), sc2.shape)
             best_swap = sc2[b2]
-        if min(best_reloc, best_swap) >= Lc - 1e-6:
+        best_star, star_move = self._two_opt_star(routes, pts, lengths, c)
+        best = min(best_reloc, best_swap, best_star)
+        if best >= Lc - 1e-6:
             return None
         routes = [list(r) for r in routes]
-        if best_reloc <= best_swap:
+        if best_star == best:
+            v, i, j = star_move
+            tail_c, tail_v = routes[c][i:], routes[v][j:]
+            routes[c] = routes[c][:i] + tail_v
+            routes[v] = routes[v][:j] + tail_c
+        elif best_reloc <= best_swap:
             i, e = b
             t = routes[c].pop(i)
             routes[R[e]].insert(POS[e], t)
@@ -201,6 +208,45 @@ class LocalSearch:
             v, p, t = ov[o], op[o], ot[o]
             routes[c][i], routes[v][p] = t, routes[c][i]
         return routes
+
+    def _two_opt_star(self, routes, pts, lengths, c):
+        """Best exchange of route tails between the longest route ``c`` and another one:
+        ``c`` keeps its first ``i`` targets then flies route ``v``'s tail after its first ``j``,
+        and the other way round (both still end at their own homes)."""
+        xc = self._route_x(c, routes[c], pts)
+        seg_c = _norm(np.diff(xc, axis=0))
+        pre_c = np.concatenate([[0.0], np.cumsum(seg_c)])  # start -> point a
+        best, move = np.inf, None
+        for v, r in enumerate(routes):
+            if v == c:
+                continue
+            xv = self._route_x(v, r, pts)
+            seg_v = _norm(np.diff(xv, axis=0))
+            pre_v = np.concatenate([[0.0], np.cumsum(seg_v)])
+            # Cut after slot a of c (a = 0..kc) and after slot b of v (b = 0..kv); tails start
+            # at slot a+1 / b+1 (the home slot when the tail is empty).
+            a = np.arange(len(xc) - 1)[:, None]
+            b = np.arange(len(xv) - 1)[None, :]
+            # Tail lengths measured to each route's own home; the last leg goes to the new home.
+            tail_c = pre_c[-2] - pre_c[a + 1]  # from slot a+1 to the last target of c
+            tail_v = pre_v[-2] - pre_v[b + 1]
+            last_c = np.where(a + 1 <= len(xc) - 2, 1, 0)
+            last_v = np.where(b + 1 <= len(xv) - 2, 1, 0)
+            home_c, home_v = xc[-1], xv[-1]
+            # New c: start..a, then v's tail from b+1, ending at c's home.
+            end_v_tail = np.where(last_v[..., None] == 1, xv[-2], xc[a[:, 0]][:, None, :])
+            new_c = (pre_c[a] + _norm(xv[b + 1] - xc[a]) * last_v + tail_v * last_v
+                     + _norm(home_c - end_v_tail))
+            end_c_tail = np.where(last_c[..., None] == 1, xc[-2][None, None, :], xv[b[0]][None, :, :])
+            new_v = (pre_v[b] + _norm(xc[a + 1] - xv[b]) * last_c + tail_c * last_c
+                     + _norm(home_v - end_c_tail))
+            ok = (new_c <= self.max_len[c]) & (new_v <= self.max_len[v])
+            ok &= ~((a == len(xc) - 2) & (b == len(xv) - 2))  # both tails empty: no move
+            score = np.where(ok, np.maximum(new_c, new_v), np.inf)
+            k = np.unravel_index(int(np.argmin(score)), score.shape)
+            if score[k] < best:
+                best, move = float(score[k]), (v, int(k[0]), int(k[1]))
+        return best, move
 
     def run(self, routes: list[list[int]], deadline: float, max_rounds: int = 200):
         """Improve ``routes`` until no move helps or ``deadline`` (perf_counter) passes."""
@@ -223,6 +269,30 @@ class LocalSearch:
                     improved = True
             if not improved:
                 break
+        return routes, f
+
+    def ruin_recreate(self, routes: list[list[int]], f: float, rng: np.random.Generator,
+                      deadline: float, rounds: int = 5) -> tuple[list[list[int]], float]:
+        """Iterated local search: remove a random person and its nearest neighbours (2 to n/6
+        people), reinsert them at their cheapest min-max positions, run the local search; keep
+        the result if the makespan went down."""
+        ev = self.ev
+        n = ev.n
+        if n < 3:
+            return routes, f
+        cen = ev.node_xy[:n]
+        for _ in range(rounds):
+            if time.perf_counter() > deadline:
+                break
+            k = int(rng.integers(2, max(3, n // 6) + 1))
+            seed = int(rng.integers(n))
+            near = np.argsort(_norm(cen - cen[seed]))[:k]
+            removed = set(int(i) for i in near)
+            partial = [[t for t in r if t not in removed] for r in routes]
+            order = [int(i) for i in rng.permutation(list(removed))]
+            cand, fc = self.run(self.insert(partial, order), deadline)
+            if fc < f - 1e-9:
+                routes, f = cand, fc
         return routes, f
 
     def insert(self, routes: list[list[int]], targets: list[int]) -> list[list[int]]:

@@ -113,9 +113,11 @@ def solve(problem: RoutingProblem, *, method: str = "epso", rng=None, time_limit
 
     # Keep back time for the final access-point refinement and, with local search, a last
     # polish of the best solution.
-    reserve = 0.1 * time_limit_s
-    polish = 0.05 * time_limit_s if local_search else 0.0
-    deadline = t_start + time_limit_s - reserve - polish
+    # Steps are checked against the clock between rounds, so aim a little short of the limit.
+    budget = 0.95 * time_limit_s - min(0.02, 0.1 * time_limit_s)
+    reserve = 0.1 * budget
+    polish = 0.05 * budget if local_search else 0.0
+    deadline = t_start + budget - reserve - polish
 
     def cb(x, fun, nit):
         if callback is None:
@@ -127,10 +129,9 @@ def solve(problem: RoutingProblem, *, method: str = "epso", rng=None, time_limit
 
     if method in ("epso", "pso"):
         opts = _split_options(SwarmOptions, options)
-        x, fun, nit, message = particle_swarm(
+        x, (order, counts), fun, nit, message = particle_swarm(
             ev, adaptive=(method == "epso"), rng=gen, deadline=deadline, max_iter=max_iter,
             local_search=local_search, seeds=seeds, callback=cb, opts=opts)
-        order, counts = (a[0] for a in ev.decode_keys(x))
     else:
         opts = _split_options(GAOptions, options)
         x, fun, nit, message = genetic(
@@ -141,10 +142,10 @@ def solve(problem: RoutingProblem, *, method: str = "epso", rng=None, time_limit
     if local_search:
         # Polish the final answer once more (cheap, and keeps the result locally optimal).
         ls = LocalSearch(ev)
-        routes, _ = ls.run(ev.to_routes(order, counts), t_start + time_limit_s - reserve)
+        routes, _ = ls.run(ev.to_routes(order, counts), t_start + budget - reserve)
         order, counts = ev.from_routes(routes)
         points = ls.evaluate(routes)[1]
-    plan = ev.plan(order, counts, lb, points=points, deadline=t_start + time_limit_s)
+    plan = ev.plan(order, counts, lb, points=points, deadline=t_start + budget)
     return _result(ev, order, counts, plan, nit, message, t_start, np.asarray(x))
 
 

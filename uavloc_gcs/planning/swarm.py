@@ -39,30 +39,61 @@ class SwarmOptions:
     w_min: float = 0.4
     w_max: float = 0.9
     w_fixed: float = 0.7298
-    v_max: float = 0.5  # velocity clamp, in keys (a vehicle is 1.0 wide)
+    v_max: float = 0.1  # velocity clamp, as a fraction of the key range (tuned: 0.1 > 0.25 > 0.5)
+    encoding: str = "split"  # "split": giant tour + optimal split; "vehicle": key = vehicle + order
     ls_every: int = 5  # iterations between local-search calls on the best particles
     ls_particles: int = 2
+    ruin_rounds: int = 4  # ruin-and-recreate rounds on the best particle per local-search step
+
+
+class _Codec:
+    """Random keys <-> solutions for the two encodings."""
+
+    def __init__(self, ev: Evaluator, encoding: str):
+        if encoding not in ("split", "vehicle"):
+            raise ValueError(f"unknown encoding {encoding!r}")
+        self.ev = ev
+        self.split = encoding == "split"
+        self.span = 1.0 if self.split else float(ev.m)
+
+    def decode(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return self.ev.decode_tour_keys(X) if self.split else self.ev.decode_keys(X)
+
+    def encode(self, routes: list[list[int]]) -> np.ndarray:
+        if self.split:
+            return self.ev.encode_tour_keys(self.ev.from_routes(routes)[0])
+        return self.ev.encode_keys(routes) / 1.0
 
 
 def particle_swarm(ev: Evaluator, *, adaptive: bool, rng: np.random.Generator, deadline: float,
                    max_iter: int | None, local_search: bool, seeds: list[list[list[int]]],
                    callback: Callable[[np.ndarray, float, int], bool] | None,
-                   opts: SwarmOptions) -> tuple[np.ndarray, float, int, str]:
-    """Run EPSO (``adaptive``) or PSO. Returns (best keys, best fitness, iterations, message)."""
+                   opts: SwarmOptions) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray], float, int, str]:
+    """Run EPSO (``adaptive``) or PSO.
+
+    Returns (best keys, best solution (order, counts), best fitness, iterations, message). The
+    personal bests are kept as explicit solutions too, so local-search improvements survive even
+    where the decoder would have split the tour differently.
+    """
+    codec = _Codec(ev, opts.encoding)
     n, m, P = ev.n, ev.m, opts.n_particles
-    hi = m - 1e-9
-    X = rng.uniform(0.0, m, size=(P, n))
+    span = codec.span
+    hi = span * (1 - 1e-9)
+    vmax = opts.v_max * span
+    X = rng.uniform(0.0, span, size=(P, n))
     for k, routes in enumerate(seeds[:P]):
-        X[k] = ev.encode_keys(routes)
-    Vel = rng.uniform(-opts.v_max, opts.v_max, size=(P, n)) * 0.5
-    f = ev.evaluate(*ev.decode_keys(X)).fitness
+        X[k] = codec.encode(routes)
+    Vel = rng.uniform(-vmax, vmax, size=(P, n)) * 0.5
+    order, counts = codec.decode(X)
+    for k, routes in enumerate(seeds[:P]):
+        order[k], counts[k] = ev.from_routes(routes)
+    f = ev.evaluate(order, counts).fitness
     pbest, pbest_f = X.copy(), f.copy()
-    g = int(np.argmin(f))
-    gbest, gbest_f = X[g].copy(), float(f[g])
+    pb_order, pb_counts = order.copy(), counts.copy()
     ls = LocalSearch(ev) if local_search else None
+    ls_done = np.zeros(P, dtype=bool)
     it = 0
     message = "time limit reached"
-    ls_done = np.zeros(P, dtype=bool)
     while True:
         if max_iter is not None and it >= max_iter:
             message = "iteration limit reached"
@@ -70,39 +101,48 @@ def particle_swarm(ev: Evaluator, *, adaptive: bool, rng: np.random.Generator, d
         if time.perf_counter() >= deadline:
             break
         it += 1
+        g = int(np.argmin(pbest_f))
         w = adaptive_inertia(f, opts.w_min, opts.w_max) if adaptive else np.full(P, opts.w_fixed)
         r1 = rng.random((P, n))
         r2 = rng.random((P, n))
-        Vel = w[:, None] * Vel + opts.c1 * r1 * (pbest - X) + opts.c2 * r2 * (gbest[None] - X)
-        np.clip(Vel, -opts.v_max, opts.v_max, out=Vel)
+        Vel = w[:, None] * Vel + opts.c1 * r1 * (pbest - X) + opts.c2 * r2 * (pbest[g][None] - X)
+        np.clip(Vel, -vmax, vmax, out=Vel)
         X = X + Vel
-        # Reflect at the walls so particles do not pile up on the last vehicle.
+        # Reflect at the walls so particles do not pile up there.
         X = np.where(X < 0, -X, X)
         X = np.where(X > hi, 2 * hi - X, X)
         np.clip(X, 0.0, hi, out=X)
-        f = ev.evaluate(*ev.decode_keys(X)).fitness
+        order, counts = codec.decode(X)
+        f = ev.evaluate(order, counts).fitness
         better = f < pbest_f
         pbest[better] = X[better]
         pbest_f[better] = f[better]
-        g = int(np.argmin(pbest_f))
-        if pbest_f[g] < gbest_f:
-            gbest, gbest_f = pbest[g].copy(), float(pbest_f[g])
+        pb_order[better] = order[better]
+        pb_counts[better] = counts[better]
         ls_done[better] = False
         if ls is not None and (it - 1) % opts.ls_every == 0 and n > 1:
             for k in np.argsort(pbest_f)[:opts.ls_particles]:
                 if ls_done[k]:
                     continue
-                routes = ev.to_routes(*(a[0] for a in ev.decode_keys(pbest[k])))
-                routes, fl = ls.run(routes, deadline)
+                routes, fl = ls.run(ev.to_routes(pb_order[k], pb_counts[k]), deadline)
                 ls_done[k] = True
                 if fl < pbest_f[k]:
-                    pbest[k] = ev.encode_keys(routes)
+                    pbest[k] = codec.encode(routes)
                     pbest_f[k] = fl
+                    pb_order[k], pb_counts[k] = ev.from_routes(routes)
                     X[k] = pbest[k]
+            if opts.ruin_rounds:
+                g = int(np.argmin(pbest_f))
+                routes, fl = ls.ruin_recreate(ev.to_routes(pb_order[g], pb_counts[g]), float(pbest_f[g]),
+                                              rng, deadline, opts.ruin_rounds)
+                if fl < pbest_f[g]:
+                    pbest[g] = codec.encode(routes)
+                    pbest_f[g] = fl
+                    pb_order[g], pb_counts[g] = ev.from_routes(routes)
+        if callback is not None:
             g = int(np.argmin(pbest_f))
-            if pbest_f[g] < gbest_f:
-                gbest, gbest_f = pbest[g].copy(), float(pbest_f[g])
-        if callback is not None and callback(gbest.copy(), gbest_f, it):
-            message = "stopped by callback"
-            break
-    return gbest, gbest_f, it, message
+            if callback(pbest[g].copy(), float(pbest_f[g]), it):
+                message = "stopped by callback"
+                break
+    g = int(np.argmin(pbest_f))
+    return pbest[g].copy(), (pb_order[g].copy(), pb_counts[g].copy()), float(pbest_f[g]), it, message
