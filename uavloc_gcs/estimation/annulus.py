@@ -14,7 +14,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.stats import norm
+from scipy.special import ndtri
 
 N_RAYS = 90
 MAX_RINGS = 120  # the tightest rings only: fewer constraints can only enlarge the set (stays valid)
@@ -41,7 +41,7 @@ def annulus_bound_m(
     n = len(t_s)
     if n == 0:
         return math.inf
-    z = norm.ppf(1.0 - (1.0 - confidence) / (2.0 * n))
+    z = float(ndtri(1.0 - (1.0 - confidence) / (2.0 * n)))
     half = z * log_range_sigma / np.sqrt(n_samples)
     d_lo, d_hi = np.exp(log_range - half), np.exp(log_range + half)
     walk = max_speed_m_s * np.abs(t_s - t_ref_s)

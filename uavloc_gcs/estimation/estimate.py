@@ -17,6 +17,7 @@ Why not trust one pass: a constant-velocity person seen from one straight leg is
 
 from __future__ import annotations
 
+import logging
 import math
 from dataclasses import dataclass, field
 
@@ -28,10 +29,13 @@ from .annulus import annulus_bound_m, reach_bound_m
 from .fit import Problem, inflation_factor, leg_lines, mirror_point, prepare, principal_line, start_points
 from .model import ChannelModel, radius_of_probability
 
+log = logging.getLogger(__name__)
+
 MIN_SLOTS = 3
 AMBIGUITY_MASS = 0.05
 TX_PRIOR_SIGMA_DB = 6.0
 PROBE_NFEV = 6
+POWER_TEST_CHI2 = 10.83  # chi^2_1 quantile at 0.999
 PROBE_MERGE_M = 3.0
 
 
@@ -143,6 +147,10 @@ def estimate_emitter(
     modes = _distinct_modes(problem, starts)
     best = modes[0]
     factor = inflation_factor(problem, best[0])
+    if not problem.tx and _power_contradicted(problem, best, factor):
+        log.info("emitter %d: the data contradict the nominal transmit power; estimating it", emitter)
+        return estimate_emitter(slots, channel, max_speed_m_s=max_speed_m_s, t_ref_s=t_ref_s,
+                                model_motion=model_motion, estimate_tx_power=True, previous=previous)
     laplace = [_laplace(problem, theta, cost, factor) for theta, cost in modes]
     order = np.argsort([-lm for _, lm in laplace])
     modes = [modes[i] for i in order]
@@ -215,6 +223,14 @@ def _distinct_modes(problem: Problem, starts: list[np.ndarray]) -> list[tuple[np
     if not out:
         raise EstimationError("the fit diverged from every start point")
     return out
+
+
+def _power_contradicted(problem: Problem, best: tuple[np.ndarray, float], factor: float) -> bool:
+    """Likelihood-ratio test of the nominal transmit power: refit with the offset free (its prior
+    included) and compare; the (deflated) statistic against chi^2_1 at 1e-3."""
+    free = Problem(problem.data, problem.moving, True, problem.max_speed_m_s, problem.tx_sigma_nepers)
+    _, cost = free.fit(np.append(best[0], 0.0))
+    return (best[1] - cost) / factor > POWER_TEST_CHI2
 
 
 def _mirror_state(problem: Problem, theta: np.ndarray, center, direction, tau: float) -> np.ndarray:

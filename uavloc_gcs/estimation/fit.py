@@ -26,6 +26,7 @@ SPEED_BOUND_SOFTNESS_M_S = 0.05
 VELOCITY_PRIOR_FRACTION = 0.5  # sigma_v / v_max per axis
 POSITION_PRIOR_SIGMA_M = 1.0e4
 GRID_SLOTS = 80
+MERGE_S = 0.1  # consecutive slots of one vehicle merged into one observation (see prepare)
 GRID_SIDE = 17
 START_SEPARATION_M = 10.0
 
@@ -46,15 +47,38 @@ class Prepared:
     center: np.ndarray  # weighted mean vehicle ground position
 
 
-def prepare(slots, channel: ChannelModel) -> Prepared:
-    order = np.argsort(slots.t_s, kind="stable")
-    t = slots.t_s[order]
-    n = np.maximum(slots.n_samples[order], 1).astype(float)
+def prepare(slots, channel: ChannelModel, *, merge_s: float = MERGE_S) -> Prepared:
+    """The slots as log-range observations, time-sorted.
+
+    Consecutive slots of one vehicle within ``merge_s`` are merged into one observation (sample-
+    weighted mean of ln r, position and time; summed precision). Over 0.1 s a vehicle moves ~2.5 m,
+    so ln d changes by ~1e-4 of its curvature term while a slot's noise is ~0.15: the likelihood is
+    unchanged to that order and the fit is ~4x cheaper.
+    """
+    y_all = channel.log_range(slots.rssi_dbm)
+    n_all = np.maximum(slots.n_samples, 1).astype(float)
+    order = np.lexsort((slots.t_s, slots.vehicle))
+    t, veh, n, y, a = slots.t_s[order], slots.vehicle[order], n_all[order], y_all[order], slots.xyz_m[order]
+    if merge_s > 0 and len(t) > 1:
+        new = np.concatenate([[True], (veh[1:] != veh[:-1]) | (np.diff(t) > merge_s)])
+        # within a run of one vehicle, start a new group every merge_s seconds
+        run = np.cumsum(new)
+        run_start = t[np.flatnonzero(new)][run - 1]
+        group = np.cumsum(np.concatenate([[True], (run[1:] != run[:-1]) |
+                                          (np.floor((t[1:] - run_start[1:]) / merge_s) !=
+                                           np.floor((t[:-1] - run_start[:-1]) / merge_s))]))
+        starts = np.flatnonzero(np.concatenate([[True], group[1:] != group[:-1]]))
+        tot = np.add.reduceat(n, starts)
+        t = np.add.reduceat(n * t, starts) / tot
+        y = np.add.reduceat(n * y, starts) / tot
+        a = np.add.reduceat(n[:, None] * a, starts, axis=0) / tot[:, None]
+        veh, n = veh[starts], tot
+        by_time = np.argsort(t, kind="stable")
+        t, y, a, veh, n = t[by_time], y[by_time], a[by_time], veh[by_time], n[by_time]
     w = n / channel.log_range_sigma**2
     t_c = float(np.sum(w * t) / np.sum(w))
-    a = slots.xyz_m[order]
-    return Prepared(t, t - t_c, t_c, a[:, :2].copy(), np.maximum(a[:, 2], 0.0), slots.vehicle[order],
-                    channel.log_range(slots.rssi_dbm[order]), w, n, np.average(a[:, :2], axis=0, weights=w))
+    return Prepared(t, t - t_c, t_c, a[:, :2].copy(), np.maximum(a[:, 2], 0.0), veh, y, w, n,
+                    np.average(a[:, :2], axis=0, weights=w))
 
 
 @dataclass(frozen=True)

@@ -117,9 +117,9 @@ def radius_of_probability(cov2: np.ndarray, prob: float = 0.95) -> float:
         return math.inf
     if ev[-1] <= 0:
         return 0.0
-    from scipy.stats import norm
+    from scipy.special import ndtri
 
-    lo = float(norm.ppf(0.5 + prob / 2.0) * math.sqrt(ev[-1]))  # the 1-D (degenerate) answer
+    lo = float(ndtri(0.5 + prob / 2.0) * math.sqrt(ev[-1]))  # the 1-D (degenerate) answer
     hi = float(math.sqrt(-2.0 * math.log(1.0 - prob) * ev[-1]))  # the isotropic answer
     if hi - lo < 1e-9 * hi:
         return hi
