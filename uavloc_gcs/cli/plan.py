@@ -62,6 +62,10 @@ def run(args: argparse.Namespace) -> int:
             written.append("preview.svg")
     print(summary(sc, plan, missions))
     print(f"\nWrote {len(written)} files to {Path(args.out)}/: {', '.join(written)}")
+    stale = sorted(p.name for p in Path(args.out).glob("uav*.*")
+                   if p.suffix in (".plan", ".waypoints") and p.name not in written)
+    if stale:
+        print(f"Note: {', '.join(stale)} in {Path(args.out)}/ are from an earlier run, not from this plan.")
     print(f"Look at them: uavloc preview {Path(args.out) / 'uav1.plan'}   (or open preview.png; "
           "scan.kml opens in Google Earth)")
     return 0
@@ -87,8 +91,8 @@ def summary(sc, plan, missions) -> str:
     rows = []
     for v, m in zip(plan.vehicles, missions):
         mins, secs = divmod(int(round(v.duration_s)), 60)
-        rows.append([f"uav{v.index + 1}", len(m.waypoints()), len(m.items), round(v.length_m / 1000, 2),
-                     f"{mins}:{secs:02d}", round(v.energy_j / 1000, 1), round(100 * v.energy_j / usable, 1)])
+        rows.append([f"uav{v.index + 1}", len(m.waypoints()), len(m.items), f"{v.length_m / 1000:.2f}",
+                     f"{mins}:{secs:02d}", f"{v.energy_j / 1000:.1f}", f"{100 * v.energy_j / usable:.1f}"])
     table = format_table(["vehicle", "waypoints", "items", "length km", "time m:s", "energy kJ", "% budget"], rows)
     foot = (f"% budget = share of the usable {usable / 1000:.1f} kJ per vehicle ({f.energy_budget_j / 1000:g} kJ "
             f"minus {f.energy_reserve_fraction:.0%} reserve); times at cruise speed, climb and turns not included.")

@@ -9,6 +9,7 @@ Both return plain strings (no colour codes), so tests and logs can hold them.
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass
 from typing import Sequence
 
@@ -97,7 +98,7 @@ def format_table(headers: Sequence[str], rows: Sequence[Sequence], *, title: str
     """A plain aligned table: numbers right-aligned, text left-aligned."""
     text = [[_cell(v) for v in row] for row in rows]
     widths = [max([len(h)] + [len(r[k]) for r in text]) for k, h in enumerate(headers)]
-    numeric = [all(_is_number(row[k]) for row in rows) and rows for k in range(len(headers))]
+    numeric = [bool(rows) and all(_is_number(row[k]) for row in rows if row[k] != "") for k in range(len(headers))]
 
     def fmt(values: Sequence[str]) -> str:
         return "  ".join(v.rjust(w) if numeric[k] else v.ljust(w) for k, (v, w) in enumerate(zip(values, widths))).rstrip()
@@ -108,7 +109,13 @@ def format_table(headers: Sequence[str], rows: Sequence[Sequence], *, title: str
     return "\n".join(out)
 
 
+_NUMERIC = re.compile(r"^[+-]?[\d.:,]+%?$")
+
+
 def _is_number(v) -> bool:
+    """Numbers, and strings that read as one (``"2.50"``, ``"1:38"``, ``"12%"``), align right."""
+    if isinstance(v, str):
+        return bool(_NUMERIC.match(v))
     return isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool)
 
 
