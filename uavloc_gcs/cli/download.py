@@ -1,0 +1,49 @@
+"""``uavloc download --from CONNECTION --out FILE.plan|FILE.waypoints``: read a vehicle's mission
+and save it (atomically), with progress on stderr and a one-line result on stdout."""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+from .upload import Progress, add_link_arguments, connect, encoding_for
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("download", help="download a vehicle's mission to a .plan/.waypoints file",
+                       description="Download a vehicle's mission over MAVLink and save it.")
+    p.add_argument("--from", required=True, metavar="CONNECTION", dest="connection",
+                   help="udpin:HOST:PORT, udpout:HOST:PORT, tcp:HOST:PORT, tcpin:HOST:PORT or serial:DEVICE:BAUD")
+    p.add_argument("--out", required=True, metavar="FILE", help="where to write (.plan or .waypoints)")
+    add_link_arguments(p)
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    import asyncio
+
+    from ..errors import ConfigError
+
+    if Path(args.out).suffix.lower() not in (".plan", ".waypoints", ".txt"):
+        raise ConfigError(f"{args.out}: output file must end in .plan or .waypoints", key="out")
+    return asyncio.run(_download(args))
+
+
+async def _download(args: argparse.Namespace) -> int:
+    from mission_io import plan as plan_file
+    from mission_io import waypoints as waypoints_file
+
+    from ..link import download_mission
+    from ..mission import from_wire
+
+    link, system, component, flavour = await connect(args)
+    async with link:
+        started = time.monotonic()
+        items = await download_mission(link, system, component, progress=Progress())
+    plan = from_wire(items, encoding_for(flavour))
+    writer = plan_file if Path(args.out).suffix.lower() == ".plan" else waypoints_file
+    writer.write(args.out, plan)
+    print(f"Downloaded {len(plan.items)} mission items ({len(items)} on the wire) from vehicle {system} "
+          f"({flavour.label}) on {args.connection} in {time.monotonic() - started:.1f} s to {args.out}.")
+    return 0
