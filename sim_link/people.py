@@ -35,31 +35,56 @@ class Tracks:
     knots_t_s: tuple
     knots_xy_m: tuple
 
+    def __post_init__(self) -> None:
+        # padded (S, K) copies for vectorized lookups: padding repeats the last knot 1 s apart
+        k = max([2] + [len(t) for t in self.knots_t_s])
+        s = len(self.knots_t_s)
+        kt, kxy = np.zeros((s, k)), np.zeros((s, k, 2))
+        for i, (t, xy) in enumerate(zip(self.knots_t_s, self.knots_xy_m)):
+            m = len(t)
+            kt[i, :m], kxy[i, :m] = t, xy
+            kt[i, m:] = t[-1] + np.arange(1, k - m + 1)
+            kxy[i, m:] = xy[-1]
+        object.__setattr__(self, "_kt", kt)
+        object.__setattr__(self, "_kxy", kxy)
+        last = np.array([len(t) - 1 for t in self.knots_t_s], dtype=int).reshape(-1, 1)
+        object.__setattr__(self, "_real", np.arange(k - 1)[None, :] < last)  # (S, K-1) real segments
+
     def __len__(self) -> int:
         return len(self.knots_t_s)
+
+    def _segment(self, tt: np.ndarray):
+        """Per (time, person): segment index (T, S) and the fraction along it."""
+        seg = np.sum(self._kt[None, :, :] <= tt[:, None, None], axis=2) - 1
+        seg = np.clip(seg, 0, self._kt.shape[1] - 2)
+        rows = np.arange(len(self))[None, :]
+        t0, t1 = self._kt[rows, seg], self._kt[rows, seg + 1]
+        frac = np.clip((tt[:, None] - t0) / (t1 - t0), 0.0, 1.0)
+        return seg, frac, t0, t1
 
     def positions(self, t_s) -> np.ndarray:
         """Positions at time(s) t_s: (S, 2) for a scalar, (T, S, 2) for an array [m]."""
         t = np.asarray(t_s, dtype=float)
-        tt = np.atleast_1d(t)
-        out = np.empty((tt.size, len(self), 2))
-        for i, (kt, kxy) in enumerate(zip(self.knots_t_s, self.knots_xy_m)):
-            out[:, i, 0] = np.interp(tt, kt, kxy[:, 0])
-            out[:, i, 1] = np.interp(tt, kt, kxy[:, 1])
+        tt = t.reshape(-1)
+        if len(self) == 0:
+            return np.zeros(t.shape + (0, 2))
+        seg, frac, _, _ = self._segment(tt)
+        rows = np.arange(len(self))[None, :]
+        p0, p1 = self._kxy[rows, seg], self._kxy[rows, seg + 1]
+        out = p0 + frac[..., None] * (p1 - p0)
         return out[0] if t.ndim == 0 else out.reshape(t.shape + (len(self), 2))
 
     def velocities(self, t_s) -> np.ndarray:
         """Velocities at time(s) t_s: (S, 2) or (T, S, 2) [m/s] (right derivative at knots)."""
         t = np.asarray(t_s, dtype=float)
-        tt = np.atleast_1d(t)
-        out = np.zeros((tt.size, len(self), 2))
-        for i, (kt, kxy) in enumerate(zip(self.knots_t_s, self.knots_xy_m)):
-            if len(kt) < 2:
-                continue
-            seg = np.searchsorted(kt, tt, side="right") - 1
-            ok = (seg >= 0) & (seg < len(kt) - 1)
-            s = seg[ok]
-            out[ok, i] = (kxy[s + 1] - kxy[s]) / (kt[s + 1] - kt[s])[:, None]
+        tt = t.reshape(-1)
+        if len(self) == 0:
+            return np.zeros(t.shape + (0, 2))
+        seg, _, t0, t1 = self._segment(tt)
+        rows = np.arange(len(self))[None, :]
+        inside = (tt[:, None] >= t0) & (tt[:, None] < t1) & self._real[rows, seg]
+        v = (self._kxy[rows, seg + 1] - self._kxy[rows, seg]) / (t1 - t0)[..., None]
+        out = np.where(inside[..., None], v, 0.0)
         return out[0] if t.ndim == 0 else out.reshape(t.shape + (len(self), 2))
 
 
