@@ -54,9 +54,17 @@ def origin_caption(lat_deg: float, lon_deg: float) -> str:
     return f"east/north in metres from the launch point {abs(lat_deg):.5f}° {ns}, {abs(lon_deg):.5f}° {ew}"
 
 
-def new_map(title: str, *, subtitle: str | None = None, size_in: tuple[float, float] = (10.0, 7.0),
-            dpi: int = 120) -> tuple[Figure, Axes]:
-    """A new figure with one equal-aspect axes in metres (east right, north up)."""
+def new_map(title: str, *, subtitle: str | None = None, size_in: tuple[float, float] | None = None,
+            extent_m: tuple[float, float] | None = None, dpi: int = 120) -> tuple[Figure, Axes]:
+    """A new figure with one equal-aspect axes in metres (east right, north up).
+
+    ``extent_m`` = (width, height) of what will be drawn sizes the figure to fit it (10 in wide,
+    legend on the right); otherwise ``size_in`` or 10 x 7 in.
+    """
+    if size_in is None:
+        size_in = (10.0, 7.0)
+        if extent_m is not None and extent_m[0] > 0:
+            size_in = (10.0, min(max(6.2 * extent_m[1] / extent_m[0] + 1.8, 4.5), 11.0))
     fig = Figure(figsize=size_in, dpi=dpi, layout="constrained")
     FigureCanvasAgg(fig)
     ax = fig.add_subplot(1, 1, 1)
@@ -187,27 +195,33 @@ def _nice_length(target: float) -> float:
     return exp
 
 
-def add_scale_bar(ax: Axes, length_m: float | None = None, *, loc: str = "lower right") -> float:
-    """A labelled scale bar (about a fifth of the view width unless ``length_m``). Returns its length."""
+def add_scale_bar(ax: Axes, length_m: float | None = None, *, outside: bool = True,
+                  loc: str = "lower right") -> float:
+    """A labelled scale bar (about a fifth of the view width unless ``length_m``). Returns its length.
+
+    ``outside`` (default) puts it right of the map, under the legend, so it never hides data.
+    """
     from mpl_toolkits.axes_grid1.anchored_artists import AnchoredSizeBar
 
     ax.autoscale_view()
     x0, x1 = ax.get_xlim()
     length = length_m or _nice_length((x1 - x0) / 5.0)
     text = f"{length / 1000:g} km" if length >= 1000 else f"{length:g} m"
-    bar = AnchoredSizeBar(ax.transData, length, text, loc, pad=0.6, sep=4, frameon=True, size_vertical=0,
-                          fontproperties={"size": 9})
+    where = dict(loc="lower left", bbox_to_anchor=(1.02, 0.0), bbox_transform=ax.transAxes) if outside \
+        else dict(loc=loc)
+    bar = AnchoredSizeBar(ax.transData, length, text, pad=0.6, sep=4, frameon=True, size_vertical=0,
+                          fontproperties={"size": 9}, **where)
     bar.patch.set_alpha(0.8)
     bar.patch.set_edgecolor("#bbbbbb")
     ax.add_artist(bar)
     return length
 
 
-def add_north_arrow(ax: Axes, *, xy_axes: tuple[float, float] = (0.97, 0.88)) -> None:
-    """A small 'N' arrow in axes coordinates (north is up in the local frame)."""
+def add_north_arrow(ax: Axes, *, xy_axes: tuple[float, float] = (1.05, 0.16)) -> None:
+    """An 'N' arrow in axes coordinates (north is up in the local frame); default right of the map."""
     x, y = xy_axes
-    ax.annotate("N", xy=(x, y + 0.08), xytext=(x, y), xycoords="axes fraction", textcoords="axes fraction",
-                ha="center", va="top", fontsize=10, fontweight="bold",
+    ax.annotate("N", xy=(x, y + 0.09), xytext=(x, y), xycoords="axes fraction", textcoords="axes fraction",
+                ha="center", va="top", fontsize=10, fontweight="bold", annotation_clip=False,
                 arrowprops=dict(arrowstyle="-|>", color="black", lw=1.2), zorder=20)
 
 
@@ -239,7 +253,7 @@ def save_figure(fig: Figure, path: str | Path) -> Path:
     fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=f".{fmt}", dir=p.parent if str(p.parent) else ".")
     try:
         with os.fdopen(fd, "wb") as fh, matplotlib.rc_context({"svg.hashsalt": "uavloc"}):
-            fig.savefig(fh, format=fmt, metadata=metadata)
+            fig.savefig(fh, format=fmt, metadata=metadata, bbox_inches="tight", pad_inches=0.2)
         os.chmod(tmp, 0o644)  # mkstemp makes 0600
         os.replace(tmp, p)
     except BaseException:

@@ -17,7 +17,8 @@ def scan_figure(scenario, plan, *, title: str | None = None) -> Figure:
     sub = (f"{n} vehicles, lanes {plan.lane_spacing_m:.0f} m apart ({plan.coverage} coverage, "
            f"hearing radius R = {plan.range_m:.0f} m) at {scenario.fleet.altitude_m:g} m, "
            f"{scenario.fleet.speed_m_s:g} m/s\n{maps.origin_caption(lat0, lon0)}")
-    fig, ax = maps.new_map(head, subtitle=sub)
+    everything = np.vstack([scenario.area_xy_m(), np.zeros((1, 2))] + [v.route_xy_m() for v in plan.vehicles])
+    fig, ax = maps.new_map(head, subtitle=sub, extent_m=tuple(np.ptp(everything, axis=0)))
     maps.draw_area(ax, scenario.area_xy_m(), label="search area")
     for v, col in zip(plan.vehicles, colors):
         maps.draw_polygons(ax, list(v.subarea_parts_xy_m), colors=[col] * len(v.subarea_parts_xy_m))
@@ -42,7 +43,10 @@ def scan_figure(scenario, plan, *, title: str | None = None) -> Figure:
 def mission_figure(xy_by_vehicle: list[np.ndarray], labels: list[str], *, title: str,
                    subtitle: str | None = None, fence_xy: np.ndarray | None = None) -> Figure:
     """Figure of mission routes already converted to local metres (used by ``uavloc preview``)."""
-    fig, ax = maps.new_map(title, subtitle=subtitle)
+    pts = [np.zeros((1, 2))] + [np.asarray(xy).reshape(-1, 2) for xy in xy_by_vehicle]
+    if fence_xy is not None:
+        pts.append(np.asarray(fence_xy).reshape(-1, 2))
+    fig, ax = maps.new_map(title, subtitle=subtitle, extent_m=tuple(np.ptp(np.vstack(pts), axis=0)))
     if fence_xy is not None and len(fence_xy) >= 3:
         maps.draw_area(ax, fence_xy, label="geofence (inclusion)")
     colors = maps.vehicle_colors(len(xy_by_vehicle))
