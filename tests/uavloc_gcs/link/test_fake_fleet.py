@@ -1,0 +1,45 @@
+"""The link layer against the simulator's fake vehicles (sim_link.FakeFleet), several at once,
+on a link losing 20 % of the datagrams each way (plus duplication and reordering)."""
+
+import asyncio
+from pathlib import Path
+
+import pytest
+
+from sim_link.faults import FaultConfig
+from sim_link.fleet import FakeFleet
+from uavloc_gcs.link import VehicleTracker, open_link, set_mode, upload_mission
+from uavloc_gcs.scenario import load_scenario
+
+from .conftest import identical, run, survey_items
+
+EXAMPLES = Path(__file__).resolve().parents[3] / "examples"
+
+
+@pytest.mark.parametrize("autopilot", ["ardupilot", "px4"])
+def test_every_vehicle_gets_its_mission_through_20_percent_loss(autopilot):
+    sc = load_scenario(EXAMPLES / "small.toml").replace(fleet={"autopilot": autopilot, "vehicles": 2})
+    faults = FaultConfig(loss=0.2, duplicate=0.05, reorder=0.05)
+    missions = {i: survey_items(6, autopilot, seed=i) for i in (1, 2)}
+
+    async def one(fleet, i, conn):
+        async with await open_link(conn) as link:
+            tracker = VehicleTracker(link)
+            await link.wait_heartbeat(i, timeout_s=10)
+            result = await upload_mission(link, i, 1, missions[i])
+            await set_mode(link, i, 1, "AUTO")  # mode names from the HEARTBEAT's autopilot type
+            await asyncio.sleep(1.5)
+            return result, tracker[i].mode, fleet.vehicle(i).mission_items
+
+    async def go():
+        async with FakeFleet(sc, speedup=1, seed=3, base_port=0, faults=faults) as fleet:
+            async with asyncio.TaskGroup() as tg:  # one bad vehicle must not hide the others
+                tasks = [tg.create_task(one(fleet, i, conn)) for i, (_, conn) in enumerate(fleet.endpoints, 1)]
+            return [t.result() for t in tasks]
+
+    results = run(go(), timeout_s=90)
+    for i, (result, mode, stored) in enumerate(results, 1):
+        assert result.verified
+        assert mode in ("AUTO", "AUTO.MISSION")
+        start = 1 if autopilot == "ardupilot" else 0
+        assert identical(stored[start:], missions[i][start:])
