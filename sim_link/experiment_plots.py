@@ -1,0 +1,71 @@
+"""PNG figures of the paper experiment (matplotlib, Agg backend): means with 95 % CI bands."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+STYLE = {
+    "MLE-EPSO (M)": ("tab:red", "o", "-"),
+    "MLE-EPSO (NM)": ("tab:orange", "s", "--"),
+    "MLE-PSO": ("tab:blue", "^", "-"),
+    "MLE-GA": ("tab:green", "v", "-"),
+    "RL-NM": ("tab:purple", "D", ":"),
+}
+
+
+def _series(rows, key_x, key_y, key_ci):
+    by = {}
+    for r in rows:
+        by.setdefault(r["method"], []).append((r[key_x], r[key_y], r[key_ci]))
+    return {m: np.array(v, dtype=float) for m, v in by.items()}
+
+
+def _plot(ax, series, *, bars: bool) -> None:
+    for m, a in series.items():
+        color, marker, ls = STYLE.get(m, ("k", ".", "-"))
+        x, y, ci = a[:, 0], a[:, 1], np.nan_to_num(a[:, 2], nan=0.0)
+        if bars:
+            ax.errorbar(x, y, yerr=ci, color=color, marker=marker, ls=ls, capsize=3, label=m)
+        else:
+            ax.plot(x, y, color=color, ls=ls, label=m)
+            ax.fill_between(x, y - ci, y + ci, color=color, alpha=0.15, lw=0)
+
+
+def plot_all(rows_a, rows_b, rows_c, out_dir: Path) -> list[Path]:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out = []
+    specs = [
+        ("fig_a_completion_time.png", rows_a, "people", "completion_time_mean_s", "completion_time_ci95_s",
+         "number of people", "task completion time [s]", "(a) Task completion time", True, False),
+        ("fig_b_runtime.png", rows_b, "people", "runtime_mean_s", "runtime_ci95_s",
+         "number of people", "algorithm run time [s]", "(b) Algorithm run time (planning / learning)", True, True),
+        ("fig_c_error_vs_time.png", rows_c, "t_s", "max_error_mean_m", "max_error_ci95_m",
+         "task time [s]", "maximum localization error [m]", "(c) Maximum localization error, 10 people", False, True),
+    ]
+    for name, rows, kx, ky, kci, xl, yl, title, bars, logy in specs:
+        if not rows:
+            continue
+        fig, ax = plt.subplots(figsize=(6.4, 4.2), dpi=120)
+        _plot(ax, _series(rows, kx, ky, kci), bars=bars)
+        ax.set_xlabel(xl)
+        ax.set_ylabel(yl)
+        ax.set_title(title)
+        if logy:
+            vals = [r[ky] for r in rows if r[ky] is not None and math.isfinite(r[ky]) and r[ky] > 0]
+            if vals:
+                ax.set_yscale("log")
+        ax.grid(True, alpha=0.3, which="both")
+        ax.legend(fontsize=8)
+        fig.tight_layout()
+        path = Path(out_dir) / name
+        fig.savefig(path)
+        plt.close(fig)
+        out.append(path)
+    return out
