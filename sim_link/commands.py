@@ -42,11 +42,19 @@ def handle_command(v: "FakeVehicle", msg, peer: Peer) -> list[Reply]:
     else:
         p += [msg.param5, msg.param6, msg.param7]
     extra: list[Reply] = []
-    result = _dispatch(v, cmd, p, extra)
+    is_int = msg.get_type() == "COMMAND_INT"
+    result = _dispatch(v, cmd, p, extra, is_int)
     out = [_ack(peer, cmd, result)] + extra
     if cmd == mav.MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN and result == ACCEPTED and v.on_reboot_request:
         v.on_reboot_request()
     return out
+
+
+def handle_position_target(v: "FakeVehicle", msg, peer: Peer) -> list[Reply]:
+    """SET_POSITION_TARGET_GLOBAL_INT in GUIDED: fly there (position only; no ack in MAVLink)."""
+    if v.mode == "GUIDED" and v.armed and not v.landed and not (msg.type_mask & 0b111):
+        v.goto(msg.lat_int, msg.lon_int, msg.alt, degE7=True)
+    return []
 
 
 def handle_set_mode(v: "FakeVehicle", msg, peer: Peer) -> list[Reply]:
@@ -55,7 +63,7 @@ def handle_set_mode(v: "FakeVehicle", msg, peer: Peer) -> list[Reply]:
     return [_ack(peer, mav.MAVLINK_MSG_ID_SET_MODE, ACCEPTED if ok else FAILED)]
 
 
-def _dispatch(v: "FakeVehicle", cmd: int, p: list, extra: list) -> int:
+def _dispatch(v: "FakeVehicle", cmd: int, p: list, extra: list, is_int: bool = False) -> int:
     px4 = v.flavour.name == "px4"
     if cmd == mav.MAV_CMD_COMPONENT_ARM_DISARM:
         force = _i(p[1]) == FORCE_MAGIC
@@ -93,6 +101,15 @@ def _dispatch(v: "FakeVehicle", cmd: int, p: list, extra: list) -> int:
         if not v.set_current(_i(p[0], -1), reset=p[1] >= 0.5):
             return FAILED
         extra.append(v.mission_current_reply())
+        return ACCEPTED
+    if cmd == mav.MAV_CMD_DO_REPOSITION:
+        # COMMAND_INT: x/y degE7, z metres above home; param1 ground speed (-1/NaN: keep)
+        if not v.armed or v.landed:
+            return FAILED
+        if math.isfinite(p[0]) and p[0] > 0:
+            v.speed_m_s = float(p[0])
+        if not v.goto(p[4], p[5], p[6], degE7=is_int):
+            return FAILED
         return ACCEPTED
     if cmd == mav.MAV_CMD_DO_CHANGE_SPEED:
         if math.isfinite(p[1]) and p[1] > 0:

@@ -344,7 +344,11 @@ class FakeFleet:
             t = self.clock.now_s()
             wall = time.monotonic()
             for ep in self._endpoints:
-                out = ep.vehicle.advance(t) + ep.vehicle.tick_protocols(wall)
+                try:
+                    out = ep.vehicle.advance(t) + ep.vehicle.tick_protocols(wall)
+                except Exception:  # keep the other vehicles (and this one's link) alive; say why
+                    log.exception("uav%d: simulation step failed", ep.vehicle.sysid)
+                    out = []
                 ep.send(out)
                 await asyncio.sleep(0)  # let receivers on this loop drain their sockets between bursts
                 stale = [a for a, pc in ep.peers.items() if wall - pc.last_heard_wall_s > 10 * self.peer_timeout_s]

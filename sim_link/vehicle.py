@@ -25,7 +25,7 @@ from uavloc_gcs.energy import RotorcraftPower
 from uavloc_gcs.geo import LocalFrame
 from uavloc_gcs.mission import WireItem
 
-from .commands import handle_command, handle_set_mode
+from .commands import handle_command, handle_position_target, handle_set_mode
 from .executor import MissionExecutor, Target
 from .flavour import Flavour
 from .flight import Kinematics
@@ -136,6 +136,8 @@ class FakeVehicle(TelemetryMixin):
             return handle_command(self, msg, peer)
         if name == "SET_MODE":
             return handle_set_mode(self, msg, peer)
+        if name == "SET_POSITION_TARGET_GLOBAL_INT":
+            return handle_position_target(self, msg, peer)
         if name == "MISSION_SET_CURRENT":
             if not self.set_current(int(msg.seq)):
                 return [self.text(mav.MAV_SEVERITY_WARNING, f"Mission: set current {msg.seq} failed")]
@@ -199,6 +201,20 @@ class FakeVehicle(TelemetryMixin):
         self.hold_xyz_m = np.array([self.kin.pos[0], self.kin.pos[1], float(alt_m)])
         self.landed = False
         self._out.append(self.text(mav.MAV_SEVERITY_INFO, f"Takeoff to {alt_m:.1f} m"))
+        return True
+
+    def goto(self, lat, lon, alt_m: float, *, degE7: bool) -> bool:
+        """Fly to a position and hold there (GUIDED; PX4 Hold). NaN keeps a coordinate."""
+        scale = 1e-7 if degE7 else 1.0
+        here_lat, here_lon = self.latlon_deg
+        lat_deg = here_lat if not math.isfinite(lat) else lat * scale
+        lon_deg = here_lon if not math.isfinite(lon) else lon * scale
+        if not (-90 <= lat_deg <= 90 and -180 <= lon_deg <= 180):
+            return False
+        e, n = self.cfg.frame.to_local(lat_deg, lon_deg)
+        z = float(self.kin.pos[2]) if not math.isfinite(alt_m) else float(alt_m)
+        self.hold_xyz_m = np.array([float(e), float(n), z])
+        self.mode = "GUIDED" if self.flavour.name == "ardupilot" else "LOITER"
         return True
 
     def set_current(self, seq: int, reset: bool = False) -> bool:

@@ -140,7 +140,9 @@ def test_rssi_decodes_to_the_vehicle_track():
             assert (await c.command(1, mav.MAV_CMD_DO_SET_MODE, 1, 4)).result == 0
             assert (await c.command(1, mav.MAV_CMD_COMPONENT_ARM_DISARM, 1)).result == 0
             assert (await c.command(1, mav.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, 100)).result == 0
-            fleet.vehicle(1).hold_xyz_m = np.array([500.0, 300.0, 100.0])  # then over the area (GUIDED goto)
+            lat, lon = sc.frame.to_wgs84(500.0, 300.0)  # then over the area (GUIDED goto)
+            c.send(mav.MAVLink_set_position_target_global_int_message(
+                0, 1, 1, 6, 0b110111111000, int(lat * 1e7), int(lon * 1e7), 100.0, 0, 0, 0, 0, 0, 0, 0, 0))
             msgs = []
             while len(msgs) < 20:
                 msgs.append(await c.recv("UAVLOC_RSSI_BATCH", timeout=10))

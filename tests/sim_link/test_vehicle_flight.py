@@ -214,3 +214,24 @@ def test_command_int_and_nan_parameters():
     assert out[1].msg.capabilities & mav.MAV_PROTOCOL_CAPABILITY_MISSION_INT
     assert v.handle(mav.MAVLink_command_long_message(2, 1, mav.MAV_CMD_COMPONENT_ARM_DISARM, 0, 0, 0, 0, 0, 0, 0, 0),
                     GCS, 0.0) == []  # for another system
+
+
+def test_guided_goto_by_reposition_and_position_target():
+    sc = PAPER
+    v = _vehicle(sc)
+    assert _cmd(v, mav.MAV_CMD_DO_SET_MODE, 1, 4) == 0 and _cmd(v, mav.MAV_CMD_COMPONENT_ARM_DISARM, 1) == 0
+    assert _cmd(v, mav.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, 50) == 0
+    v.advance(12.0)
+    lat, lon = sc.frame.to_wgs84(300.0, 200.0)
+    nan = float("nan")
+    out = v.handle(mav.MAVLink_command_int_message(1, 1, 3, mav.MAV_CMD_DO_REPOSITION, 0, 0, 20.0, 0, 0, nan,
+                                                   int(round(lat * 1e7)), int(round(lon * 1e7)), 60.0), GCS, 0.0)
+    assert out[0].msg.result == mav.MAV_RESULT_ACCEPTED and v.speed_m_s == 20.0
+    v.advance(40.0)
+    np.testing.assert_allclose(v.position_xyz_m, [300.0, 200.0, 60.0], atol=0.5)
+    lat, lon = sc.frame.to_wgs84(0.0, 100.0)
+    v.handle(mav.MAVLink_set_position_target_global_int_message(0, 1, 1, 6, 0b110111111000, int(round(lat * 1e7)),
+                                                                int(round(lon * 1e7)), 40.0, 0, 0, 0, 0, 0, 0, 0, 0),
+             GCS, 0.0)
+    v.advance(70.0)
+    np.testing.assert_allclose(v.position_xyz_m, [0.0, 100.0, 40.0], atol=0.5)
