@@ -5,7 +5,9 @@ mode, param7 metres above home; PX4: param7 AMSL, NaN = MIS_TAKEOFF_ALT, switche
 DO_SET_MODE (176) and SET_MODE, MISSION_START (300), NAV_RETURN_TO_LAUNCH (20), NAV_LAND (21),
 DO_SET_MISSION_CURRENT (224; param1 -1 = keep, FAILED if out of range), DO_CHANGE_SPEED (178),
 SET_MESSAGE_INTERVAL (511), REQUEST_MESSAGE (512), REQUEST_AUTOPILOT_CAPABILITIES (520),
-GET_HOME_POSITION (410), PREFLIGHT_REBOOT_SHUTDOWN (246, param1 = 1). Anything else: UNSUPPORTED.
+GET_HOME_POSITION (410), PREFLIGHT_REBOOT_SHUTDOWN (246, param1 = 1), DO_REPOSITION (192, COMMAND_INT
+x/y degE7, z metres above home; the vehicle flies there and holds). SET_POSITION_TARGET_GLOBAL_INT
+(position bits) does the same in GUIDED. Anything else: UNSUPPORTED. NaN parameters mean "unset".
 """
 
 from __future__ import annotations

@@ -96,6 +96,10 @@ class _VehicleEndpoint(asyncio.DatagramProtocol):
 
     @property
     def address(self) -> tuple[str, int]:
+        if self.transport is None:  # not started: the fixed port is known, an ephemeral one is not
+            if self.fleet.base_port == 0:
+                raise RuntimeError("FakeFleet with base_port=0: endpoints are known only after start()")
+            return self.fleet.host, self.fleet.base_port + self.vehicle.sysid
         return self.transport.get_extra_info("sockname")[:2]
 
     def _codecs(self, addr) -> _PeerCodecs:
