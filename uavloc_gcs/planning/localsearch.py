@@ -309,10 +309,13 @@ class LocalSearch:
                 L.append(_norm(np.diff(x, axis=0)).sum())
             U, W, R, POS = map(np.concatenate, (U, W, R, POS))
             L = np.array(L)
-            _, ins = best_point_between(U, W, cen[t], ev.node_r[t])
+            _, ins = best_point_between(U, W, cen[t], ev.node_r[t], newton_steps=6)
             new = L[R] + ins - _norm(W - U)
             over = np.maximum(new - self.max_len[R], 0.0)
-            others = np.array([np.max(np.delete(L, v)) if len(L) > 1 else 0.0 for v in R])
+            # Longest route other than the edge's own: the top route, or the second for the top one.
+            top = int(np.argmax(L))
+            second = float(np.max(np.delete(L, top))) if len(L) > 1 else 0.0
+            others = np.where(R == top, second, L[top])
             score = np.maximum(new, others) + 1e6 * over + 1e-6 * ins
             e = int(np.argmin(score))
             routes[R[e]].insert(POS[e], t)
