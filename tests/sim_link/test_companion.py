@@ -115,3 +115,42 @@ def test_connection_strings():
     assert parse_url("udp:localhost:14550") == ("udpout", "localhost", 14550)
     with pytest.raises(ConfigError, match="tcp:HOST:PORT"):
         parse_url("serial:/dev/ttyUSB0")
+
+
+def test_cli_companion_against_a_fake_autopilot():
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    port_base = 24400
+    sc = load_scenario("examples/paper.toml").replace(fleet={"vehicles": 1})
+    fleet = FakeFleet(sc, speedup=20, seed=1, base_port=port_base, onboard_rssi=False, route=True).start_in_thread()
+    proc = subprocess.Popen([sys.executable, "-m", "uavloc_gcs", "sim", "--companion", "--autopilot",
+                             f"udpout:127.0.0.1:{port_base + 1}", "examples/paper.toml", "--seed", "1"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        assert "companion emulator on udpout:127.0.0.1:24401" in proc.stdout.readline()
+
+        async def main():
+            c = await MavClient.connect(f"udpout:127.0.0.1:{port_base + 1}")
+            await c.recv("HEARTBEAT")
+            assert (await c.command(1, mav.MAV_CMD_DO_SET_MODE, 1, 4)).result == 0
+            assert (await c.command(1, mav.MAV_CMD_COMPONENT_ARM_DISARM, 1)).result == 0
+            assert (await c.command(1, mav.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, 100)).result == 0
+            lat, lon = sc.frame.to_wgs84(560.0, 320.0)  # the middle of the area: people around
+            c.send(mav.MAVLink_set_position_target_global_int_message(
+                0, 1, 1, 6, 0b110111111000, int(lat * 1e7), int(lon * 1e7), 100.0, 0, 0, 0, 0, 0, 0, 0, 0))
+            m = await c.recv("UAVLOC_RSSI_BATCH", timeout=15)
+            c.close()
+            return m
+
+        m = asyncio.run(main())
+        assert (m.get_srcSystem(), m.get_srcComponent()) == (1, 191) and m.count >= 1
+        assert abs(m.time_usec / 1e6 - (fleet.epoch_unix_s + fleet.now_s())) < 5.0
+        t0 = time.time()
+    finally:
+        proc.send_signal(signal.SIGINT)
+        proc.communicate(timeout=10)
+        fleet.stop()
+    assert proc.returncode == 0 and time.time() - t0 < 10
