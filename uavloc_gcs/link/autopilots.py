@@ -73,6 +73,7 @@ class Flavour:
     home_at_seq0: bool
     upload_request: str  # message the vehicle requests items with during an upload
     stored_params: dict[int, tuple[int, ...]] = field(default_factory=dict)
+    alt_resolution_m: float = 0.0  # ArduPilot stores altitudes as whole centimetres
 
     # -- modes ----------------------------------------------------------------------------
 
@@ -114,7 +115,9 @@ class Flavour:
             return False
         if _FRAME_CLASS.get(sent.frame, sent.frame) != _FRAME_CLASS.get(got.frame, got.frame):
             return False
-        if (sent.x, sent.y) != (got.x, got.y) or not _feq(sent.z, got.z):
+        if (sent.x, sent.y) != (got.x, got.y):
+            return False
+        if not (_feq(sent.z, got.z) or abs(sent.z - got.z) <= self.alt_resolution_m / 2 + 1e-6):
             return False
         kept = self.stored_params.get(sent.command, (1, 2, 3, 4))
         sent_p = (sent.param1, sent.param2, sent.param3, sent.param4)
@@ -129,7 +132,7 @@ class Flavour:
 
 
 ARDUPILOT = Flavour("ardupilot", "ArduPilot", mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA, home_at_seq0=True,
-                    upload_request="MISSION_REQUEST", stored_params=_AP_STORED_PARAMS)
+                    upload_request="MISSION_REQUEST", stored_params=_AP_STORED_PARAMS, alt_resolution_m=0.01)
 PX4 = Flavour("px4", "PX4", mavlink.MAV_AUTOPILOT_PX4, home_at_seq0=False,
               upload_request="MISSION_REQUEST_INT", stored_params=_PX4_STORED_PARAMS)
 GENERIC = Flavour("generic", "MAVLink vehicle", mavlink.MAV_AUTOPILOT_GENERIC, home_at_seq0=False,
