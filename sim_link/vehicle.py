@@ -30,6 +30,7 @@ from .executor import MissionExecutor, Target
 from .flavour import Flavour
 from .flight import Kinematics
 from .mission_server import MissionServer, Peer, Reply
+from .params import default_params, handle_param
 from .telemetry import TelemetryMixin
 
 log = logging.getLogger(__name__)
@@ -75,6 +76,7 @@ class FakeVehicle(TelemetryMixin):
         self.rssi_slots = 0
         self._boot(t_s)
         self.on_reboot_request: Callable[[], None] | None = None
+        self.params = default_params(self)
         self._init_telemetry()
 
     def _boot(self, t_s: float) -> None:
@@ -138,6 +140,8 @@ class FakeVehicle(TelemetryMixin):
             return handle_set_mode(self, msg, peer)
         if name == "SET_POSITION_TARGET_GLOBAL_INT":
             return handle_position_target(self, msg, peer)
+        if name.startswith("PARAM_"):
+            return handle_param(self, msg, peer)
         if name == "MISSION_SET_CURRENT":
             if not self.set_current(int(msg.seq)):
                 return [self.text(mav.MAV_SEVERITY_WARNING, f"Mission: set current {msg.seq} failed")]

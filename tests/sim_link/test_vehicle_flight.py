@@ -235,3 +235,17 @@ def test_guided_goto_by_reposition_and_position_target():
              GCS, 0.0)
     v.advance(70.0)
     np.testing.assert_allclose(v.position_xyz_m, [0.0, 100.0, 40.0], atol=0.5)
+
+
+@pytest.mark.parametrize("autopilot,speed_param,scale", [("ardupilot", "WPNAV_SPEED", 100.0),
+                                                         ("px4", "MPC_XY_CRUISE", 1.0)])
+def test_parameters_list_read_and_set(autopilot, speed_param, scale):
+    v = _vehicle(PAPER.replace(fleet={"autopilot": autopilot}))
+    out = v.handle(mav.MAVLink_param_request_list_message(1, 1), GCS, 0.0)
+    assert len(out) == len(v.params) and {r.msg.param_count for r in out} == {len(v.params)}
+    assert [r.msg.param_index for r in out] == list(range(len(out)))
+    (r,) = v.handle(mav.MAVLink_param_request_read_message(1, 1, speed_param.encode(), -1), GCS, 0.0)
+    assert r.msg.param_value == pytest.approx(PAPER.fleet.speed_m_s * scale)
+    (r,) = v.handle(mav.MAVLink_param_set_message(1, 1, speed_param.encode(), 12.0 * scale, 9), GCS, 0.0)
+    assert r.msg.param_value == pytest.approx(12.0 * scale) and v.speed_m_s == pytest.approx(12.0)
+    assert v.handle(mav.MAVLink_param_set_message(1, 1, b"NO_SUCH", 1.0, 9), GCS, 0.0) == []
