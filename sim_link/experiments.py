@@ -246,7 +246,9 @@ def summary_text(er: ExperimentResult, command: str = "") -> str:
     if command:
         lines += [f"Command: `{command}`", ""]
     lines += [f"Scenario `{cfg.scenario.name}`, {cfg.runs} run(s) per point, people {list(cfg.people)}, seed {cfg.seed}, "
-              f"planner {cfg.iterations} iterations per replan, required accuracy "
+              f"planner {cfg.iterations} iterations per replan (local search "
+              f"{'on' if cfg.scenario.planner.local_search else 'off'}, warm start "
+              f"{'on' if cfg.scenario.planner.warm_start else 'off'}), required accuracy "
               f"{cfg.scenario.people.required_accuracy_m:g} m, motion `{cfg.scenario.simulation.motion}`.", ""]
     lines += ["| method | people | completion time [s] | algorithm run time [s] | located | max error [m] |",
               "|---|---|---|---|---|---|"]

@@ -15,6 +15,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 TOL_M = 0.5  # border points this close outside an annulus still count (rounding)
+MAX_ANNULI = 8  # most recent annuli used per person (older ones add little and cost O(n^2))
 
 
 @dataclass(frozen=True)
@@ -102,7 +103,7 @@ def error_bound_m(annuli: list[Annulus], x_m: np.ndarray, pts: np.ndarray | None
     return float(np.max(np.linalg.norm(pts - np.asarray(x_m), axis=1)))
 
 
-def localize(annuli: list[Annulus], max_annuli: int = 8, start=None, silent_xy_m=None,
+def localize(annuli: list[Annulus], max_annuli: int = MAX_ANNULI, start=None, silent_xy_m=None,
              range_m: float = math.inf) -> tuple[np.ndarray, float, list[Annulus]]:
     """Estimate and error bound from the ``max_annuli`` most recent annuli. If they have no common
     intersection (noise beyond the annulus width, or the person moved, which the static model

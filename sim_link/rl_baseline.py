@@ -227,7 +227,8 @@ def _train(agent: _Agent, shared: _Shared, pending: list[int]) -> None:
             xy = agent.grid.centre(*nxt)
             for e in pending:
                 if np.hypot(*(shared.est[e][0] - xy)) <= agent.sc.horizontal_range_m:
-                    annuli[e].append(_expected_annulus(agent.sc, cfg, xy, shared.est[e][0], math.inf))
+                    annuli[e] = annuli[e][-(an.MAX_ANNULI - 1):] + [
+                        _expected_annulus(agent.sc, cfg, xy, shared.est[e][0], math.inf)]
             cell = nxt
 
 

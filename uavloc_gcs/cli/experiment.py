@@ -49,6 +49,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     pp.add_argument("--error-people", type=int, default=10,
                     help="people in figure (c) (default 10; 0 to skip)")
     pp.add_argument("--scenario", default=str(DEFAULT_SCENARIO), help="scenario TOML (default: the paper's)")
+    pp.add_argument("--plain", action="store_true",
+                    help="the paper's plain optimizers: no local search, no warm start (default: both on, "
+                         "as the scenario says)")
     pp.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
     pp.set_defaults(func=run)
     p.set_defaults(func=lambda args: (p.print_help(), 2)[1])
@@ -94,6 +97,8 @@ def run(args: argparse.Namespace) -> int:
         if bad:
             raise ConfigError(f"--methods: unknown method {bad[0]!r}; choose from {', '.join(ALL_METHODS)}")
     sc = load_scenario(args.scenario)
+    if args.plain:
+        sc = sc.replace(planner={"local_search": False, "warm_start": False})
     cfg = ExperimentConfig(sc, people=args.people or DEFAULT_PEOPLE, runs=args.runs, seed=args.seed,
                            methods=methods, iterations=args.iterations, error_people=max(0, args.error_people))
     command = "uavloc experiment paper " + " ".join(shlex.quote(a) for a in sys.argv[3:]) if len(sys.argv) > 3 else \

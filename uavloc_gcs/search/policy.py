@@ -274,7 +274,9 @@ class SearchPolicy:
 
     # -- internals -------------------------------------------------------------------------
     def _warm_start(self):
-        return None if self._plan is None else self._plan.plan
+        if self._plan is None or not self.scenario.planner.warm_start:
+            return None
+        return self._plan.plan
 
     def _targets(self, t_s: float, vehicles: list, planned_times: dict[int, float] | None) -> list:
         from ..estimation import access_radius_m
