@@ -42,6 +42,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--vehicles", type=int, default=4)
     parser.add_argument("--no-anchors", action="store_true", help="skip OR-Tools and PyVRP")
     parser.add_argument("--no-baselines", action="store_true", help="skip plain EPSO/PSO/GA")
+    parser.add_argument("--plain-iters", type=int, default=0, metavar="N",
+                        help="run the plain EPSO/PSO/GA for N iterations of 40 particles (equal evaluation "
+                             "counts, as in the paper) instead of the time budget")
     parser.add_argument("--verbose", action="store_true", help="one line per instance")
 
 
@@ -91,7 +94,11 @@ def _run_instance(p: RoutingProblem, args, seed: int) -> dict:
         runs += [("epso_plain", "epso", False), ("pso_plain", "pso", False), ("ga_plain", "ga", False)]
     for name, method, ls in runs:
         t = time.perf_counter()
-        res = solve(p, method=method, rng=seed, time_limit_s=T, local_search=ls)
+        if not ls and args.plain_iters:
+            res = solve(p, method=method, rng=seed, time_limit_s=1e6, max_iter=args.plain_iters,
+                        local_search=False)
+        else:
+            res = solve(p, method=method, rng=seed, time_limit_s=T, local_search=ls)
         row[name] = res.fun if res.success else float("inf")
         row[name + "_t"] = time.perf_counter() - t
     return row
@@ -100,8 +107,9 @@ def _run_instance(p: RoutingProblem, args, seed: int) -> dict:
 def main(args: argparse.Namespace) -> int:
     families = [f.strip() for f in args.families.split(",") if f.strip()]
     sizes = [int(s) for s in args.paper_sizes.split(",") if s.strip()]
+    plain = (f"{args.plain_iters} iterations x 40" if args.plain_iters else f"{args.time_limit:g} s")
     print(f"uavloc bench plan: {args.vehicles} vehicles at 25 m/s, area {AREA_M[0]:.0f} m x {AREA_M[1]:.0f} m, "
-          f"budget {args.time_limit:g} s per solver run, {args.seeds} seed(s)")
+          f"budget {args.time_limit:g} s per solver run (plain EPSO/PSO/GA: {plain}), {args.seeds} seed(s)")
     t_all = time.perf_counter()
     table = []
     for fam in families:
@@ -127,6 +135,7 @@ def main(args: argparse.Namespace) -> int:
            f"{'plain EPSO/PSO':>14s} {'plain EPSO/GA':>13s} | {'t EPSO':>6s} {'t ORT':>6s} {'t PyVRP':>7s}")
     print(hdr)
     print("-" * len(hdr))
+    plain_t = []
     for fam, ns, rows in table:
         o, omax = ratio(rows, "epso", "ortools")
         v, vmax = ratio(rows, "epso", "pyvrp")
@@ -134,10 +143,15 @@ def main(args: argparse.Namespace) -> int:
         pp, _ = ratio(rows, "epso_plain", "pso_plain")
         pg, _ = ratio(rows, "epso_plain", "ga_plain")
         t = {k: np.mean([r[k] for r in rows]) if rows and k in rows[0] else float("nan")
-             for k in ("epso_t", "ortools_t", "pyvrp_t")}
+             for k in ("epso_t", "ortools_t", "pyvrp_t", "epso_plain_t", "pso_plain_t", "ga_plain_t")}
+        plain_t.append(t)
         nstr = ",".join(map(str, ns))
         print(f"{fam:10s} {nstr:>9s} {len(rows):4d} | {o:6.3f} (max {omax:5.3f}) {v:6.3f} (max {vmax:5.3f}) "
               f"{lb:7.3f} | {pp:14.3f} {pg:13.3f} | {t['epso_t']:6.2f} {t['ortools_t']:6.2f} {t['pyvrp_t']:7.2f}")
+    if not args.no_baselines and plain_t:
+        print("plain runtimes [s] (EPSO/PSO/GA): " + "; ".join(
+            f"{fam} {t['epso_plain_t']:.2f}/{t['pso_plain_t']:.2f}/{t['ga_plain_t']:.2f}"
+            for (fam, _, _), t in zip(table, plain_t)))
     big = [r for _, _, rows in table for r in rows if r["n"] >= 50]
     if big:
         print(f"\nEPSO runtime at 50 people / {args.vehicles} vehicles: "
