@@ -286,8 +286,10 @@ class SearchPolicy:
         out = []
         for eid in self.pending_ids():
             p = self._people[eid]
-            cand = self._candidate(p)
-            if cand is None or p.estimate is None:
+            cand = self._candidate(p) if self._ok(p) else None
+            if cand is None:  # heard, but too little to fit: fly over where it was heard
+                xy = SlotBatch.concat(p.batches).xyz_m[:, :2].mean(axis=0)
+                out.append(Target(str(eid), (float(xy[0]), float(xy[1])), (0.0, 0.0), 0.0))
                 continue
             centre = cand.at(t_s)
             if planned_times is not None and eid in planned_times:

@@ -91,3 +91,28 @@ def test_mirror_candidate_outside_area_is_not_an_ambiguity():
     assert tg.look_radius_m(60.0, 40.0) == pytest.approx(10.0)
     assert tg.look_radius_m(60.0, None) == pytest.approx(60.0)
     assert tg.look_radius_m(float("nan"), None) == 0.0
+
+
+def test_person_heard_too_little_to_fit_gets_a_look_where_heard(small):
+    from uavloc_gcs.observations import SlotBatch
+
+    policy = SearchPolicy(small, time_limit_s=20.0, max_iter=5)
+    slots = SlotBatch.from_columns([1.0, 1.025], [1, 1], [[100, 50, 100], [100.5, 50, 100]], [77, 77],
+                                   [-80.0, -80.5], [10, 10])
+    policy.ingest(slots)
+    assert policy.update(2.0) == {77}
+    assert policy.pending_ids() == [77] and not policy.done(2.0)
+    plan = policy.replan(2.0, [VehicleState("1", (0.0, 0.0), (0.0, 0.0), small.usable_energy_j)])
+    (task,) = plan.tasks
+    assert task.target_ids == (77,)
+    assert np.allclose(task.waypoints_xy_m[0], [100.25, 50.0], atol=1.0)
+    # the look passes and hears nothing new: counted; repeated misses end in giving up
+    for k in range(1, 4):
+        t = task.access_times_s[0] + 60.0 * k
+        policy.update(t)
+        if policy.done(t):
+            break
+        task = policy.replan(t, [VehicleState("1", (0.0, 0.0), (0.0, 0.0), small.usable_energy_j)]).tasks[0]
+    assert policy.done(t)
+    (status,) = policy.people(t)
+    assert not status.located and "given up" in status.reason
