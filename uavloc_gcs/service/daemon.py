@@ -32,7 +32,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from ..errors import LinkError, UavlocError
-from ..mission import NAV_RETURN_TO_LAUNCH, WireItem, flight_mission, to_wire
+from ..mission import NAV_RETURN_TO_LAUNCH, NAV_WAYPOINT, WireItem, flight_mission, to_wire
 from ..observations import SlotBatch
 from ..scenario import Scenario
 from .liveview import LiveView, PersonStatusView, StatusSnapshot, VehicleStatus
@@ -44,7 +44,9 @@ log = logging.getLogger(__name__)
 
 MISSION_STATE_COMPLETE = 5
 WAYPOINT_TOLERANCE_M = 10.0  # a replanned look this close to the uploaded one is "unchanged"
-LAND_WAIT_S = 300.0  # mission seconds to wait for the fleet to land after sending it home
+LAND_WAIT_S = 300.0  # mission seconds to wait at most for the fleet to land after sending it home
+LANDING_MARGIN_S = 30.0  # beyond the flight home and the descent at LANDING_RATE_M_S
+LANDING_RATE_M_S = 1.0
 
 
 @dataclass(frozen=True)
@@ -74,10 +76,12 @@ class _Vehicle:
     end_seq: int = 0  # seq of the final RTL item of the current mission
     targets: tuple = ()
     look_xy_m: np.ndarray | None = None
+    look_first_seq: int = 0  # wire seq of the first look waypoint
     lost: bool = False
     scan_done: bool = False
     home: bool = False
     ignore_seq_until_wall: float = 0.0
+    home_by_s: float = math.inf  # mission time by which a returning vehicle should have landed
 
 
 class Daemon:
@@ -158,13 +162,19 @@ class Daemon:
                     tg.create_task(self._brain(), name="brain")
                 return self._outcome()
             finally:
-                for v in self.vehicles.values():
-                    if v.agent is not None:
-                        v.agent.close()
-                    if v.link is not None:
-                        await v.link.close()
+                await self._close_links()
         finally:
             self.store.close()
+
+    async def _close_links(self) -> None:
+        links = []
+        for v in self.vehicles.values():
+            if v.agent is not None:
+                v.agent.close()
+            if v.link is not None and all(v.link is not other for other in links):
+                links.append(v.link)
+        for link in links:
+            await link.close()
 
     # -- start-up --------------------------------------------------------------------------------
     def _reload(self) -> dict:
@@ -191,13 +201,24 @@ class Daemon:
     async def _connect_all(self) -> None:
         from ..link.connection import open_link  # noqa: PLC0415
 
-        async def connect(v: _Vehicle) -> None:
+        # Vehicles that share a connection (a router, a multipoint radio) share one link.
+        by_conn: dict[str, list[_Vehicle]] = {}
+        for v in self.vehicles.values():
+            by_conn.setdefault(v.connection, []).append(v)
+        opened: dict[str, asyncio.Future] = {}
+
+        async def open_one(conn: str, group: list[_Vehicle]):
             tlog = None
             if self.opt.tlog_dir is not None:
                 Path(self.opt.tlog_dir).mkdir(parents=True, exist_ok=True)
-                tlog = Path(self.opt.tlog_dir) / f"uav{v.id}.tlog"
-            v.link = await open_link(v.connection, source_system=self.opt.source_system,
-                                     signing_key=self.opt.signing_key, tlog_path=tlog)
+                tlog = Path(self.opt.tlog_dir) / f"uav{'-'.join(str(v.id) for v in group)}.tlog"
+            return await open_link(conn, source_system=self.opt.source_system,
+                                   signing_key=self.opt.signing_key, tlog_path=tlog)
+
+        async def connect(v: _Vehicle) -> None:
+            if v.connection not in opened:
+                opened[v.connection] = asyncio.ensure_future(open_one(v.connection, by_conn[v.connection]))
+            v.link = await opened[v.connection]
             v.agent = VehicleAgent(v.id, v.link, self.frame, autopilot=self.sc.fleet.autopilot,
                                    epoch_unix_s=self._epoch, on_slots=self._on_slots,
                                    on_position=self._on_position, on_status_text=self._on_text, wall=self.wall)
@@ -207,9 +228,7 @@ class Daemon:
         results = await asyncio.gather(*(connect(v) for v in self.vehicles.values()), return_exceptions=True)
         bad = [(v, r) for v, r in zip(self.vehicles.values(), results) if isinstance(r, BaseException)]
         if bad:
-            for v in self.vehicles.values():
-                if v.link is not None:
-                    await v.link.close()
+            await self._close_links()
             for _, r in bad:
                 if not isinstance(r, Exception):
                     raise r
@@ -293,14 +312,15 @@ class Daemon:
         v.end_seq = _end_seq(items)
         v.phase = {"scan": "scanning", "look": "localizing", "home": "returning"}.get(purpose, purpose)
 
-    async def _upload(self, v: _Vehicle, purpose: str, items: list, first_seq: int | None) -> None:
+    async def _upload(self, v: _Vehicle, purpose: str, items: list, first_seq: int | None,
+                      on_ground: bool = False) -> None:
         await v.agent.upload(items)
         self._adopt(v, purpose, items)
         self.store.add_mission(self.now_s(), v.id, purpose, items)
         if self.on_mission_acked is not None:
             self.on_mission_acked(v.id, purpose)
         if first_seq is not None:
-            await v.agent.switch_to(first_seq)
+            await v.agent.switch_to(first_seq, on_ground=on_ground)
             v.agent.tel.mission_seq = first_seq
             v.ignore_seq_until_wall = self.wall() + 1.0
         self._event("upload", f"vehicle {v.id}: {purpose} mission of {len(items)} items acknowledged", v.id)
@@ -358,13 +378,20 @@ class Daemon:
             v.phase = "hovering (scan done)"
             self._event("scan", f"vehicle {v.id} finished its scan", v.id)
         elif v.phase == "localizing" and past_end:
-            v.phase = "returning"
+            self._returning(v)
         if v.phase.startswith("returning") and a.on_ground() and not v.home:
             v.home = True
             v.phase = "landed"
             self._event("landed", f"vehicle {v.id} landed", v.id)
         if v.home and not a.on_ground() and a.tel.armed:
             v.home = False  # sent out again
+
+    def _returning(self, v: _Vehicle) -> None:
+        v.phase = "returning"
+        xy = v.agent.position_xy_m() or (0.0, 0.0)
+        alt = v.agent.tel.rel_alt_m if math.isfinite(v.agent.tel.rel_alt_m) else self.sc.fleet.altitude_m
+        v.home_by_s = (self.now_s() + math.hypot(*xy) / self.sc.fleet.speed_m_s + alt / LANDING_RATE_M_S
+                       + LANDING_MARGIN_S)
 
     def snapshot(self) -> StatusSnapshot:
         t = self.now_s()
@@ -464,8 +491,8 @@ class Daemon:
                 if not v.phase.startswith("returning") and not v.home:
                     jobs.append(self._send_home(v))
                 continue
-            if v.purpose == "look" and tuple(task.target_ids) == v.targets and _close(pts, v.look_xy_m):
-                continue  # unchanged: do not upload
+            if v.purpose == "look" and self._still_flying(v, pts, tuple(task.target_ids)):
+                continue  # the vehicle already flies this: do not upload
             jobs.append(self._upload_look(v, pts, tuple(task.target_ids)))
         if jobs:
             results = await asyncio.gather(*jobs, return_exceptions=True)
@@ -475,18 +502,27 @@ class Daemon:
                 elif isinstance(r, BaseException):
                     raise r
 
+    def _still_flying(self, v: _Vehicle, pts: np.ndarray, targets: tuple) -> bool:
+        """Whether the vehicle's current mission still has exactly these looks ahead of it."""
+        if v.look_xy_m is None or v.lost:
+            return False
+        seq = v.agent.tel.mission_seq
+        passed = 0 if seq is None else int(np.clip(seq - v.look_first_seq, 0, len(v.look_xy_m)))
+        remaining_xy, remaining_ids = v.look_xy_m[passed:], v.targets[passed:]
+        return tuple(targets) == tuple(remaining_ids) and _close(pts, remaining_xy)
+
     async def _upload_look(self, v: _Vehicle, pts: np.ndarray, targets: tuple) -> None:
         latlon = self.frame.to_wgs84_latlon(pts)
         f = self.sc.fleet
+        on_ground = v.home or v.agent.on_ground()
         plan = flight_mission(latlon.tolist(), alt_m=f.altitude_m, speed_m_s=f.speed_m_s, autopilot=f.autopilot,
-                              home_latlon_deg=self.sc.launch_latlon_deg, include_takeoff=v.agent.on_ground())
+                              home_latlon_deg=self.sc.launch_latlon_deg, include_takeoff=on_ground)
         items = to_wire(plan, f.autopilot)
         first = 1 if v.agent.flavour.home_at_seq0 else 0  # the takeoff (on the ground) or the speed item
-        await self._upload(v, "look", items, first_seq=first)
+        await self._upload(v, "look", items, first_seq=first, on_ground=on_ground)
         v.targets, v.look_xy_m = targets, pts
+        v.look_first_seq = next(it.seq for it in items if it.command == NAV_WAYPOINT and it.seq > 0)
         v.home = False
-        if v.agent.on_ground():
-            await v.agent.start()
         self._event("plan", f"vehicle {v.id} looks at {', '.join(map(str, targets))}", v.id)
 
     async def _send_home(self, v: _Vehicle) -> None:
@@ -495,7 +531,7 @@ class Daemon:
             v.home, v.phase = True, "landed"
             return
         await v.agent.return_home()
-        v.phase = "returning"
+        self._returning(v)
         self._event("home", f"vehicle {v.id} has nothing left to look at: returning home", v.id)
 
     async def _finish(self, active: list[_Vehicle]) -> bool:
@@ -506,9 +542,10 @@ class Daemon:
             for r in await asyncio.gather(*jobs, return_exceptions=True):
                 if isinstance(r, UavlocError):
                     self._event("error", str(r))
-        if all(v.home for v in self._active()):
-            return True
-        return self.now_s() - self._finishing_since > LAND_WAIT_S
+        now = self.now_s()
+        if all(v.home or (v.phase == "returning" and now > v.home_by_s) for v in self._active()):
+            return True  # landed, or returning and overdue: report them as returning
+        return now - self._finishing_since > LAND_WAIT_S
 
     # -- the end ------------------------------------------------------------------------------------------
     def _outcome(self) -> SearchOutcome:
@@ -516,12 +553,13 @@ class Daemon:
         self.store.flush()
         people = tuple(person_result(p, self.frame) for p in self.policy.people(t))
         lost = tuple(v.id for v in self.vehicles.values() if v.lost)
-        not_home = tuple(v.id for v in self.vehicles.values() if not v.home and not v.lost)
-        text = statement_for(people, self.sc.people.required_accuracy_m, lost, not_home)
+        returning = tuple(v.id for v in self.vehicles.values() if not v.home and not v.lost and v.phase == "returning")
+        other = tuple(v.id for v in self.vehicles.values() if not v.home and not v.lost and v.phase != "returning")
+        text = statement_for(people, self.sc.people.required_accuracy_m, lost, other, returning)
         self._event("end", text)
         self.store.flush()
         return SearchOutcome(people, bool(people) and all(p.located for p in people), text, t, self._replans,
-                             tuple(v.id for v in self.vehicles.values() if v.home), lost)
+                             tuple(v.id for v in self.vehicles.values() if v.home), lost, returning)
 
 
 class _ClockRate:

@@ -88,10 +88,11 @@ class SearchOutcome:
     replans: int
     vehicles_home: tuple[int, ...]
     vehicles_lost: tuple[int, ...]
+    vehicles_returning: tuple[int, ...] = ()  # return home acknowledged, landing not seen yet
 
 
 def statement_for(people: Sequence[PersonResult], required_m: float, lost: Sequence[int],
-                  not_home: Sequence[int]) -> str:
+                  not_home: Sequence[int], returning: Sequence[int] = ()) -> str:
     """One clear statement: everyone located, or who is not and why; and where the fleet is."""
     missing = [p for p in sorted(people, key=lambda p: p.emitter_id) if not p.located]
     if not people:
@@ -103,8 +104,10 @@ def statement_for(people: Sequence[PersonResult], required_m: float, lost: Seque
         text = f"{len(people) - len(missing)} of {len(people)} people located within {required_m:g} m; not located: {why}."
     if lost:
         text += f" Lost contact with vehicle(s) {', '.join(map(str, lost))}."
+    if returning:
+        text += f" Vehicle(s) {', '.join(map(str, returning))} returning home (RTL), not landed yet."
     if not_home:
-        text += f" Vehicle(s) {', '.join(map(str, not_home))} not confirmed landed."
-    else:
+        text += f" Vehicle(s) {', '.join(map(str, not_home))} not confirmed returning home."
+    if not returning and not not_home and not lost:
         text += " All vehicles are home."
     return text

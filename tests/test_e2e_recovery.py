@@ -1,0 +1,99 @@
+"""End to end under faults: packet loss, a link drop, and a daemon killed (SIGKILL) and restarted."""
+
+import os
+import signal
+import subprocess
+import sys
+import time
+
+from tests.e2e_helpers import SMALL, small_scenario, truth_errors_m, world_ids
+from tests.test_e2e_daemon import check_everyone_found, run_e2e
+from uavloc_gcs.cli._fleet import start_fleet_process
+from uavloc_gcs.service.store import StoreReader
+
+
+def test_twenty_percent_packet_loss(tmp_path):
+    from sim_link.faults import FaultConfig
+
+    # Under loss the protocol timeouts (wall clock) stretch: a lower speed-up keeps them realistic.
+    sc, result = run_e2e(tmp_path, "ardupilot", faults=FaultConfig(loss=0.2), speedup=12.0)
+    check_everyone_found(sc, result)
+
+
+def test_ten_second_link_drop_mid_mission(tmp_path):
+    import asyncio
+
+    dropped = []
+
+    def during(daemon, fleet):
+        async def drop_when_scanning():
+            while daemon.now_s() < 40.0:
+                await asyncio.sleep(0.05)
+            fleet.drop_link(1, 10.0)
+            dropped.append(daemon.now_s())
+
+        orig = daemon._brain
+
+        async def brain():
+            task = asyncio.ensure_future(drop_when_scanning())
+            try:
+                await orig()
+            finally:
+                task.cancel()
+
+        daemon._brain = brain
+
+    sc, result = run_e2e(tmp_path, "ardupilot", during=during)
+    assert dropped, "the link was dropped"
+    check_everyone_found(sc, result)
+    with StoreReader(tmp_path / "search.sqlite") as rd:
+        t = rd.slots().t_s
+        v1 = rd.slots().take(rd.slots().vehicle == 1).t_s
+    gaps = v1[1:] - v1[:-1]
+    assert gaps.max() > 8.0, "vehicle 1's RSSI stopped during the drop"
+
+
+def _daemon_cmd(cfg, out):
+    return [sys.executable, "-m", "uavloc_gcs", "daemon", "--config", str(cfg), "--out", str(out)]
+
+
+def test_daemon_killed_and_restarted_resumes_the_same_search(tmp_path):
+    sc = small_scenario("ardupilot")
+    fleet = start_fleet_process(sc, speedup=sc.simulation.speedup, seed=sc.simulation.seed, base_port=0)
+    try:
+        conns = ", ".join(f'"{c}"' for _n, c in fleet.endpoints)
+        cfg = tmp_path / "mission.toml"
+        cfg.write_text(SMALL.format(autopilot="ardupilot", seed=3, speedup=sc.simulation.speedup,
+                                    extra=f"[link]\nconnections = [{conns}]\n"))
+        out = tmp_path / "run"
+        log1 = open(tmp_path / "first.log", "w")
+        first = subprocess.Popen(_daemon_cmd(cfg, out), stdout=log1, stderr=subprocess.STDOUT)
+        store = out / "search.sqlite"
+        deadline = time.monotonic() + 60
+        slots_at_kill = 0
+        while time.monotonic() < deadline:
+            time.sleep(0.2)
+            if store.exists():
+                with StoreReader(store) as rd:
+                    c = rd.counts()
+                if c["missions"] >= 2 and c["slots"] >= 300:
+                    slots_at_kill = c["slots"]
+                    break
+        assert slots_at_kill, "the first daemon got the scan going"
+        os.kill(first.pid, signal.SIGKILL)
+        first.wait()
+        second = subprocess.run(_daemon_cmd(cfg, out), capture_output=True, text=True, timeout=180)
+        assert second.returncode == 0, second.stdout[-3000:] + second.stderr[-2000:]
+    finally:
+        fleet.stop()
+    with StoreReader(store) as rd:
+        scans = [e for e in rd.events("upload") if "scan mission" in e.text]
+        resumed = [e.text for e in rd.events("resume")]
+        assert rd.slot_count() > slots_at_kill
+        estimates = rd.latest_estimates()
+    assert len(scans) == 2, "the scan was uploaded once per vehicle, not again after the restart"
+    assert any("reloaded" in t for t in resumed)
+    assert sum("still flies its scan mission" in t for t in resumed) == 2, resumed
+    assert set(estimates) == world_ids(sc)
+    assert "All 3 people heard were located" in second.stdout
+    assert (out / "result.png").exists() and (out / "people.csv").exists()
