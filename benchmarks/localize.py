@@ -219,8 +219,8 @@ def main(args: argparse.Namespace) -> int:
            f"{'eff':>6s} {'cov95':>6s} {'covAnn':>6s} {'ambig':>6s} {'r95/RMSE':>8s} {'ms':>6s}"
     print(head)
     print("-" * len(head))
-    for i, fam in enumerate(fams):
-        r = run_family(fam, args.runs, args.seed + 1000 * i, sc)
+    for fam in fams:
+        r = run_family(fam, args.runs, args.seed + 1000 * FAMILIES.index(fam), sc)
         print(f"{r['family']:34s} {r['runs']:4d} {r['rmse']:7.2f} {r['rmse_near']:7.2f} {r['vt']:7.2f} "
               f"{r['ratio']:6.2f} {r['eff']:6.2f} {r['cover95']:6.2f} {r['cover_annulus']:6.2f} {r['ambiguous']:6.2f} "
               f"{r['median_r95_over_rmse']:8.2f} {r['ms']:6.1f}")
