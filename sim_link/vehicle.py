@@ -26,7 +26,7 @@ from uavloc_gcs.geo import LocalFrame
 from uavloc_gcs.mission import WireItem
 
 from .commands import handle_command, handle_position_target, handle_set_mode
-from .executor import MissionExecutor, Target
+from .executor import MissionExecutor, Target, corner
 from .flavour import Flavour
 from .flight import Kinematics
 from .mission_server import MissionServer, Peer, Reply
@@ -52,6 +52,7 @@ class VehicleConfig:
     climb_rate_m_s: float = 5.0
     descent_rate_m_s: float = 3.0
     acceptance_radius_m: float = 2.0  # ArduPilot WPNAV_RADIUS
+    corner_cut_m: float = 10.0  # how far a rounded pass-through corner may pass from its waypoint
     rtl_alt_m: float = 15.0  # ArduPilot RTL_ALT: return at max(current, this)
     home_alt_amsl_m: float = 0.0
     energy_budget_j: float = 250_000.0
@@ -379,11 +380,33 @@ class FakeVehicle(TelemetryMixin):
                 if self._land(dt):
                     self.rtl_phase = "climb"
                     self._item_done()
-        else:
-            self._fly(dt, tgt.xyz_m, stop=tgt.stop)
+        elif tgt.stop or tgt.next_xyz_m is None:
+            self._fly(dt, tgt.xyz_m, stop=True)
             if ex.reached(tgt, self.kin.pos, self.kin.ground_speed_m_s, self.t_s + dt,
                           self.cfg.acceptance_radius_m):
                 self._item_done()
+        else:
+            self._pass_through(dt, tgt)
+
+    def _pass_through(self, dt: float, tgt: Target) -> None:
+        """Fly towards a pass-through waypoint, slowing for the corner; it is reached where the turn
+        onto the next leg begins (or when passed)."""
+        a = self.kin.max_accel_m_s2
+        leg_in = tgt.xyz_m[:2] - tgt.prev_xyz_m[:2]
+        v_corner, lead = corner(leg_in, tgt.next_xyz_m[:2] - tgt.xyz_m[:2], self.speed_m_s, a,
+                                self.cfg.corner_cut_m)
+        dist = float(np.hypot(*(tgt.xyz_m[:2] - self.kin.pos[:2])))
+        # brake (with 80 % of the budget) so as to arrive at the turn at the corner speed
+        speed = min(self.speed_m_s, math.sqrt(v_corner**2 + 2.0 * 0.8 * a * max(0.0, dist - lead)))
+        if v_corner <= 0.0:  # a reversal: stop at the waypoint, then go on
+            self._fly(dt, tgt.xyz_m, stop=True)
+            if dist < 0.5 and self.kin.ground_speed_m_s < 0.5:
+                self._item_done()
+            return
+        self.kin.step(dt, tgt.xyz_m, speed, stop_at_target=False)
+        accept = max(lead, self.cfg.acceptance_radius_m)
+        if self.executor.reached(tgt, self.kin.pos, self.kin.ground_speed_m_s, self.t_s + dt, accept):
+            self._item_done()
 
     def _item_done(self) -> None:
         seq = self.executor.next()

@@ -49,7 +49,7 @@ def test_paper_scan_over_udp():
     boot0 = gpi[0].time_boot_ms
     speed = np.array([np.hypot(m.vx, m.vy) / 100 for m in gpi if m.time_boot_ms - boot0 > 6000])
     assert len(speed) > 100
-    assert speed.min() > 0.6 * sc.fleet.speed_m_s and np.median(speed) == pytest.approx(sc.fleet.speed_m_s, rel=0.02)
+    assert speed.min() > 8.0 and np.median(speed) == pytest.approx(sc.fleet.speed_m_s, rel=0.02)  # never stops
     # RSSI as received: from (2, 191), consistent with the channel at the true distances
     rssi = [m for m in log if m.get_type() == "UAVLOC_RSSI_BATCH"]
     assert {(m.get_srcSystem(), m.get_srcComponent()) for m in rssi} == {(2, 191)}
