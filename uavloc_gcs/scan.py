@@ -324,20 +324,137 @@ def _candidate_angles(poly) -> list[float]:
     return angles
 
 
+@dataclass(frozen=True)
+class _Piece:
+    """One vehicle's share, in the rotated frame: waypoints, flown lane segments, and for each row
+    the along-range of the row's band it is responsible for (for drawing its sub-area)."""
+
+    pts_r: np.ndarray
+    lanes_r: list
+    row_ranges: dict  # row index -> (along_lo, along_hi), +-inf where it reaches the row's end
+
+
+def _row_group_pieces(rows: _Rows, cost, choice, vehicles: int) -> list[_Piece]:
+    """Contiguous whole-row groups, the exact min-max split (:func:`_partition`)."""
+    out = []
+    for i, j in _partition(cost, vehicles):
+        pts_r, lanes_r = _group_waypoints(rows, i, j, int(choice[i, j]))
+        out.append(_Piece(pts_r, lanes_r, {k: (-math.inf, math.inf) for k in range(i, j + 1)}))
+    return out
+
+
+def _serpentine_pieces(rows: _Rows, rot: np.ndarray, choice: int, vehicles: int) -> list[_Piece]:
+    """Cut one serpentine over all rows into consecutive pieces anywhere along it (mid-row too).
+
+    A piece from arclength s0 to s1 costs (s1 - s0) + |p(s0)| + |p(s1)| (launch at the origin);
+    that is non-decreasing in s1, so the smallest feasible makespan T is found by bisection with a
+    greedy "as far as T allows" cut. This balances flight times finer than whole rows can.
+    """
+    n = len(rows.offsets)
+    pts_r, _ = _group_waypoints(rows, 0, n - 1, choice)
+    seg_row, seg_lane = [], []
+    order = range(n) if choice < 2 else range(n - 1, -1, -1)
+    for pos, k in enumerate(order):
+        m = len(rows.intervals[k])
+        for q in range(m):
+            seg_row.append(k)
+            seg_lane.append(True)  # the interval itself
+            if q < m - 1:
+                seg_row.append(k)
+                seg_lane.append(False)  # gap over a notch, same row
+        if pos < n - 1:
+            seg_row.append(-1)
+            seg_lane.append(False)  # connector to the next row
+    xy = pts_r @ rot
+    seg = np.linalg.norm(np.diff(xy, axis=0), axis=1)
+    cum = np.concatenate([[0.0], np.cumsum(seg)])
+    total = float(cum[-1])
+    dist = np.linalg.norm(xy, axis=1)
+    g = cum + dist  # non-decreasing along the path
+
+    def at(s: float) -> np.ndarray:
+        k = min(max(int(np.searchsorted(cum, s, side="right")) - 1, 0), len(seg) - 1)
+        t = 0.0 if seg[k] == 0 else (s - cum[k]) / seg[k]
+        return xy[k] + min(max(t, 0.0), 1.0) * (xy[k + 1] - xy[k])
+
+    def reach(s: float, budget: float) -> float:
+        rhs = budget + s - float(np.linalg.norm(at(s)))
+        k = int(np.searchsorted(g, rhs, side="right")) - 1
+        if k >= len(cum) - 1:
+            return total
+        # On segment k, p(t) = P + t u: t + |P + t u| <= c  <=>  t <= (c^2 - |P|^2) / (2 (P.u + c)).
+        c, P = rhs - cum[k], xy[k]
+        u = (xy[k + 1] - P) / seg[k] if seg[k] > 0 else np.zeros(2)
+        den = 2.0 * (float(P @ u) + c)
+        t = seg[k] if den <= 0 else min(seg[k], max((c * c - float(P @ P)) / den, 0.0))
+        return max(float(cum[k] + t), s)
+
+    def cuts(budget: float) -> list[tuple[float, float]] | None:
+        out, s = [], 0.0
+        for _ in range(vehicles):
+            e = reach(s, budget)
+            if e <= s + 1e-9:
+                return None
+            out.append((s, e))
+            s = e
+            if s >= total - 1e-6:
+                return out
+        return None
+
+    lo, hi = 0.0, total + 2.0 * float(dist.max()) + 1.0
+    for _ in range(50):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (lo, mid) if cuts(mid) is not None else (mid, hi)
+    pieces = []
+    row_span = {}
+    for j, k in enumerate(seg_row):
+        if k >= 0:
+            a, b = row_span.get(k, (cum[j], cum[j + 1]))
+            row_span[k] = (min(a, cum[j]), max(b, cum[j + 1]))
+    for s0, s1 in cuts(hi):
+        inner = [k for k in range(len(cum)) if s0 < cum[k] < s1]
+        wps = np.vstack([at(s0)] + [xy[k] for k in inner] + [at(s1)])
+        lanes = []
+        for j in range(len(seg)):
+            a, b = max(s0, cum[j]), min(s1, cum[j + 1])
+            if seg_lane[j] and b - a > 1e-6:
+                lanes.append(np.vstack([at(a), at(b)]) @ rot.T)
+        ranges = {}
+        for k, (rs, re) in row_span.items():
+            a, b = max(s0, rs), min(s1, re)
+            if b - a <= 1e-9:
+                continue
+            a_al, b_al = (at(a) @ rot.T)[0], (at(b) @ rot.T)[0]
+            forward = (at(re) @ rot.T)[0] >= (at(rs) @ rot.T)[0]
+            if a <= rs + 1e-9:
+                a_al = -math.inf if forward else math.inf
+            if b >= re - 1e-9:
+                b_al = math.inf if forward else -math.inf
+            ranges[k] = (min(a_al, b_al), max(a_al, b_al))
+        pieces.append(_Piece(wps @ rot.T, lanes, ranges))
+    return pieces
+
+
+def _route_len(pts_xy: np.ndarray) -> float:
+    route = np.vstack([np.zeros((1, 2)), pts_xy, np.zeros((1, 2))])
+    return float(np.sum(np.linalg.norm(np.diff(route, axis=0), axis=1)))
+
+
 def plan_scan(scenario) -> ScanPlan:
     """Plan the initial scan of ``scenario``: sub-areas, lanes and waypoints per vehicle.
 
-    Raises ConfigError for an unusable lane spacing and InfeasibleError when a vehicle's scan
-    needs more than ``scenario.usable_energy_j``.
+    For every candidate lane direction two splits are tried -- whole rows per vehicle (exact
+    min-max) and one serpentine cut anywhere (finer balance) -- and the shortest longest flight
+    wins (then the shortest total). Raises ConfigError for an unusable lane spacing and
+    InfeasibleError when a vehicle's scan needs more than ``scenario.usable_energy_j``.
     """
-    from shapely import affinity
-    from shapely.geometry import Polygon, box
+    from shapely.geometry import Polygon
 
     r = scenario.horizontal_range_m
     spacing, mode = lane_spacing_for(scenario)
     need = 2 if mode == "double" else 1
     poly = Polygon(scenario.area_xy_m())
-    speed = scenario.fleet.speed_m_s
+    m = scenario.fleet.vehicles
     best = None
     for theta in _candidate_angles(poly):
         rot = _rot(theta)
@@ -346,33 +463,45 @@ def plan_scan(scenario) -> ScanPlan:
         step = max(r / 20.0, math.sqrt(poly.area / 20000.0))
         rows = _repair(rows, _sample_area(poly_r, step), r, need, margin=step)
         cost, choice = _group_costs(rows, rot.T)
-        groups = _partition(cost, scenario.fleet.vehicles)
-        makespan = max(cost[i, j] for i, j in groups)
-        key = (round(makespan, 6), round(sum(cost[i, j] for i, j in groups), 6), theta)
-        log.debug("lanes at %.1f deg: %d rows, makespan %.0f m", math.degrees(theta), len(rows.offsets), makespan)
-        if best is None or key < best[0]:
-            best = (key, theta, rot, poly_r, rows, groups, choice)
-    _, theta, rot, poly_r, rows, groups, choice = best
-    vehicles = []
-    a0, _, a1, _ = poly_r.bounds
-    for idx, (i, j) in enumerate(groups):
-        pts_r, lanes_r = _group_waypoints(rows, i, j, int(choice[i, j]))
-        wps = _dedupe(pts_r @ rot)  # rot is orthonormal: inverse = transpose
-        lanes = tuple(seg @ rot for seg in lanes_r)
-        lo = (rows.offsets[i - 1] + rows.offsets[i]) / 2 if i > 0 else -1e9
-        hi = (rows.offsets[j] + rows.offsets[j + 1]) / 2 if j + 1 < len(rows.offsets) else 1e9
-        part = poly_r.intersection(box(a0 - 1, lo, a1 + 1, hi))
-        pieces = sorted((g for g in getattr(part, "geoms", [part]) if g.geom_type == "Polygon" and g.area > 0),
-                        key=lambda g: -g.area)
-        parts = tuple(_ccw(np.asarray(g.exterior.coords)[:-1] @ rot) for g in pieces)
-        route = np.vstack([np.zeros((1, 2)), wps, np.zeros((1, 2))])
-        rc = route_cost(route, speed, scenario.power_model)
-        vehicles.append(VehicleScan(idx, parts[0] if parts else np.zeros((0, 2)), parts, lanes, wps,
-                                    rc.length_m, rc.duration_s, rc.energy_j))
+        options = [_row_group_pieces(rows, cost, choice, m)]
+        if m > 1:
+            options += [_serpentine_pieces(rows, rot, c, m) for c in range(4)]
+        for pieces in options:
+            lengths = [_route_len(pc.pts_r @ rot) for pc in pieces]
+            key = (round(max(lengths), 3), round(sum(lengths), 3), theta)
+            if best is None or key < best[0]:
+                best = (key, theta, rot, poly_r, rows, pieces)
+        log.debug("lanes at %.1f deg: %d rows, best makespan so far %.0f m", math.degrees(theta),
+                  len(rows.offsets), best[0][0])
+    _, theta, rot, poly_r, rows, pieces = best
+    vehicles = [_vehicle_scan(scenario, idx, pc, rows, rot, poly_r) for idx, pc in enumerate(pieces)]
     bearing = (90.0 - math.degrees(theta)) % 180.0
     plan = ScanPlan(tuple(vehicles), rows.spacing_m, mode, bearing, r)
     _check_energy(scenario, plan)
     return plan
+
+
+def _vehicle_scan(scenario, idx: int, pc: _Piece, rows: _Rows, rot: np.ndarray, poly_r) -> VehicleScan:
+    from shapely.geometry import box
+    from shapely.ops import unary_union
+
+    a0, _, a1, _ = poly_r.bounds
+    wps = _dedupe(pc.pts_r @ rot)  # rot is orthonormal: inverse = transpose
+    lanes = tuple(seg @ rot for seg in pc.lanes_r)
+    n = len(rows.offsets)
+    cells = []
+    for k, (lo_a, hi_a) in sorted(pc.row_ranges.items()):
+        lo_c = (rows.offsets[k - 1] + rows.offsets[k]) / 2 if k > 0 else -1e9
+        hi_c = (rows.offsets[k] + rows.offsets[k + 1]) / 2 if k + 1 < n else 1e9
+        cells.append(box(max(lo_a, a0 - 1), lo_c, min(hi_a, a1 + 1), hi_c))
+    part = poly_r.intersection(unary_union(cells)) if cells else None
+    geoms = [] if part is None else getattr(part, "geoms", [part])
+    polys = sorted((g for g in geoms if g.geom_type == "Polygon" and g.area > 1e-6), key=lambda g: -g.area)
+    parts = tuple(_ccw(np.asarray(g.exterior.coords)[:-1] @ rot) for g in polys)
+    route = np.vstack([np.zeros((1, 2)), wps, np.zeros((1, 2))])
+    rc = route_cost(route, scenario.fleet.speed_m_s, scenario.power_model)
+    return VehicleScan(idx, parts[0] if parts else np.zeros((0, 2)), parts, lanes, wps,
+                       rc.length_m, rc.duration_s, rc.energy_j)
 
 
 def _dedupe(xy: np.ndarray, tol_m: float = 0.01) -> np.ndarray:
