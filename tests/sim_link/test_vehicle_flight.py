@@ -262,3 +262,61 @@ def test_parameters_list_read_and_set(autopilot, speed_param, scale):
     (r,) = v.handle(mav.MAVLink_param_set_message(1, 1, speed_param.encode(), 12.0 * scale, 9), GCS, 0.0)
     assert r.msg.param_value == pytest.approx(12.0 * scale) and v.speed_m_s == pytest.approx(12.0)
     assert v.handle(mav.MAVLink_param_set_message(1, 1, b"NO_SUCH", 1.0, 9), GCS, 0.0) == []
+
+
+def _wps(sc, xy, autopilot, *, takeoff=True, rtl=True, alt=40.0):
+    from uavloc_gcs.mission import flight_mission
+
+    plan = flight_mission(sc.frame.to_wgs84_latlon(np.asarray(xy, float)), alt_m=alt, speed_m_s=15,
+                          autopilot=autopilot, home_latlon_deg=sc.launch_latlon_deg, include_takeoff=takeoff,
+                          return_home=rtl)
+    return to_wire(plan)
+
+
+def test_auto_without_takeoff_item_px4_climbs_ardupilot_refuses():
+    for ap in ("px4", "ardupilot"):
+        sc = PAPER.replace(fleet={"autopilot": ap})
+        v = _vehicle(sc)
+        samples, msgs = _fly(v, _wps(sc, [[100, 0], [100, 100]], ap, takeoff=False), t_end_s=120.0)
+        texts = [r.msg.text for _, r in msgs if r.msg.get_type() == "STATUSTEXT"]
+        if ap == "px4":
+            assert samples[:, 3].max() > 39.0 and "Mission complete" in texts
+        else:
+            assert samples[:, 3].max() == 0.0 and "Auto: Missing Takeoff Cmd" in texts
+
+
+def test_do_jump_repeats_a_leg():
+    from uavloc_gcs.mission import WireItem
+
+    sc = PAPER.replace(fleet={"autopilot": "px4"})
+    items = _wps(sc, [[100, 0], [100, 100]], "px4", rtl=False)  # takeoff, speed, wp2, wp3
+    jump = WireItem(len(items), 2, 177, 0, 1, 2.0, 2.0, 0, 0, 0, 0, 0.0)  # back to seq 2, twice
+    v = _vehicle(sc)
+    samples, msgs = _fly(v, items + [jump], t_end_s=200.0)
+    reached = [r.msg.seq for _, r in msgs if r.msg.get_type() == "MISSION_ITEM_REACHED"]
+    assert reached == [0, 2, 3, 2, 3, 2, 3]
+
+
+@pytest.mark.parametrize("autopilot", ["ardupilot", "px4"])
+def test_new_mission_in_flight(autopilot):
+    """ArduPilot keeps flying the current index of the new mission; PX4 restarts the new plan."""
+    sc = PAPER.replace(fleet={"autopilot": autopilot})
+    v = _vehicle(sc)
+    first = _wps(sc, [[200, 0], [200, 200], [0, 200]], autopilot)
+    v.mission.stores[0] = first
+    v.executor.reset()
+    assert v.set_mode("AUTO") and v.arm()
+    v.advance(30.0)
+    cur = v.current_seq
+    assert v.mode == "AUTO" and not v.landed and cur >= 2
+    second = _wps(sc, [[-200, 0], [-200, -200], [0, -200]], autopilot)
+    srv = v.mission
+    srv.handle(mav.MAVLink_mission_count_message(1, 1, len(second), 0), GCS, 0.0)
+    for w in second:
+        srv.handle(mav.MAVLink_mission_item_int_message(1, 1, w.seq, w.frame, w.command, w.current, w.autocontinue,
+                                                        w.param1, w.param2, w.param3, w.param4, w.x, w.y, w.z, 0),
+                   GCS, 0.0)
+    assert all(a.same_as(b) for a, b in zip(v.mission_items, second))
+    assert v.current_seq == (cur if autopilot == "ardupilot" else 0)
+    v.advance(200.0)
+    assert v.executor.complete and v.landed
