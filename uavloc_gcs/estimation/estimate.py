@@ -116,8 +116,9 @@ def estimate_emitter(
     """Estimate one emitter from its slots (all rows must carry the same emitter id).
 
     ``t_ref_s`` defaults to the last slot's time. ``model_motion=False`` is the paper's NM variant
-    (static person). ``previous`` is used as an extra start point (warm start); the answer never
-    depends on it otherwise. Too few slots give ``status="not_enough_data"``, not an exception.
+    (static person). ``previous`` (the last estimate of this emitter) only adds a start point.
+    Too few slots (fewer than 3, or fewer than 3 observations once slots of one vehicle within
+    0.1 s are merged) give ``status="not_enough_data"``, not an exception.
     """
     if max_speed_m_s < 0 or not math.isfinite(max_speed_m_s):
         raise EstimationError(f"max_speed_m_s must be a finite non-negative number, got {max_speed_m_s}")
@@ -133,6 +134,8 @@ def estimate_emitter(
     if len(slots) < MIN_SLOTS:
         return _not_enough(emitter, slots, t_ref, last, max_speed_m_s, moving)
     data = prepare(slots, channel)
+    if len(data.t_s) < MIN_SLOTS:  # e.g. three slots within 0.1 s are one observation
+        return _not_enough(emitter, slots, t_ref, last, max_speed_m_s, moving)
     problem = Problem(data, moving, bool(estimate_tx_power), float(max_speed_m_s),
                       TX_PRIOR_SIGMA_DB * channel.nepers_per_db)
     starts = start_points(problem)
