@@ -211,3 +211,25 @@ def test_correlated_shadowing_inflates_the_radius_honestly(sc, channel):
         factors.append(est.inflation)
     assert covered >= 7
     assert min(factors) > 10.0  # the residuals reveal the correlation
+
+
+def test_a_pass_at_the_access_radius_meets_the_required_accuracy(sc, channel):
+    """The planner's promise: fly a straight pass at the returned offset and the (best candidate's)
+    calibrated radius comes out within the requirement."""
+    from uavloc_gcs.estimation import access_radius_m
+
+    for k in range(3):
+        world = World.with_people(sc, [P], [[0.6, -0.4]], seed=500 + k)
+        first = fly(world, [east_leg(P[1] - 30)])
+        est = estimate_emitter(first, channel, max_speed_m_s=1.5)
+        t_pass = est.t_ref_s + 20.0
+        rho = access_radius_m(est, t_pass_s=t_pass, altitude_m=100.0, speed_m_s=25.0, channel=channel,
+                              required_accuracy_m=10.0, comm_range_m=150.0)
+        assert 0.0 < rho < sc.horizontal_range_m
+        pred, _ = est.predict(t_pass)
+        n = int(400 / 25 / 0.025)
+        t = t_pass - 8.0 + np.arange(n) * 0.025
+        xyz = np.column_stack([np.full(n, pred[0] + rho), pred[1] - 200 + 25 * (t - t[0]), np.full(n, 100.0)])
+        after = estimate_emitter(SlotBatch.concat([first, world.hear_track(1, t, xyz)]), channel, max_speed_m_s=1.5)
+        assert after.mode_radius95_m <= 10.0 * 1.1
+        assert err(after, world) <= after.radius95_m
