@@ -20,6 +20,8 @@ Behaviour per flavour (``reference/mavlink.md`` §1.2-§1.11):
 * download: MISSION_REQUEST_LIST -> MISSION_COUNT; MISSION_REQUEST_INT -> MISSION_ITEM_INT;
   the legacy MISSION_REQUEST is answered with a float MISSION_ITEM (ArduPilot also warns).
   ArduPilot's item 0 is always the current home; its downloads use the non-INT frame numbers.
+  PX4 serves only the next item or a repeat of the previous one and aborts (MAV_MISSION_ERROR)
+  on any other request.
 * clear: MISSION_CLEAR_ALL -> MISSION_ACK(ACCEPTED).
 """
 
@@ -88,6 +90,7 @@ class MissionServer:
     stores: dict = field(default_factory=lambda: {0: [], 1: [], 2: []})
     upload: _Upload | None = None
     _last_done: tuple | None = None  # (peer ids, mission_type, last seq) of the last completed upload
+    _download_next: int | None = None  # PX4: the seq the downloading GCS may ask for next
     _warned: set = field(default_factory=set)
 
     # ------------------------------------------------------------------------ queries
@@ -265,6 +268,7 @@ class MissionServer:
             code = mav.MAV_MISSION_DENIED if self.flavour.name == "ardupilot" else mav.MAV_MISSION_ERROR
             return [self._ack(peer, code, mtype)]
         count = len(self._download_items(mtype))
+        self._download_next = 0
         return [Reply(mav.MAVLink_mission_count_message(peer.sysid, peer.compid, count, mtype), peer)]
 
     def _on_request(self, msg, peer: Peer, wall_s: float) -> list[Reply]:
@@ -274,6 +278,12 @@ class MissionServer:
         items = self._download_items(mtype)
         if not 0 <= msg.seq < len(items):
             return [self._ack(peer, mav.MAV_MISSION_INVALID_SEQUENCE, mtype)]
+        if self.flavour.name == "px4" and self._download_next is not None:
+            # PX4 serves the expected item or a repeat of the previous one; anything else aborts
+            if msg.seq not in (self._download_next, self._download_next - 1):
+                self._download_next = None
+                return [self._ack(peer, mav.MAV_MISSION_ERROR, mtype)]
+            self._download_next = msg.seq + 1
         it = items[msg.seq]
         if msg.get_type() == "MISSION_REQUEST_INT":
             out = mav.MAVLink_mission_item_int_message(

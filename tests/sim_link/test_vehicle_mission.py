@@ -211,3 +211,18 @@ def test_clear_and_count_zero():
 def test_messages_for_another_system_are_ignored():
     srv = _server(PX4)
     assert srv.handle(mav.MAVLink_mission_count_message(2, 1, 3, 0), GCS, 0.0) == []
+
+
+def test_px4_download_must_be_in_order_ardupilot_serves_any():
+    for flavour, strict in ((PX4, True), (ARDUPILOT, False)):
+        srv = _server(flavour)
+        _upload(srv, _plan(flavour.name, 4))
+        srv.handle(mav.MAVLink_mission_request_list_message(1, 1, 0), GCS, 0.0)
+        (r,) = srv.handle(mav.MAVLink_mission_request_int_message(1, 1, 0, 0), GCS, 0.0)
+        (r,) = srv.handle(mav.MAVLink_mission_request_int_message(1, 1, 0, 0), GCS, 0.0)  # a repeat is fine
+        assert r.msg.get_type() == "MISSION_ITEM_INT"
+        (r,) = srv.handle(mav.MAVLink_mission_request_int_message(1, 1, 3, 0), GCS, 0.0)  # skipping ahead
+        if strict:
+            assert r.msg.get_type() == "MISSION_ACK" and r.msg.type == mav.MAV_MISSION_ERROR
+        else:
+            assert r.msg.get_type() == "MISSION_ITEM_INT" and r.msg.seq == 3
