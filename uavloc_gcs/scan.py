@@ -564,9 +564,12 @@ def scan_missions(scenario, plan: ScanPlan) -> list[MissionPlan]:
     out = []
     for v in plan.vehicles:
         latlon = frame.to_wgs84_latlon(v.waypoints_xy_m) if len(v.waypoints_xy_m) else np.zeros((0, 2))
+        # The launch point's AMSL altitude is unknown; 0 is what QGroundControl writes without
+        # terrain data. A null (NaN) would reach ArduPilot as item 0 through importers such as
+        # MAVSDK's, and ArduPilot rejects a NaN altitude (INVALID_PARAM7); it replaces home anyway.
         mission = flight_mission(
             latlon.tolist(), alt_m=fleet.altitude_m, speed_m_s=fleet.speed_m_s, autopilot=fleet.autopilot,
-            home_latlon_deg=scenario.launch_latlon_deg,
+            home_latlon_deg=scenario.launch_latlon_deg, home_alt_amsl_m=0.0,
         )
         out.append(dataclasses.replace(mission, geofence_polygons=((True, fence),)))
     return out

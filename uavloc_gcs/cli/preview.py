@@ -47,7 +47,7 @@ def run(args: argparse.Namespace) -> int:
     from ..errors import ConfigError
     from ..geo import LocalFrame
     from ..mission import GLOBAL_FRAMES, NAV_RETURN_TO_LAUNCH, NAV_TAKEOFF, NAV_WAYPOINT
-    from ..render.terminal import Layer, char_map, format_table
+    from ..render.terminal import Layer, char_map
 
     if args.width < 20:
         raise ConfigError(f"--width must be at least 20 columns, got {args.width}")
