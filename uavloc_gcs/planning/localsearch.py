@@ -248,9 +248,12 @@ class LocalSearch:
                 best, move = float(score[k]), (v, int(k[0]), int(k[1]))
         return best, move
 
-    def run(self, routes: list[list[int]], deadline: float, max_rounds: int = 200):
-        """Improve ``routes`` until no move helps or ``deadline`` (perf_counter) passes."""
-        f, pts, cen, lengths = self.evaluate(routes)
+    def run(self, routes: list[list[int]], deadline: float, max_rounds: int = 200,
+            points: np.ndarray | None = None):
+        """Improve ``routes`` until no move helps or ``deadline`` (perf_counter) passes.
+        ``points`` (n, 2): access points to warm-start the evaluation from."""
+        f, pts, cen, lengths = self.evaluate(routes, points)
+        self.last_points = pts
         for _ in range(max_rounds):
             if time.perf_counter() > deadline:
                 break
@@ -269,31 +272,46 @@ class LocalSearch:
                     improved = True
             if not improved:
                 break
+        self.last_points = pts
         return routes, f
 
     def ruin_recreate(self, routes: list[list[int]], f: float, rng: np.random.Generator,
-                      deadline: float, rounds: int = 5) -> tuple[list[list[int]], float]:
+                      deadline: float, rounds: int = 5, threshold: float = 0.02
+                      ) -> tuple[list[list[int]], float]:
         """Iterated local search: remove a random person and its nearest neighbours (2 to n/6
-        people), reinsert them at their cheapest min-max positions, run the local search; keep
-        the result if the makespan went down."""
+        people), reinsert them at their cheapest min-max positions, run the local search.
+        Record-to-record travel: the walk continues from any result within ``threshold`` of the
+        best makespan seen, and the best is returned."""
         ev = self.ev
         n = ev.n
         if n < 3:
             return routes, f
         cen = ev.node_xy[:n]
+        pts = self.evaluate(routes)[1]
+        best, best_f = routes, f
+        cur, cur_pts = routes, pts
         for _ in range(rounds):
             if time.perf_counter() > deadline:
                 break
             k = int(rng.integers(2, max(3, n // 6) + 1))
-            seed = int(rng.integers(n))
-            near = np.argsort(_norm(cen - cen[seed]))[:k]
-            removed = set(int(i) for i in near)
-            partial = [[t for t in r if t not in removed] for r in routes]
+            if rng.random() < 0.5:
+                # A person and its nearest neighbours (they may sit on several routes).
+                seed = int(rng.integers(n))
+                removed = set(int(i) for i in np.argsort(_norm(cen - cen[seed]))[:k])
+            else:
+                # A stretch of one route, usually a long one.
+                lens = np.array([len(r) for r in cur], dtype=float)
+                v = int(rng.choice(len(cur), p=lens / lens.sum()))
+                a = int(rng.integers(0, max(1, len(cur[v]) - k + 1)))
+                removed = set(cur[v][a:a + k])
+            partial = [[t for t in r if t not in removed] for r in cur]
             order = [int(i) for i in rng.permutation(list(removed))]
-            cand, fc = self.run(self.insert(partial, order), deadline)
-            if fc < f - 1e-9:
-                routes, f = cand, fc
-        return routes, f
+            cand, fc = self.run(self.insert(partial, order), deadline, points=cur_pts)
+            if fc < best_f * (1 + threshold):
+                cur, cur_pts = cand, self.last_points
+                if fc < best_f - 1e-9:
+                    best, best_f = cand, fc
+        return best, best_f
 
     def insert(self, routes: list[list[int]], targets: list[int]) -> list[list[int]]:
         """Cheapest min-max insertion of ``targets`` (in the given order) into ``routes``."""

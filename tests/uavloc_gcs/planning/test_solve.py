@@ -201,3 +201,12 @@ def test_anchors_give_valid_plans(method):
     res = solve(p, method=method, rng=0, time_limit_s=0.3)
     assert res.success
     check_plan(p, res.plan)
+
+
+def test_warm_start_after_a_vehicle_is_lost():
+    p = random_problem(12, 3, seed=23)
+    first = solve(p, method="epso", rng=0, time_limit_s=0.3)
+    p2 = RoutingProblem(p.vehicles[:2], p.targets, p.speed_m_s)  # uav2 went silent
+    res = solve(p2, method="epso", rng=0, time_limit_s=0.3, warm_start=first.plan)
+    check_plan(p2, res.plan)
+    assert {r.vehicle_id for r in res.plan.routes} == {"uav0", "uav1"}
