@@ -2,7 +2,7 @@
 
 ``J = sum_i (n_i / s^2) grad ln d_i grad ln d_i^T`` over independent samples, evaluated at a
 known state (the truth in simulation), plus the estimator's prior information (velocity prior
-sigma_v = v_max / sqrt(2) per axis, transmit-offset prior). Averaging J over Monte Carlo runs and
+sigma_v = 0.6 v_max per axis, transmit-offset prior). Averaging J over Monte Carlo runs and
 inverting gives the Bayesian (Van Trees) bound on the position error at ``t_ref_s``.
 """
 
