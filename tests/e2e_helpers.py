@@ -9,9 +9,7 @@ import numpy as np
 
 from uavloc_gcs.scenario import loads_scenario
 
-# Two vehicles over 500 m x 300 m, three people: a whole search in ~200 s of mission time. The
-# lanes are 70 m apart so the scan already gives every person two good looks: these tests are
-# about the service (links, faults, restarts), not about how few looks the planner needs.
+# Two vehicles over 500 m x 300 m, three people: a whole search in ~200 s of mission time.
 SMALL = """
 name = "e2e"
 [area]
@@ -26,8 +24,6 @@ speed_m_s = 15.0
 energy_budget_j = 200000.0
 [people]
 required_accuracy_m = 15.0
-[scan]
-lane_spacing_m = 70.0
 [planner]
 time_limit_s = 0.2
 [simulation]

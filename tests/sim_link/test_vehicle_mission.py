@@ -213,8 +213,10 @@ def test_messages_for_another_system_are_ignored():
     assert srv.handle(mav.MAVLink_mission_count_message(2, 1, 3, 0), GCS, 0.0) == []
 
 
-def test_px4_download_must_be_in_order_ardupilot_serves_any():
-    for flavour, strict in ((PX4, True), (ARDUPILOT, False)):
+def test_strict_px4_download_must_be_in_order_lenient_serves_any():
+    from dataclasses import replace
+
+    for flavour, strict in ((replace(PX4, strict_download_order=True), True), (PX4, False), (ARDUPILOT, False)):
         srv = _server(flavour)
         _upload(srv, _plan(flavour.name, 4))
         srv.handle(mav.MAVLink_mission_request_list_message(1, 1, 0), GCS, 0.0)

@@ -7,13 +7,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 import shapely
+from hypothesis import assume, given, settings
+from hypothesis import strategies as st
 from shapely.geometry import Polygon
 
 from uavloc_gcs import mission as M
 from uavloc_gcs import scan
 from uavloc_gcs.energy import path_length_m, route_cost
 from uavloc_gcs.errors import ConfigError, InfeasibleError
-from uavloc_gcs.scenario import load_scenario, loads_scenario
+from uavloc_gcs.scenario import load_scenario, loads_scenario, scenario_from_dict
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 
@@ -237,3 +239,31 @@ def test_geofence_holds_the_area_and_every_route_with_margin(name):
     for v in plan.vehicles:
         for p in v.route_xy_m():
             assert poly.contains(shapely.Point(p).buffer(scan.FENCE_MARGIN_M - 1e-3))
+
+
+@st.composite
+def star_polygons(draw):
+    """Random simple (star-shaped, often concave) polygons of 4-9 vertices, 300-1500 m across."""
+    n = draw(st.integers(4, 9))
+    angles = np.sort(np.array(draw(st.lists(st.floats(0, 2 * math.pi, exclude_max=True), min_size=n,
+                                            max_size=n, unique=True))))
+    radii = np.array(draw(st.lists(st.floats(150, 750), min_size=n, max_size=n)))
+    return np.column_stack([radii * np.cos(angles), radii * np.sin(angles)])
+
+
+@settings(max_examples=15, deadline=None)
+@given(star_polygons(), st.integers(1, 4), st.sampled_from(["double", "single"]))
+def test_random_areas_are_covered_and_tiled(xy, vehicles, coverage):
+    poly = Polygon(xy)
+    assume(poly.is_valid and poly.area > 5e4 and min(np.ptp(xy, axis=0)) > 100)
+    frame = SCENARIOS["paper"].frame
+    latlon = frame.to_wgs84_latlon(xy + [400.0, 300.0])
+    sc = scenario_from_dict({"area": {"polygon_deg": latlon.tolist()}, "launch": {
+        "lat_deg": SCENARIOS["paper"].launch_latlon_deg[0], "lon_deg": SCENARIOS["paper"].launch_latlon_deg[1]},
+        "fleet": {"vehicles": vehicles}, "scan": {"coverage": coverage}})
+    plan = scan.plan_scan(sc)
+    lanes = [seg for v in plan.vehicles for seg in v.lanes_xy_m]
+    need = 2 if coverage == "double" else 1
+    assert scan.coverage_counts(_samples(sc, n=4000), lanes, sc.horizontal_range_m).min() >= need
+    parts = [Polygon(p) for v in plan.vehicles for p in v.subarea_parts_xy_m]
+    assert sum(p.area for p in parts) == pytest.approx(Polygon(sc.area_xy_m()).area, rel=1e-6)

@@ -36,7 +36,7 @@ from ..mission import NAV_RETURN_TO_LAUNCH, NAV_WAYPOINT, WireItem, flight_missi
 from ..observations import SlotBatch
 from ..scenario import Scenario
 from .liveview import LiveView, PersonStatusView, StatusSnapshot, VehicleStatus
-from .outcome import SearchOutcome, estimate_row, person_result, statement_for
+from .outcome import SearchOutcome, estimate_row, final_results, statement_for
 from .store import Store, StoreReader, TelemetryRow
 from .vehicle import VehicleAgent
 
@@ -551,7 +551,9 @@ class Daemon:
     def _outcome(self) -> SearchOutcome:
         t = self.now_s()
         self.store.flush()
-        people = tuple(person_result(p, self.frame) for p in self.policy.people(t))
+        with StoreReader(self.opt.store_path) as rd:
+            slots = rd.slots()
+        people = tuple(final_results(self.policy.people(t), slots, self.sc, self.frame))
         lost = tuple(v.id for v in self.vehicles.values() if v.lost)
         returning = tuple(v.id for v in self.vehicles.values() if not v.home and not v.lost and v.phase == "returning")
         other = tuple(v.id for v in self.vehicles.values() if not v.home and not v.lost and v.phase != "returning")

@@ -8,6 +8,7 @@ from typing import Sequence
 
 import numpy as np
 
+from ..errors import UavlocError
 from ..geo import LocalFrame
 from .results import PersonResult
 from .store import EstimateRow
@@ -58,6 +59,37 @@ def person_result(status, frame: LocalFrame, *, epoch_t_s: float = 0.0) -> Perso
     t_ref = t_ref_abs - epoch_t_s
     return PersonResult(int(status.emitter_id), lat, lon, float(e), float(n), ve, vn, r95, bound, fix,
                         bool(status.located), not ambiguous, reason, t_ref)
+
+
+def final_results(statuses, slots, scenario, frame: LocalFrame) -> list[PersonResult]:
+    """Each person re-estimated from ALL slots received (the policy freezes a person's estimate
+    when it first meets the accuracy; later passes usually sharpen it). The final estimate is
+    reported when it is valid; a person counts as located if the policy located it or the final
+    estimate alone is within the required accuracy without mirror ambiguity."""
+    from ..estimation import ChannelModel, estimate_emitter  # noqa: PLC0415
+
+    channel = ChannelModel.from_scenario(scenario)
+    required = scenario.people.required_accuracy_m
+    out = []
+    for st in statuses:
+        base = person_result(st, frame)
+        part = slots.for_emitter(st.emitter_id)
+        try:
+            est = estimate_emitter(part.sorted_by_time(), channel, max_speed_m_s=scenario.people.max_speed_m_s,
+                                   model_motion=True)
+        except UavlocError:
+            est = None
+        if est is None or not est.ok or not math.isfinite(est.radius95_m) or est.ambiguous:
+            out.append(base)
+            continue
+        e, n = (float(v) for v in est.position_xy_m)
+        lat, lon = (float(v) for v in frame.to_wgs84(e, n))
+        located = base.located or est.radius95_m <= required
+        out.append(PersonResult(base.emitter_id, lat, lon, e, n, float(est.velocity_m_s[0]),
+                                float(est.velocity_m_s[1]), float(est.radius95_m),
+                                _f(est.annulus_bound_m), base.fix_time_s, located, True,
+                                "" if located else base.reason, float(est.t_ref_s)))
+    return out
 
 
 def estimate_row(status, t_s: float) -> EstimateRow:

@@ -86,6 +86,8 @@ class ScriptedVehicle(asyncio.DatagramProtocol):
         self._receiving = False
         self._rx_task: asyncio.Task | None = None
         self._uploader = (255, 190)
+        self._sending = False
+        self._tx_expected = 0
 
     # -- lifecycle ------------------------------------------------------------------------
 
@@ -168,6 +170,9 @@ class ScriptedVehicle(asyncio.DatagramProtocol):
             self.send(self.mav.mission_request_int_encode(ts, tc, seq, 0))
 
     def _on_mission_count(self, msg) -> None:
+        if self._receiving and self.style is PX4 and self._rx_expected > 0:
+            self._ack(msg, M.MAV_MISSION_ERROR)  # "WPM: REJ. CMD: Busy"; the transfer goes on
+            return
         if msg.count == 0:
             self.state.mission = []
             self._ack(msg, M.MAV_MISSION_ACCEPTED)
@@ -224,6 +229,8 @@ class ScriptedVehicle(asyncio.DatagramProtocol):
     # -- mission download / clear ---------------------------------------------------------
 
     def _on_mission_request_list(self, msg) -> None:
+        self._tx_expected = 0
+        self._sending = True
         self.send(self.mav.mission_count_encode(msg.get_srcSystem(), msg.get_srcComponent(), len(self.state.mission),
                                                 0))
 
@@ -231,6 +238,12 @@ class ScriptedVehicle(asyncio.DatagramProtocol):
         if not 0 <= msg.seq < len(self.state.mission):
             self._ack(msg, M.MAV_MISSION_INVALID_SEQUENCE)
             return
+        if self.style is PX4:  # only the expected item or a repeat of the previous one, else abort
+            if not self._sending or msg.seq not in (self._tx_expected, self._tx_expected - 1):
+                self._sending = False
+                self._ack(msg, M.MAV_MISSION_ERROR)
+                return
+            self._tx_expected = max(self._tx_expected, msg.seq + 1)
         w = self.state.mission[msg.seq]
         x, y, z, frame = w.x, w.y, w.z, w.frame
         if self.style.home_at_seq0 and msg.seq == 0:

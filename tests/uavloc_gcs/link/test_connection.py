@@ -223,3 +223,26 @@ def test_udpin_routes_replies_to_the_peer_each_vehicle_was_heard_on():
             return [m.get_type() for m in got_a], sorted(m.get_type() for m in got_b), link.systems
 
     assert run(go()) == (["HEARTBEAT"], ["COMMAND_LONG", "HEARTBEAT"], [1, 2])
+
+
+def test_tcp_client_reconnects_when_the_vehicle_restarts(monkeypatch):
+    from uavloc_gcs.link import transport
+    monkeypatch.setattr(transport, "TCP_RECONNECT_INTERVAL_S", 0.1)
+
+    async def go():
+        server = await open_link("tcpin:127.0.0.1:0", source_system=1, source_component=1, heartbeat_interval_s=None)
+        port = server.local_address[1]
+        async with await open_link(f"tcp:127.0.0.1:{port}", heartbeat_interval_s=0.05) as client:
+            with server.subscribe("HEARTBEAT") as hbs:
+                await hbs.get(2)
+            await server.close()  # SITL stops ...
+            await asyncio.sleep(0.3)
+            server = await open_link(f"tcpin:127.0.0.1:{port}", source_system=1, source_component=1,
+                                     heartbeat_interval_s=None)  # ... and starts again on the same port
+            async with server:
+                with server.subscribe("HEARTBEAT") as hbs:
+                    hb = await hbs.get(3)
+            return hb.get_srcSystem(), client.stats.tx_packets
+
+    sysid, sent = run(go())
+    assert sysid == 255 and sent > 5

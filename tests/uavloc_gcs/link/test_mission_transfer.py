@@ -131,3 +131,54 @@ def test_misnumbered_items_are_refused_before_sending():
 
     with pytest.raises(MissionTransferError, match="numbered"):
         run(go())
+
+
+def test_download_restarts_when_px4_aborts_on_a_stale_request():
+    """A late duplicate of an old MISSION_REQUEST_INT makes PX4 abort the download with
+    MAV_MISSION_ERROR; the download starts again and completes."""
+    items = survey_items(8, "px4")
+
+    async def go():
+        async with ScriptedVehicle(PX4) as v:
+            v.state.mission = list(items)
+            orig = v._on_mission_request_int
+            injected = []
+
+            def with_stale_duplicate(msg):
+                if msg.seq == 6 and not injected:
+                    injected.append(True)
+                    stale = v.mav.mission_request_int_encode(1, 1, 2, 0)
+                    stale._header = msg._header
+                    orig(stale)  # arrives just before the real request for 6
+                orig(msg)
+            v._on_mission_request_int = with_stale_duplicate
+            async with await open_link(v.connection) as link:
+                await link.wait_heartbeat(timeout_s=5)
+                got = await download_mission(link, 1, 1)
+            return got, sum(m.get_type() == "MISSION_REQUEST_LIST" for m in v.received)
+
+    got, request_lists = run(go())
+    assert identical(got, items) and request_lists >= 2  # (the in-flight request may abort once more)
+
+
+def test_upload_carries_on_after_px4_rejects_a_late_duplicate_count_as_busy():
+    items = survey_items(8, "px4")
+
+    async def go():
+        async with ScriptedVehicle(PX4) as v:
+            orig = v._on_mission_item_int
+
+            def with_duplicate_count(msg):
+                orig(msg)
+                if msg.seq == 3:  # the duplicate MISSION_COUNT shows up mid-transfer
+                    count = v.mav.mission_count_encode(1, 1, len(items), 0)
+                    count._header = msg._header
+                    v._on_mission_count(count)
+            v._on_mission_item_int = with_duplicate_count
+            async with await open_link(v.connection) as link:
+                await link.wait_heartbeat(timeout_s=5)
+                result = await upload_mission(link, 1, 1, items)
+            return result, v.state.mission
+
+    result, stored = run(go())
+    assert result.verified and identical(stored, items)

@@ -132,3 +132,12 @@ def test_moving_approximation_gains_over_static_centres():
     q = moving.points_xy_m[0, 1]
     assert q[0] == pytest.approx(25 * t_meet, abs=1e-3)
     assert moving.lengths_m[0, 0] < static.lengths_m[0, 0] - 50
+
+
+def test_neighbour_at_the_centre_is_handled():
+    # Smoothed pass, a neighbour exactly at the centre and the midpoint outside the disk: the
+    # answer is the circle point towards the other neighbour (no NaN).
+    q, cost = best_point_between([0.0, 0.0], [100.0, 0.0], [0.0, 0.0], 10.0, eps_m=1.0)
+    np.testing.assert_allclose(q, [10.0, 0.0], atol=1e-6)
+    q, cost = best_point_between([0.0, 0.0], [100.0, 0.0], [0.0, 0.0], 10.0)
+    assert np.all(np.isfinite(q)) and cost == pytest.approx(100.0)
