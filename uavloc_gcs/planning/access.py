@@ -93,6 +93,11 @@ def _circle_point(a, b, c, r, q_init, steps: int, eps_m: float = 0.0):
     bz = b[:, 0] + 1j * b[:, 1]
     cz = c[:, 0] + 1j * c[:, 1]
     ua, ub = az - cz, bz - cz
+    # A neighbour exactly at the centre (possible in the smoothed passes) has no direction: the
+    # answer then only depends on the other neighbour, so borrow its direction.
+    za, zb = ua == 0, ub == 0
+    ua = np.where(za, np.where(zb, 1.0 + 0j, ub), ua)
+    ub = np.where(zb, ua, ub)
     ea = ua / np.abs(ua)
     d = np.angle(ub * np.conj(ua))  # signed short arc a -> b
     lo = np.zeros_like(d)

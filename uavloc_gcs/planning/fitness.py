@@ -249,6 +249,8 @@ class Evaluator:
         makespan = lengths.max(axis=1) / self.speed
         excess = np.maximum(lengths - self.max_len[None, :], 0.0).sum(axis=1) / self.speed
         fitness = makespan + ENERGY_PENALTY * excess
+        if not np.all(np.isfinite(fitness)):  # never let a numerical accident look good
+            fitness = np.where(np.isfinite(fitness), fitness, np.inf)
         return Evaluation(fitness, makespan, lengths, excess <= 1e-9, Q, lay)
 
     def refine(self, order: np.ndarray, counts: np.ndarray, max_sweeps: int = 300,

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Callable, Sequence
+from typing import Sequence
 
 import numpy as np
 
@@ -199,5 +199,3 @@ def check_reachable(problem: RoutingProblem) -> None:
                 f"{need[i, best]:.1f} m = {need[i, best] * e_per_m:.0f} J there and home, "
                 f"it has {problem.vehicles[best].energy_j:.0f} J")
 
-
-ProgressCallback = Callable[["PlanResult"], bool | None]

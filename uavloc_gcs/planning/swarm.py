@@ -62,7 +62,7 @@ class _Codec:
     def encode(self, routes: list[list[int]]) -> np.ndarray:
         if self.split:
             return self.ev.encode_tour_keys(self.ev.from_routes(routes)[0])
-        return self.ev.encode_keys(routes) / 1.0
+        return self.ev.encode_keys(routes)
 
 
 def particle_swarm(ev: Evaluator, *, adaptive: bool, rng: np.random.Generator, deadline: float,
