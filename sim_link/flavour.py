@@ -56,6 +56,10 @@ class Flavour:
     keep_mission_on_reboot: bool
     modes: dict
     takeoff_alt_default_m: float  # PX4 MIS_TAKEOFF_ALT; ArduPilot needs the altitude given
+    # Real PX4 aborts a download (MAV_MISSION_ERROR) when asked for anything but the next item or
+    # a repeat of the last one -- e.g. a late duplicate of an older request on a lossy link. Off
+    # by default (lenient) so ground stations that do not retry downloads still verify uploads.
+    strict_download_order: bool = False
 
     def custom_mode(self, mode: str) -> int:
         return self.modes[mode]

@@ -20,8 +20,8 @@ Behaviour per flavour (``reference/mavlink.md`` §1.2-§1.11):
 * download: MISSION_REQUEST_LIST -> MISSION_COUNT; MISSION_REQUEST_INT -> MISSION_ITEM_INT;
   the legacy MISSION_REQUEST is answered with a float MISSION_ITEM (ArduPilot also warns).
   ArduPilot's item 0 is always the current home; its downloads use the non-INT frame numbers.
-  PX4 serves only the next item or a repeat of the previous one and aborts (MAV_MISSION_ERROR)
-  on any other request.
+  With ``Flavour.strict_download_order`` (real PX4; off by default) only the next item or a repeat
+  of the previous one is served and any other request aborts the download (MAV_MISSION_ERROR).
 * clear: MISSION_CLEAR_ALL -> MISSION_ACK(ACCEPTED).
 """
 
@@ -278,7 +278,7 @@ class MissionServer:
         items = self._download_items(mtype)
         if not 0 <= msg.seq < len(items):
             return [self._ack(peer, mav.MAV_MISSION_INVALID_SEQUENCE, mtype)]
-        if self.flavour.name == "px4" and self._download_next is not None:
+        if self.flavour.strict_download_order and self._download_next is not None:
             # PX4 serves the expected item or a repeat of the previous one; anything else aborts
             if msg.seq not in (self._download_next, self._download_next - 1):
                 self._download_next = None
