@@ -97,6 +97,8 @@ def test_daemon_killed_and_restarted_resumes_the_same_search(tmp_path):
     assert len(scans) == 2, "the scan was uploaded once per vehicle, not again after the restart"
     assert any("reloaded" in t for t in resumed)
     assert sum("still flies its scan mission" in t for t in resumed) == 2, resumed
+    # what the vehicles scanned while no daemon listened is flown again
+    assert any("re-flies its scan" in t for t in resumed), resumed
     import csv
 
     rows = list(csv.DictReader(open(out / "people.csv")))

@@ -114,6 +114,7 @@ class Daemon:
         self._rate = _ClockRate()
         self._last_tel_store: dict[int, float] = {}
         self._people_cache: list = []
+        self._seq_before_crash: dict[int, int] = {}
         self._planner_limit_s = getattr(policy, "time_limit_s", None)
         self.last_slot_wall_s: float | None = None  # for latency measurements
         self.on_mission_acked: Callable[[int, str], None] | None = None
@@ -193,6 +194,7 @@ class Daemon:
             self.epoch_unix_s = float(meta["epoch_unix_s"])
             slots = rd.slots()
             missions = rd.latest_missions()
+            self._seq_before_crash = rd.last_mission_seq()
         self.policy.ingest(slots)
         self._n_slots = len(slots)
         self._event("resume", f"resuming the search: {len(slots)} slots and {len(missions)} missions reloaded")
@@ -269,6 +271,8 @@ class Daemon:
                     self._event("resume", f"vehicle {v.id} still flies its {purpose} mission "
                                 f"(item {v.agent.tel.mission_seq})", v.id)
                     if v.agent.tel.armed:
+                        if purpose == "scan":
+                            await self._rewind_scan(v, items)
                         return
                     if purpose == "scan" and v.agent.on_ground():
                         to_start.append(v)
@@ -301,6 +305,23 @@ class Daemon:
         for r in starts:
             if isinstance(r, BaseException):
                 raise r
+
+    async def _rewind_scan(self, v: _Vehicle, items: list) -> None:
+        """Re-fly the part of the scan flown while the daemon was down (its RSSI never arrived):
+        back to the leg the vehicle was on when the last telemetry was stored."""
+        then = self._seq_before_crash.get(v.id)
+        now = v.agent.tel.mission_seq
+        if then is None or now is None or (now <= then and v.agent.tel.mission_state != MISSION_STATE_COMPLETE):
+            return  # still on the leg it was on: only a moment of it was missed
+        waypoints = [it.seq for it in items if it.command == NAV_WAYPOINT and it.seq > 0]
+        if not waypoints:
+            return
+        back = max(waypoints[0], min(then - 1, waypoints[-1]))
+        await v.agent.switch_to(back, on_ground=False)
+        v.agent.tel.mission_seq = back
+        v.ignore_seq_until_wall = self.wall() + 1.0
+        self._event("resume", f"vehicle {v.id} re-flies its scan from item {back} (flown while the daemon was "
+                    f"down, now at item {now})", v.id)
 
     async def _start(self, v: _Vehicle) -> None:
         await v.agent.start()

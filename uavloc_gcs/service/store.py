@@ -309,6 +309,12 @@ class StoreReader:
             out[int(vehicle)] = (purpose, wire_items_from_json(items))
         return out
 
+    def last_mission_seq(self) -> dict[int, int]:
+        """The last mission item each vehicle was reported flying to: {vehicle: seq}."""
+        rows = self._conn.execute(
+            "SELECT vehicle, mission_seq FROM telemetry WHERE mission_seq IS NOT NULL ORDER BY rowid").fetchall()
+        return {int(v): int(seq) for v, seq in rows}
+
     def tracks(self) -> dict[int, np.ndarray]:
         """Flown track per vehicle: {vehicle: (N, 2) lat/lon degrees} from telemetry."""
         out: dict[int, list] = {}
