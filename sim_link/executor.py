@@ -32,7 +32,7 @@ _RELATIVE_FRAMES = frozenset({3, 6, 10, 11})
 class Target:
     """What the flight controller should do this step."""
 
-    kind: str  # "fly", "takeoff", "rtl", "land", "hold", "done"
+    kind: str  # "fly", "takeoff", "rtl", "land", "done"
     xyz_m: np.ndarray | None = None
     stop: bool = True
     hold_s: float = 0.0
@@ -122,7 +122,7 @@ class MissionExecutor:
                 return None  # do not look through jumps: stop, as Copter does for unknown next items
         return None
 
-    def target(self, items: list[WireItem], here_xyz_m: np.ndarray, cruise_alt_m: float) -> Target:
+    def target(self, items: list[WireItem], here_xyz_m: np.ndarray) -> Target:
         """Target for the current item (call :meth:`advance_instant_items` first)."""
         if self.complete or self.current >= len(items):
             self.complete = True

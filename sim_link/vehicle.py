@@ -334,7 +334,7 @@ class FakeVehicle(TelemetryMixin):
         ex = self.executor
         items = self.mission.mission()
         ex.advance_instant_items(items, self._set_speed)
-        tgt: Target = ex.target(items, self.kin.pos, self.kin.pos[2])
+        tgt: Target = ex.target(items, self.kin.pos)
         if tgt.kind == "done":
             if not self._complete_reported:
                 self._complete_reported = True
