@@ -32,7 +32,7 @@ def free_port() -> int:
 
 
 def run_e2e(tmp_path, autopilot="ardupilot", *, faults=None, during=None, signing_key=None, gcs_port=None,
-            speedup=None):
+            speedup=None, lost_timeout_s=5.0):
     """The search on two fake vehicles. With ``gcs_port`` the daemon listens (``udpin``) on one
     port for both vehicles, as behind a router; otherwise it connects to each (``udpout``)."""
     sc = small_scenario(autopilot) if speedup is None else small_scenario(autopilot, speedup=speedup)
@@ -41,7 +41,7 @@ def run_e2e(tmp_path, autopilot="ardupilot", *, faults=None, during=None, signin
                                 faults=faults, signing_key=signing_key, **extra)
     try:
         opts = DaemonOptions(store_path=tmp_path / "search.sqlite", tlog_dir=tmp_path, resume=False,
-                             signing_key=signing_key)
+                             signing_key=signing_key, lost_timeout_s=lost_timeout_s)
         if gcs_port:
             conns = [(i + 1, f"udpin:127.0.0.1:{gcs_port}") for i in range(len(fleet.endpoints))]
         else:

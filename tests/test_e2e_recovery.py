@@ -44,14 +44,18 @@ def test_ten_second_link_drop_mid_mission(tmp_path):
 
         daemon._brain = brain
 
-    sc, result = run_e2e(tmp_path, "ardupilot", during=during)
+    # 0.2 s of silence (5 s of mission time at 25x) marks a vehicle lost: the drop is noticed
+    sc, result = run_e2e(tmp_path, "ardupilot", during=during, lost_timeout_s=0.2)
     assert dropped, "the link was dropped"
     check_everyone_found(sc, result)
     with StoreReader(tmp_path / "search.sqlite") as rd:
-        t = rd.slots().t_s
         v1 = rd.slots().take(rd.slots().vehicle == 1).t_s
+        lost = [e for e in rd.events("lost") if e.vehicle == 1]
+        found = [e for e in rd.events("found") if e.vehicle == 1]
     gaps = v1[1:] - v1[:-1]
     assert gaps.max() > 8.0, "vehicle 1's RSSI stopped during the drop"
+    assert lost and found and lost[0].t_s < found[0].t_s, "vehicle 1 was marked lost, then found again"
+    assert result.outcome.vehicles_lost == ()
 
 
 def _daemon_cmd(cfg, out):

@@ -1,0 +1,71 @@
+"""The end of a search in words, and the policy's beliefs turned into person results."""
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from uavloc_gcs.geo import LocalFrame
+from uavloc_gcs.service.outcome import person_result, statement_for
+from uavloc_gcs.service.results import PersonResult
+
+
+def _p(eid, located, reason=""):
+    return PersonResult(eid, 1.0, 2.0, 0.0, 0.0, 0.0, 0.0, 5.0, 9.0, 10.0, located, True, reason)
+
+
+def test_statement_everyone_found_and_home():
+    assert statement_for([_p(1, True), _p(2, True)], 15, [], []) == (
+        "All 2 people heard were located within 15 m (95 %). All vehicles are home.")
+
+
+def test_statement_names_who_is_not_located_and_why_and_where_the_fleet_is():
+    text = statement_for([_p(1, True), _p(2, False, "given up: not heard on 2 looks")], 15, [3], [], [2])
+    assert text.startswith("1 of 2 people located within 15 m; not located: person 2: given up: not heard on 2 looks.")
+    assert "Lost contact with vehicle(s) 3." in text and "Vehicle(s) 2 returning home (RTL)" in text
+    assert "All vehicles are home" not in text
+
+
+def test_statement_when_nobody_was_heard():
+    assert statement_for([], 15, [], []).startswith("No phone was heard")
+
+
+@dataclass
+class _Est:
+    position_xy_m: np.ndarray
+    velocity_m_s: np.ndarray
+    t_ref_s: float
+    radius95_m: float
+    annulus_bound_m: float
+    ambiguous: bool = False
+
+
+@dataclass
+class _Status:
+    emitter_id: int
+    estimate: object
+    located: bool
+    reason: str
+    xy_m: tuple | None
+    t_ref_s: float | None
+    fix_t_s: float | None
+
+
+def test_person_result_reports_a_located_person_at_its_fix():
+    frame = LocalFrame(42.625, 13.283)
+    est = _Est(np.array([100.0, 50.0]), np.array([0.5, -0.5]), 80.0, 9.0, 20.0)
+    st = _Status(7, est, True, "located", (130.0, 20.0), 120.0, 80.0)  # xy_m from a later estimate
+    r = person_result(st, frame)
+    assert (r.east_m, r.north_m, r.t_ref_s, r.radius95_m, r.annulus_bound_m) == (100.0, 50.0, 80.0, 9.0, 20.0)
+    lat, lon = frame.to_wgs84(100.0, 50.0)
+    assert math.isclose(r.lat_deg, lat) and math.isclose(r.lon_deg, lon)
+    assert r.located and r.reason == "" and r.ambiguity_resolved
+
+
+def test_person_result_of_an_ambiguous_person_keeps_the_policys_candidate_and_reason():
+    frame = LocalFrame(42.625, 13.283)
+    est = _Est(np.array([100.0, 50.0]), np.zeros(2), 80.0, 40.0, math.nan, ambiguous=True)
+    st = _Status(8, est, False, "mirror ambiguity: needs a look off the flight line", (100.0, -50.0), 80.0, None)
+    r = person_result(st, frame)
+    assert (r.east_m, r.north_m) == (100.0, -50.0) and not r.located and not r.ambiguity_resolved
+    assert r.reason.startswith("mirror ambiguity") and math.isnan(r.fix_time_s) and math.isnan(r.annulus_bound_m)
