@@ -152,3 +152,20 @@ def test_rssi_decodes_to_the_vehicle_track():
             assert np.all(np.diff(t) >= 0) and t[-1] <= fleet.now_s()
             c.close()
     run(main())
+
+
+def test_streams_to_a_configured_gcs_address_without_being_asked():
+    import socket
+
+    async def main():
+        sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        sock.bind(("127.0.0.1", 0))
+        sock.settimeout(3.0)
+        try:
+            sc = SMALL.replace(fleet={"vehicles": 1})
+            async with FakeFleet(sc, speedup=20, seed=1, base_port=0, gcs_address=sock.getsockname()):
+                data = await asyncio.get_running_loop().run_in_executor(None, lambda: sock.recvfrom(4096)[0])
+                assert mav.MAVLink(None).parse_buffer(data)[0].get_srcSystem() == 1
+        finally:
+            sock.close()
+    run(main())
