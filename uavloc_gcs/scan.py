@@ -175,7 +175,11 @@ def coverage_counts(points_xy_m: np.ndarray, lanes_xy_m, range_m: float) -> np.n
 
 
 def _repair(rows: _Rows, samples: np.ndarray, r: float, need: int, margin: float) -> _Rows:
-    """Lengthen lane ends until every sample is within ``r`` of ``need`` distinct rows."""
+    """Lengthen lane ends until every sample is within ``r`` of ``need`` distinct rows.
+
+    A lane is lengthened so that the sample ends up within ``r - margin`` of it, which also covers
+    the points around the sample.
+    """
     ivs = [[list(iv) for iv in row] for row in rows.intervals]
     for _ in range(3):
         changed = False
@@ -208,6 +212,49 @@ def _repair(rows: _Rows, samples: np.ndarray, r: float, need: int, margin: float
         if not changed:
             break
     return _Rows(rows.offsets, tuple(ivs), rows.spacing_m)
+
+
+def _uncovered(poly_r, rows: _Rows, r: float, need: int):
+    """The part of the area heard from fewer than ``need`` rows, computed with polygons.
+
+    Buffers are inscribed polygons of the true disks, so this errs on the side of "uncovered".
+    """
+    from shapely.geometry import LineString, Point
+    from shapely.ops import unary_union
+
+    def reach(row, c):
+        return unary_union([(LineString([(a0, c), (a1, c)]) if a1 - a0 > 1e-9 else Point(a0, c)).buffer(r, 32)
+                            for a0, a1 in row])
+
+    regions = [reach(row, c) for row, c in zip(rows.intervals, rows.offsets)]
+    if need == 1:
+        covered = unary_union(regions)
+    else:
+        pairs = [regions[k].intersection(regions[m]) for k in range(len(regions))
+                 for m in range(k + 1, len(regions)) if abs(rows.offsets[k] - rows.offsets[m]) < 2 * r]
+        covered = unary_union(pairs) if pairs else None
+    return poly_r if covered is None else poly_r.difference(covered)
+
+
+def _refine(rows: _Rows, poly_r, r: float, need: int, step: float) -> _Rows:
+    """Close what sampling missed: lengthen lanes toward the points of the exactly computed
+    uncovered region (its vertices and boundary) until nothing measurable is left."""
+    for _ in range(6):
+        gap = _uncovered(poly_r, rows, r - 0.05, need)
+        if gap.is_empty or gap.area < 1e-4:
+            break
+        pts = []
+        for g in getattr(gap, "geoms", [gap]):
+            if g.geom_type != "Polygon":
+                continue
+            ring = g.exterior
+            k = max(4, int(ring.length / step))
+            pts += [ring.interpolate(t, normalized=True).coords[0] for t in np.linspace(0, 1, k, endpoint=False)]
+            pts += list(ring.coords) + [g.representative_point().coords[0]]
+        if not pts:
+            break
+        rows = _repair(rows, np.array(pts), r - 0.1, need, margin=0.2)
+    return rows
 
 
 def _row_counts(offsets: np.ndarray, ivs: list, samples: np.ndarray, r: float) -> np.ndarray:
@@ -395,10 +442,11 @@ def _serpentine_pieces(rows: _Rows, rot: np.ndarray, choice: int, vehicles: int)
             e = reach(s, budget)
             if e <= s + 1e-9:
                 return None
+            if e >= total - 1e-6:
+                out.append((s, total))  # snap: the last piece ends exactly where the serpentine does
+                return out
             out.append((s, e))
             s = e
-            if s >= total - 1e-6:
-                return out
         return None
 
     lo, hi = 0.0, total + 2.0 * float(dist.max()) + 1.0
@@ -426,9 +474,9 @@ def _serpentine_pieces(rows: _Rows, rot: np.ndarray, choice: int, vehicles: int)
                 continue
             a_al, b_al = (at(a) @ rot.T)[0], (at(b) @ rot.T)[0]
             forward = (at(re) @ rot.T)[0] >= (at(rs) @ rot.T)[0]
-            if a <= rs + 1e-9:
+            if a <= rs + 1e-6:
                 a_al = -math.inf if forward else math.inf
-            if b >= re - 1e-9:
+            if b >= re - 1e-6:
                 b_al = math.inf if forward else -math.inf
             ranges[k] = (min(a_al, b_al), max(a_al, b_al))
         pieces.append(_Piece(wps @ rot.T, lanes, ranges))
@@ -462,6 +510,7 @@ def plan_scan(scenario) -> ScanPlan:
         rows = _layout_rows(poly_r, spacing, mode)
         step = max(r / 20.0, math.sqrt(poly.area / 20000.0))
         rows = _repair(rows, _sample_area(poly_r, step), r, need, margin=step)
+        rows = _refine(rows, poly_r, r, need, step)
         cost, choice = _group_costs(rows, rot.T)
         options = [_row_group_pieces(rows, cost, choice, m)]
         if m > 1:
