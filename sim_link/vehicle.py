@@ -287,6 +287,7 @@ class FakeVehicle(TelemetryMixin):
             return
         if self.takeoff_alt_m is not None:
             self._fly(dt, self.hold_xyz_m, stop=True)
+            self._burn(dt)
             if self.kin.pos[2] >= self.takeoff_alt_m - 0.5:
                 self.takeoff_alt_m = None
                 if self.flavour.name == "px4" and self.mode == "TAKEOFF":

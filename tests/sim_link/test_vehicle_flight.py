@@ -320,3 +320,11 @@ def test_new_mission_in_flight(autopilot):
     assert v.current_seq == (cur if autopilot == "ardupilot" else 0)
     v.advance(200.0)
     assert v.executor.complete and v.landed
+
+
+def test_hovering_after_takeoff_draws_hover_power():
+    v = _vehicle(PAPER)
+    assert _cmd(v, mav.MAV_CMD_DO_SET_MODE, 1, 4) == 0 and _cmd(v, mav.MAV_CMD_COMPONENT_ARM_DISARM, 1) == 0
+    assert _cmd(v, mav.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, 20) == 0
+    v.advance(100.0)  # 4 s climbing, then hovering
+    assert v.energy_used_j == pytest.approx(PAPER.power_model.power_w(0.0) * 100.0, rel=0.01)
