@@ -183,3 +183,37 @@ def test_geofence_circles_are_warned_about(caplog):
 def test_nan_home_altitude_is_null_not_nan():
     text = P.dumps(M.MissionPlan((), math.nan, math.nan, math.nan))
     assert "NaN" not in text and '"plannedHomePosition": [\n            null' in text
+
+
+QGC_STYLE = """{
+    "fileType": "Plan",
+    "geoFence": {"circles": [], "polygons": [], "version": 2},
+    "groundStation": "QGroundControl",
+    "mission": {
+        "cruiseSpeed": 15, "firmwareType": 12, "globalPlanAltitudeMode": 1, "hoverSpeed": 5,
+        "items": [
+            {"AMSLAltAboveTerrain": null, "Altitude": 40, "AltitudeMode": 1, "autoContinue": true,
+             "command": 22, "doJumpId": 1, "frame": 3, "params": [0, 0, 0, null, 46.5, 7.25, 40],
+             "type": "SimpleItem"},
+            {"AMSLAltAboveTerrain": null, "Altitude": 40, "AltitudeMode": 1, "autoContinue": true,
+             "command": 16, "doJumpId": 2, "frame": 3,
+             "params": [0, 0, 0, null, 46.50123456789012, 7.251234567890123, 40], "type": "SimpleItem"},
+            {"autoContinue": true, "command": 20, "doJumpId": 3, "frame": 2, "params": [0, 0, 0, 0, 0, 0, 0],
+             "type": "SimpleItem"}
+        ],
+        "plannedHomePosition": [46.5, 7.25, 512.3], "vehicleType": 2, "version": 2
+    },
+    "rallyPoints": {"points": [], "version": 2},
+    "version": 1
+}"""
+
+
+def test_reads_a_plan_as_qgroundcontrol_writes_it():
+    plan = P.loads(QGC_STYLE, path="qgc.plan")
+    assert plan.autopilot == "px4" and plan.cruise_speed_m_s == 15 and plan.hover_speed_m_s == 5
+    assert (plan.home_lat_deg, plan.home_lon_deg, plan.home_alt_m) == (46.5, 7.25, 512.3)
+    assert [it.command for it in plan.items] == [22, 16, 20]
+    wp = plan.items[1]
+    assert (wp.lat_deg, wp.lon_deg, wp.alt_m) == (46.50123456789012, 7.251234567890123, 40.0)
+    assert math.isnan(wp.params[3]) and wp.frame == M.FRAME_GLOBAL_RELATIVE_ALT
+    assert P.loads(P.dumps(plan)).same_as(plan)
