@@ -127,7 +127,7 @@ class _NoFrame:
 _NO_FRAME = _NoFrame()
 
 
-FINAL_WINDOW_S = 120.0  # measured on the paper demo: 120 s beat 30 s, 60 s and the whole search
+FINAL_WINDOW_S = 60.0  # on two paper demos 60 s beat 30 s, 120 s and the whole search (docs/readme/daemon.md)
 
 
 @dataclass(frozen=True)
