@@ -62,7 +62,9 @@ def run(args: argparse.Namespace) -> int:
         origin = (positional[0].lat_deg, positional[0].lon_deg)
     else:
         origin = None
-    ap = "ArduPilot" if mission.autopilot == "ardupilot" else "PX4"
+    # WPL 110 does not record the autopilot; a .plan does (mission.firmwareType).
+    ap = ("ArduPilot" if mission.autopilot == "ardupilot" else "PX4") if kind.endswith("plan") \
+        else "autopilot not recorded"
     n_wp = sum(1 for it in mission.items if it.command == NAV_WAYPOINT)
     holds = sum(1 for it in mission.items if it.command == NAV_WAYPOINT and it.params[0] > 0)
     print(f"{args.file}: {kind}, {ap}, {len(mission.items)} items, {n_wp} waypoints "
