@@ -204,3 +204,10 @@ def test_preview_missing_file_and_bad_picture_suffix(small_out, tmp_path, uavloc
     assert "not found" in err
     err = _one_sentence_error(uavloc_inproc("preview", small_out[0] / "uav1.plan", "--png", tmp_path / "p.jpg"))
     assert ".png or .svg" in err and not (tmp_path / "p.jpg").exists()
+
+
+@pytest.mark.parametrize("args, fragment", [(["--lane-spacing", "-5"], "scan.lane_spacing_m"),
+                                            (["--lane-spacing", "400"], "too wide")])
+def test_bad_overrides(tmp_path, uavloc_inproc, args, fragment):
+    err = _one_sentence_error(uavloc_inproc("plan", EXAMPLES / "small.toml", "--out", tmp_path / "o", *args))
+    assert fragment in err and not (tmp_path / "o").exists()
