@@ -183,44 +183,39 @@ def write_results(out_dir: str | Path, people: Sequence[PersonResult], *, frame:
 def render_result_png(path: Path, people: Sequence[PersonResult], *, frame: LocalFrame,
                       area_latlon_deg: np.ndarray, tracks_latlon_deg: Mapping[int, np.ndarray],
                       truth_xy_m: Mapping[int, Sequence[float]] | None, title: str) -> None:
-    """The result map in local metres: area, flown tracks, estimates with 95 % circles, truth."""
-    import matplotlib  # noqa: PLC0415
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt  # noqa: PLC0415
+    """The result map in local metres (the project's shared map style, ``render.maps``): area,
+    flown tracks, estimates with their 95 % circles (green located, red not), true positions
+    joined to their estimates when the run was simulated."""
+    from ..render import maps  # noqa: PLC0415
 
     area = frame.to_local_xy(np.asarray(area_latlon_deg, dtype=float))
-    fig, ax = plt.subplots(figsize=(9, 6), dpi=110)
-    ring = np.vstack([area, area[:1]])
-    ax.fill(ring[:, 0], ring[:, 1], color="0.94", zorder=0)
-    ax.plot(ring[:, 0], ring[:, 1], color="0.4", lw=1.2, label="search area")
-    colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
-    for k, (v, tr) in enumerate(sorted(tracks_latlon_deg.items())):
-        if len(tr) < 2:
-            continue
-        xy = frame.to_local_xy(np.asarray(tr, dtype=float))
-        ax.plot(xy[:, 0], xy[:, 1], color=colors[k % len(colors)], lw=0.9, alpha=0.8, label=f"UAV {v} track")
-    ax.plot([0], [0], marker="^", color="k", ms=9, ls="none", label="launch")
-    first_est = first_truth = True
-    for p in people:
-        if not math.isfinite(p.east_m):
-            continue
-        c = "tab:green" if p.located else "tab:red"
-        if math.isfinite(p.radius95_m):
-            ax.add_patch(plt.Circle((p.east_m, p.north_m), p.radius95_m, fill=False, color=c, lw=1.2))
-        ax.plot(p.east_m, p.north_m, "+", color=c, ms=9, mew=2,
-                label="estimate (95 % circle)" if first_est else None)
-        ax.annotate(str(p.emitter_id), (p.east_m, p.north_m), textcoords="offset points", xytext=(5, 5), fontsize=8)
-        first_est = False
-    for eid, xy in sorted((truth_xy_m or {}).items()):
-        ax.plot(xy[0], xy[1], "x", color="k", ms=6, label="true position" if first_truth else None)
-        first_truth = False
-    ax.set_aspect("equal")
-    ax.set_xlabel("east of launch [m]")
-    ax.set_ylabel("north of launch [m]")
+    span = area.max(axis=0) - area.min(axis=0)
     n_ok = sum(p.located for p in people)
-    ax.set_title(f"{title}: {n_ok} of {len(people)} people located")
-    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path)
-    plt.close(fig)
+    fig, ax = maps.new_map(f"{title}: {n_ok} of {len(people)} people located",
+                           subtitle=maps.origin_caption(*frame.to_wgs84(0.0, 0.0)), extent_m=tuple(span))
+    maps.draw_area(ax, area)
+    ids = sorted(tracks_latlon_deg)
+    colors = maps.vehicle_colors(max(ids, default=0))
+    tracks = [frame.to_local_xy(np.asarray(tracks_latlon_deg[v], dtype=float)) for v in ids]
+    maps.draw_polylines(ax, tracks, [f"UAV {v} flown" for v in ids], [colors[v - 1] for v in ids],
+                        linewidth=1.0, arrows=False)
+    maps.draw_launch(ax)
+    est = [p for p in people if math.isfinite(p.east_m)]
+    for located, color, label in ((True, "#2ca02c", "located (95 % circle)"), (False, "#d62728", "not located")):
+        group = [p for p in est if p.located == located]
+        if not group:
+            continue
+        xy = np.array([[p.east_m, p.north_m] for p in group])
+        maps.draw_circles(ax, xy, [p.radius95_m for p in group], color=color, alpha=0.12)
+        maps.draw_points(ax, xy, label, color=color, marker="P", size=45,
+                         annotations=[str(p.emitter_id) for p in group])
+    if truth_xy_m:
+        t = np.array([truth_xy_m[k][:2] for k in sorted(truth_xy_m)], dtype=float)
+        maps.draw_points(ax, t, "true position", color="#111111", marker="X", size=40)
+        for p in est:
+            if p.emitter_id in truth_xy_m:
+                tx, ty = truth_xy_m[p.emitter_id][:2]
+                ax.plot([p.east_m, tx], [p.north_m, ty], color="#111111", linewidth=0.7, zorder=4)
+    maps.add_scale_bar(ax)
+    maps.add_legend(ax)
+    maps.save_figure(fig, path)
