@@ -13,6 +13,7 @@ isolates the search. Energy budgets become per-vehicle distance limits.
 from __future__ import annotations
 
 import logging
+import warnings
 
 import numpy as np
 
@@ -142,7 +143,10 @@ def _pyvrp_probe(pyvrp, MaxRuntime, xy, dist, n, m, max_dist, runtime_s, seed):
     for a in range(n + 2 * m):
         for b in range(n + 2 * m):
             model.add_edge(locs[a], locs[b], distance=int(dist[a, b]))
-    res = model.solve(stop=MaxRuntime(runtime_s), seed=seed, display=False)
+    with warnings.catch_warnings():
+        # Probes below the optimal limit are infeasible by design; PyVRP warns about them.
+        warnings.simplefilter("ignore")
+        res = model.solve(stop=MaxRuntime(runtime_s), seed=seed, display=False)
     if not res.best.is_feasible():
         return None
     # Scheduled client activities carry the client index (add order = target index).
