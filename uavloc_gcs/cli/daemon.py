@@ -16,7 +16,7 @@ from pathlib import Path
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("daemon", help="run the closed-loop search against a fleet over MAVLink",
-                       description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+                       description=__doc__.replace("``", ""), formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--config", required=True, metavar="MISSION.toml", help="scenario + [link] section")
     p.add_argument("--out", metavar="DIR", help="results, store and .tlog files (default: ./uavloc-NAME)")
     p.add_argument("--fresh", action="store_true", help="start a new search even if DIR holds one")
@@ -56,8 +56,8 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError(f"output path {out} exists and is not a directory")
     out.mkdir(parents=True, exist_ok=True)
     if args.fresh:
-        for f in ("search.sqlite", "search.sqlite-wal", "search.sqlite-shm"):
-            (out / f).unlink(missing_ok=True)
+        for f in [out / "search.sqlite", out / "search.sqlite-wal", out / "search.sqlite-shm", *out.glob("uav*.tlog")]:
+            f.unlink(missing_ok=True)
     opts = options_from(args, scenario, out)
     view = LiveView(sys.stdout)
     result = run_search(scenario, connections, opts, out, view=view)

@@ -22,7 +22,7 @@ def _default_scenario() -> Path:
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("demo", help="paper scenario on fake vehicles + daemon + live view (about a minute)",
-                       description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+                       description=__doc__.replace("``", ""), formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--scenario", metavar="FILE.toml", help="scenario (default: examples/paper.toml)")
     p.add_argument("--out", default="uavloc-demo", metavar="DIR", help="output directory (default uavloc-demo)")
     p.add_argument("--speedup", type=float, metavar="K", help="simulated seconds per second (default: scenario's)")
