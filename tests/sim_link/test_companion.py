@@ -125,6 +125,7 @@ def test_cli_companion_against_a_fake_autopilot():
 
     port_base = 24400
     sc = load_scenario("examples/paper.toml").replace(fleet={"vehicles": 1})
+    # what `uavloc sim --no-rssi` runs: fake autopilots that route, without onboard RSSI
     fleet = FakeFleet(sc, speedup=20, seed=1, base_port=port_base, onboard_rssi=False, route=True).start_in_thread()
     proc = subprocess.Popen([sys.executable, "-m", "uavloc_gcs", "sim", "--companion", "--autopilot",
                              f"udpout:127.0.0.1:{port_base + 1}", "examples/paper.toml", "--seed", "1"],

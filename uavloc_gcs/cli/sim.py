@@ -2,6 +2,8 @@
 
     uavloc sim examples/paper.toml [--speedup 20] [--loss 0.05] [--seed 1] [--signing-key HEX]
     uavloc sim --companion --autopilot tcp:127.0.0.1:5760 examples/paper.toml
+    uavloc sim --no-rssi examples/paper.toml &   # fake autopilots only, then attach the emulator:
+    uavloc sim --companion --autopilot udpout:127.0.0.1:14561 examples/paper.toml
 
 Vehicle i is MAVLink system i on UDP ``host:(base_port + i)``: with the default base port 14560,
 uav1 listens on 14561, uav2 on 14562, ... A ground station connects with ``udpout:127.0.0.1:14561``.
@@ -28,6 +30,9 @@ def register(sub) -> None:
     p.add_argument("--host", default="127.0.0.1", help="address to bind (default loopback)")
     p.add_argument("--gcs", default=None, metavar="HOST:PORT", help="also stream to this ground station address")
     p.add_argument("--status-s", type=float, default=10.0, help="print a status line every N real seconds (0: off)")
+    p.add_argument("--no-rssi", action="store_true",
+                   help="no onboard RSSI: an external companion (e.g. uavloc sim --companion) provides it; "
+                        "the vehicles then forward messages between their peers as an autopilot routes them")
     p.add_argument("--companion", action="store_true", help="run the companion emulator against a real autopilot")
     p.add_argument("--autopilot", default=None, metavar="URL",
                    help="with --companion: tcp:HOST:PORT, udpout:HOST:PORT or udpin:HOST:PORT")
@@ -108,7 +113,8 @@ async def _run_fleet(args, scenario, key, stop) -> None:
 
     faults = FaultConfig(loss=args.loss, latency_s=args.latency_ms / 1000.0)
     fleet = FakeFleet(scenario, speedup=args.speedup, seed=args.seed, base_port=args.base_port, host=args.host,
-                      faults=faults, signing_key=key, gcs_address=_address(args.gcs))
+                      faults=faults, signing_key=key, gcs_address=_address(args.gcs),
+                      onboard_rssi=not args.no_rssi, route=args.no_rssi)
     async with fleet:
         f = scenario.fleet
         print(f"uavloc sim: {f.vehicles} fake {f.autopilot} vehicles, speed-up {fleet.speedup:g}x, seed {fleet.seed}, "
