@@ -70,7 +70,8 @@ class _PeerCodecs:
             ts = int((time.time() - 1420070400) * 1e5)
             self.rx.signing.secret_key = key
             self.rx.signing.timestamp = ts
-            self.rx.signing.allow_unsigned_callback = lambda _mav, _msg_id: False
+            # as ArduPilot: only RADIO_STATUS may come unsigned (SiK radios cannot sign)
+            self.rx.signing.allow_unsigned_callback = lambda _mav, msg_id: msg_id == mav.MAVLINK_MSG_ID_RADIO_STATUS
             for codec in self.tx.values():
                 codec.signing.secret_key = key
                 codec.signing.sign_outgoing = True
