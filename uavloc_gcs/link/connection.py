@@ -87,6 +87,8 @@ class Subscription:
 
     async def get(self, timeout_s: float | None = None) -> Message:
         """Next matching message; raises TimeoutError after ``timeout_s`` seconds."""
+        if not self._queue.empty():  # fast path: no timer needed
+            return self._queue.get_nowait()
         if timeout_s is None:
             return await self._queue.get()
         async with asyncio.timeout(timeout_s):
@@ -152,7 +154,7 @@ class Link:
 
     def _on_bytes(self, data: bytes, peer: Hashable) -> None:
         self.stats.rx_bytes += len(data)
-        t_us = int(time.time() * 1e6)
+        t_us = int(time.time() * 1e6) if self._tlog is not None else 0
         for msg in self._parser_for(peer).parse_buffer(data) or ():
             if isinstance(msg, mavlink.MAVLink_bad_data):
                 self._count_bad(msg, t_us)

@@ -16,8 +16,8 @@ from typing import Callable
 from ..errors import MissionTransferError
 from ..mission import MISSION_TYPE_MISSION, WireItem
 from .connection import Link, Subscription
-from .mission_wire import (ACCEPTED, DEFAULT_TIMEOUT_S, GIVE_UP_S, INVALID_SEQUENCE, ITEM_TIMEOUT_S, for_us,
-                           item_from_message, result_name)
+from .mission_wire import (ACCEPTED, DEFAULT_TIMEOUT_S, GENERIC_ERROR, GIVE_UP_S, INVALID_SEQUENCE, ITEM_TIMEOUT_S,
+                           MAX_RETRIES, OPERATION_CANCELLED, for_us, item_from_message, result_name)
 
 log = logging.getLogger(__name__)
 
@@ -30,8 +30,31 @@ async def download_mission(link: Link, target_system: int, target_component: int
                            stage: str = "download") -> list[WireItem]:
     """Read the vehicle's mission (all items, seq 0..n-1 as the vehicle numbers them).
 
-    Raises MissionTransferError naming the vehicle and the item that could not be fetched.
+    A vehicle that aborts the transfer (MISSION_ACK ERROR or OPERATION_CANCELLED, e.g. PX4 when a
+    late duplicate of an old request arrives out of order) is asked again from the start, up to
+    MAX_RETRIES times. Raises MissionTransferError naming the vehicle and the item that could not
+    be fetched.
     """
+    for attempt in range(MAX_RETRIES + 1):
+        try:
+            return await _download_once(link, target_system, target_component, mission_type, progress, stage)
+        except _Restart as restart:
+            if attempt == MAX_RETRIES:
+                raise MissionTransferError("vehicle aborted the download every time", vehicle=str(target_system),
+                                           operation="mission download", seq=restart.seq, result=restart.result,
+                                           result_name=result_name(restart.result)) from None
+            log.info("vehicle %d aborted the download at item %s (%s); starting again", target_system,
+                     restart.seq, result_name(restart.result))
+    raise AssertionError("unreachable")
+
+
+class _Restart(Exception):
+    def __init__(self, seq: int | None, result: int):
+        self.seq, self.result = seq, result
+
+
+async def _download_once(link: Link, target_system: int, target_component: int, mission_type: int,
+                         progress: Progress | None, stage: str) -> list[WireItem]:
     mav = link.mav
     with link.subscribe(REPLY_TYPES, source_system=target_system) as replies:
         count_msg = await _exchange(
@@ -74,6 +97,8 @@ async def _exchange(link: Link, replies: Subscription, request, wanted: Callable
             continue
         if msg.get_type() == "MISSION_ACK":
             # ACCEPTED / INVALID_SEQUENCE here are late echoes of an upload that just finished.
+            if msg.type in (GENERIC_ERROR, OPERATION_CANCELLED):
+                raise _Restart(seq, msg.type)
             if msg.type not in (ACCEPTED, INVALID_SEQUENCE):
                 raise MissionTransferError("vehicle refused the download", vehicle=str(vehicle),
                                            operation="mission download", seq=seq, result=msg.type,

@@ -31,7 +31,8 @@ from ..mission import MISSION_TYPE_MISSION, WireItem
 from .autopilots import Flavour, flavour_for, flavour_named
 from .connection import Link
 from .mission_download import download_mission
-from .mission_wire import (ACCEPTED, DEFAULT_TIMEOUT_S, GIVE_UP_S, INVALID_SEQUENCE, ITEM_TIMEOUT_S, for_us,
+from .mission_wire import (ACCEPTED, DEFAULT_TIMEOUT_S, GENERIC_ERROR, GIVE_UP_S, INVALID_SEQUENCE, ITEM_TIMEOUT_S,
+                           for_us,
                            item_message, result_name)
 
 log = logging.getLogger(__name__)
@@ -81,6 +82,7 @@ async def upload_mission(link: Link, target_system: int, target_component: int, 
         highest_sent = -1
         last_is_resend = False
         last_requested = -1
+        pending_error: int | None = None
         give_up_at = time.monotonic() + GIVE_UP_S
         if progress:
             progress("upload", 0, n)
@@ -89,18 +91,19 @@ async def upload_mission(link: Link, target_system: int, target_component: int, 
                 msg = await replies.get(timeout_s)
             except TimeoutError:
                 if time.monotonic() >= give_up_at:
-                    if n and highest_sent == n - 1 and verify:
+                    if n and highest_sent == n - 1 and verify and pending_error is None:
                         ack_lost = True  # every item went out; the read-back decides
                         break
                     raise MissionTransferError(
                         f"vehicle stopped requesting items for {GIVE_UP_S:g} s", vehicle=vehicle,
-                        operation="mission upload", seq=highest_sent + 1 if highest_sent + 1 < n else None) from None
+                        operation="mission upload", seq=highest_sent + 1 if highest_sent + 1 < n else None,
+                        result=pending_error,
+                        result_name=result_name(pending_error) if pending_error is not None else None) from None
                 await link.send(last_sent)
                 log.debug("vehicle %s upload: timeout, re-sent %s", vehicle, last_sent.get_type())
                 resends += 1
                 last_is_resend = True
                 continue
-            log.debug("vehicle %s upload: %s %s", vehicle, msg.get_type(), getattr(msg, "seq", getattr(msg, "type", "")))
             if not for_us(msg, mav.srcSystem) or getattr(msg, "mission_type", mission_type) != mission_type:
                 continue
             if msg.get_type() == "MISSION_ACK":
@@ -123,6 +126,12 @@ async def upload_mission(link: Link, target_system: int, target_component: int, 
                 if n and highest_sent == n - 1 and resends and verify:
                     ack_lost = True  # an idle vehicle refusing our re-sent last item
                     break
+                if msg.type == GENERIC_ERROR:
+                    # PX4 answers a late duplicate of our MISSION_COUNT with ERROR ("Busy") and
+                    # carries on; a vehicle that really gave up stops requesting, and the
+                    # give-up timeout then reports this result.
+                    pending_error = msg.type
+                    continue
                 raise MissionTransferError(
                     "vehicle rejected the mission", vehicle=vehicle, operation="mission upload",
                     seq=max(highest_sent, 0) if n else None, result=msg.type, result_name=result_name(msg.type))
@@ -132,7 +141,7 @@ async def upload_mission(link: Link, target_system: int, target_component: int, 
                 continue
             last_is_resend = seq <= highest_sent
             last_sent = item_message(mav, target_system, target_component, items[seq])
-            await link.send(last_sent)
+            link.send_nowait(last_sent)
             timeout_s = ITEM_TIMEOUT_S
             if seq != last_requested:  # the vehicle moved on (or restarted): progress
                 give_up_at = time.monotonic() + GIVE_UP_S
