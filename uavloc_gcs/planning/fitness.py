@@ -88,8 +88,8 @@ class Evaluator:
         D = np.concatenate([np.zeros((P, 1)), np.cumsum(step, axis=1)], axis=1)  # (P, n)
         R = np.concatenate([np.zeros((P, 1)), np.cumsum(rad, axis=1)], axis=1)  # (P, n+1)
         i = np.arange(n + 1)
-        valid = i[:, None] <= i[None, :]  # chunk [i, j)
-        nonempty = i[:, None] < i[None, :]
+        empty = i[:, None] == i[None, :]  # chunk [i, j) with i == j
+        invalid = i[:, None] > i[None, :]
         ii = np.minimum(i, n - 1)
         jj = np.maximum(i - 1, 0)
         f_prev = None
@@ -97,11 +97,12 @@ class Evaluator:
         for v in range(m):
             s_xy = self.node_xy[n + v]
             h_xy = self.node_xy[n + m + v]
-            to_first = _norm(pos[:, ii] - s_xy)  # (P, n+1): start -> element i
-            from_last = _norm(pos[:, jj] - h_xy)  # (P, n+1): element j-1 -> home
-            inner = D[:, jj][:, None, :] - D[:, ii][:, :, None]
-            L = to_first[:, :, None] + inner + from_last[:, None, :] - (R[:, None, :] - R[:, :, None])
-            L = np.where(nonempty[None], L, float(_norm(s_xy - h_xy)))
+            # A non-empty chunk's estimate separates: L(i, j) = X[i] + Y[j] with
+            # X = |start - e_i| - D_i + R_i and Y = D_{j-1} + |e_{j-1} - home| - R_j.
+            X = _norm(pos[:, ii] - s_xy) - D[:, ii] + R
+            Y = D[:, jj] + _norm(pos[:, jj] - h_xy) - R
+            L = X[:, :, None] + Y[:, None, :]
+            L[:, empty] = float(_norm(s_xy - h_xy))
             if self.max_len[v] < np.inf:
                 L = L + ENERGY_PENALTY * np.maximum(L - self.max_len[v], 0.0)
             if f_prev is None:
@@ -109,7 +110,7 @@ class Evaluator:
                 args.append(np.zeros((P, n + 1), dtype=int))
             else:
                 M = np.maximum(f_prev[:, :, None], L)
-                M = np.where(valid[None], M, np.inf)
+                M[:, invalid] = np.inf
                 a = np.argmin(M, axis=1)
                 f_v = np.take_along_axis(M, a[:, None, :], axis=1)[:, 0, :]
                 args.append(a)
