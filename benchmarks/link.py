@@ -9,7 +9,8 @@ its link losing ``--loss`` of the datagrams in each direction. For each loss rat
   adds the read-back download and comparison uavloc always does), and
 * MAVSDK's ``mission_raw.upload_mission`` (MAVSDK 4, C++ core; default 0.5 s timeout, 5 retries),
 
-with the vehicle's mission cleared in between and checked item by item afterwards. Success means
+with the vehicle's mission cleared before each upload and checked item by item afterwards; the two
+clients take turns on the same vehicle (one per loss rate), so both see the same machine load. Success means
 the call returned without error *and* the vehicle holds exactly the mission. The ratio is MAVSDK's
 median upload time over uavloc's (> 1: uavloc is faster), over runs where both succeeded.
 Target (issue 6): not slower than MAVSDK, 100 % success at 0 % and 20 % loss.
@@ -34,7 +35,8 @@ HEARTBEAT_WAIT_S = 15.0
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--items", type=int, default=500, help="mission items (default 500)")
     p.add_argument("--loss", default="0,0.2", help="comma-separated loss rates per direction (default 0,0.2)")
-    p.add_argument("--runs", type=int, default=2, help="uploads per loss rate and client (default 2)")
+    p.add_argument("--runs", type=int, default=3, help="uploads per client on a lossy link (default 3)")
+    p.add_argument("--runs-clean", type=int, default=9, help="uploads per client at 0 %% loss (default 9)")
     p.add_argument("--autopilot", choices=("px4", "ardupilot"), default="px4", help="fake vehicle flavour")
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--no-mavsdk", action="store_true", help="measure uavloc only")
@@ -121,15 +123,23 @@ async def _measure(args: argparse.Namespace) -> list[Row]:
 
     sc = load_scenario(EXAMPLES / "small.toml").replace(fleet={"autopilot": args.autopilot, "vehicles": 1})
     items = _mission(args.items, args.autopilot)
+
+    async def clear(conn: str) -> None:  # every upload starts from an empty vehicle
+        async with await open_link(conn, source_system=254) as link:
+            await link.wait_heartbeat(1, timeout_s=HEARTBEAT_WAIT_S)
+            await clear_mission(link, 1, 1)
+
     rows = []
     for loss in [float(x) for x in args.loss.split(",") if x.strip()]:
         row = Row(loss)
-        for run in range(args.runs):
-            row.runs += 1
-            fleet = FakeFleet(sc, speedup=1, seed=args.seed + run, base_port=0, faults=FaultConfig(loss=loss))
-            async with fleet:
-                (_, conn), = fleet.endpoints
+        runs = args.runs_clean if loss == 0 else args.runs
+        # one vehicle per loss rate; uavloc and MAVSDK take turns uploading to it
+        async with FakeFleet(sc, speedup=1, seed=args.seed, base_port=0, faults=FaultConfig(loss=loss)) as fleet:
+            (_, conn), = fleet.endpoints
+            for run in range(runs):
+                row.runs += 1
                 ours = None
+                await clear(conn)
                 try:
                     up_s, verified_s = await _ours(conn, items, args.autopilot)
                     if _holds(fleet.vehicle(1).mission_items, items, args.autopilot):
@@ -141,9 +151,7 @@ async def _measure(args: argparse.Namespace) -> list[Row]:
                     row.notes.append(f"uavloc run {run}: {err}")
                 if args.no_mavsdk:
                     continue
-                async with await open_link(conn, source_system=254) as link:  # start MAVSDK from empty
-                    await link.wait_heartbeat(1, timeout_s=HEARTBEAT_WAIT_S)
-                    await clear_mission(link, 1, 1)
+                await clear(conn)
                 try:
                     m_s = await _mavsdk(conn, items)
                     if _holds(fleet.vehicle(1).mission_items, items, args.autopilot):
@@ -163,13 +171,13 @@ def _med(xs) -> str:
 
 def print_upload_table(rows: list[Row], args: argparse.Namespace) -> None:
     print(f"Mission upload, {args.items} items, one {args.autopilot} fake vehicle on loopback UDP, "
-          f"{args.runs} run(s) per row (median seconds)")
-    print(f"{'loss':>5} | {'uavloc upload':>13} | {'+verify':>7} | {'MAVSDK upload':>13} | {'MAVSDK/uavloc':>13} "
+          f"median seconds over the runs (uavloc and MAVSDK alternate on the same vehicle)")
+    print(f"{'loss':>5} | {'runs':>4} | {'uavloc upload':>13} | {'+verify':>7} | {'MAVSDK upload':>13} | {'MAVSDK/uavloc':>13} "
           f"| {'uavloc ok':>9} | {'MAVSDK ok':>9}")
     for r in rows:
         ratio = statistics.median(m / o for o, m in r.pairs) if r.pairs else None
         mavsdk_ok = "-" if args.no_mavsdk else f"{r.mavsdk_ok}/{r.runs}"
-        print(f"{r.loss:>5.0%} | {_med(r.ours_s):>13} | {_med(r.ours_verified_s):>7} | {_med(r.mavsdk_s):>13} | "
+        print(f"{r.loss:>5.0%} | {r.runs:>4} | {_med(r.ours_s):>13} | {_med(r.ours_verified_s):>7} | {_med(r.mavsdk_s):>13} | "
               f"{(f'{ratio:.2f}' if ratio else '-'):>13} | {f'{r.ours_ok}/{r.runs}':>9} | {mavsdk_ok:>9}")
     for r in rows:
         for note in r.notes:
