@@ -109,3 +109,50 @@ def test_daemon_killed_and_restarted_resumes_the_same_search(tmp_path):
     assert {int(r["emitter_id"]) for r in rows} == world_ids(sc)
     assert "All 3 people heard were located" in second.stdout
     assert (out / "result.png").exists() and (out / "people.csv").exists()
+
+
+def test_operator_starts_the_vehicles_by_hand(tmp_path):
+    """start = "operator": the daemon uploads the scans and waits; the operator's own ground
+    station (another MAVLink system) arms and starts each vehicle; the search follows."""
+    import asyncio
+
+    from uavloc_gcs.link import arm, open_link, start_mission
+
+    started = []
+
+    def during(daemon, fleet):
+        daemon.opt = type(daemon.opt)(**{**daemon.opt.__dict__, "start": "operator"})
+        orig = daemon._brain
+
+        async def operator():
+            while not all(v.phase == "waiting for operator" for v in daemon.vehicles.values()):
+                await asyncio.sleep(0.05)
+            await asyncio.sleep(0.5)  # the daemon must not start anything by itself
+            assert not any(v.agent.tel.armed for v in daemon.vehicles.values())
+            for i, (_n, conn) in enumerate(fleet.endpoints):
+                link = await open_link(conn, source_system=250)
+                try:
+                    await link.wait_heartbeat(i + 1, timeout_s=5)
+                    await arm(link, i + 1, 1)
+                    await start_mission(link, i + 1, 1)
+                    started.append(i + 1)
+                finally:
+                    await link.close()
+
+        async def brain():
+            task = asyncio.ensure_future(operator())
+            try:
+                await orig()
+            finally:
+                if task.done() and task.exception():
+                    raise task.exception()
+                task.cancel()
+
+        daemon._brain = brain
+
+    sc, result = run_e2e(tmp_path, "ardupilot", during=during)
+    assert started == [1, 2]
+    check_everyone_found(sc, result)
+    with StoreReader(tmp_path / "search.sqlite") as rd:
+        starts = [e.text for e in rd.events("start")]
+    assert sorted(starts) == ["vehicle 1 started by the operator", "vehicle 2 started by the operator"]
