@@ -43,7 +43,8 @@ from .vehicle import VehicleAgent
 log = logging.getLogger(__name__)
 
 MISSION_STATE_COMPLETE = 5
-WAYPOINT_TOLERANCE_M = 10.0  # a replanned look this close to the uploaded one is "unchanged"
+WAYPOINT_TOLERANCE_M = 10.0
+REPLAN_BACKOFF_S = 10.0  # mission seconds before planning again after the planner failed  # a replanned look this close to the uploaded one is "unchanged"
 LAND_WAIT_S = 300.0  # mission seconds to wait at most for the fleet to land after sending it home
 LANDING_MARGIN_S = 30.0  # beyond the flight home and the descent at LANDING_RATE_M_S
 LANDING_RATE_M_S = 1.0
@@ -108,7 +109,6 @@ class Daemon:
         self._n_slots = 0
         self._replans = 0
         self._last_fleet: frozenset | None = None
-        self._plan_started = False
         self._finishing_since: float | None = None
         self._stop = asyncio.Event()
         self._rate = _ClockRate()
@@ -116,7 +116,7 @@ class Daemon:
         self._people_cache: list = []
         self._seq_before_crash: dict[int, int] = {}
         self._planner_limit_s = getattr(policy, "time_limit_s", None)
-        self.last_slot_wall_s: float | None = None  # for latency measurements
+        self._replan_not_before_s = -math.inf
         self.on_mission_acked: Callable[[int, str], None] | None = None
 
     # -- clock ---------------------------------------------------------------------------------
@@ -311,8 +311,8 @@ class Daemon:
         back to the leg the vehicle was on when the last telemetry was stored."""
         then = self._seq_before_crash.get(v.id)
         now = v.agent.tel.mission_seq
-        if then is None or now is None or (now <= then and v.agent.tel.mission_state != MISSION_STATE_COMPLETE):
-            return  # still on the leg it was on: only a moment of it was missed
+        if then is None or now is None or now <= then:
+            return  # still on the leg it was on (or done before the crash): nothing worth re-flying
         waypoints = [it.seq for it in items if it.command == NAV_WAYPOINT and it.seq > 0]
         if not waypoints:
             return
@@ -350,7 +350,6 @@ class Daemon:
     def _on_slots(self, batch: SlotBatch) -> None:
         self._slots_in.append(batch)
         self.store.add_slots(batch)
-        self.last_slot_wall_s = self.wall()
 
     def _on_position(self, vehicle: int, tel) -> None:
         self._rate.observe(tel)
@@ -464,7 +463,7 @@ class Daemon:
             return await self._finish(active)
         fleet = frozenset(v.id for v in active)
         usable = active
-        if self.policy.needs_replan(t, changed) or fleet != self._last_fleet:
+        if (self.policy.needs_replan(t, changed) or fleet != self._last_fleet) and t >= self._replan_not_before_s:
             self._last_fleet = fleet
             await self._replan(t, usable)
         if all(v.home for v in active):
@@ -495,7 +494,13 @@ class Daemon:
             # under a speed-up, a second of planning is many seconds of flight: keep it ~2 mission s
             self.policy.time_limit_s = min(self._planner_limit_s, max(0.05, 2.0 / self._rate.rate))
         w0 = self.wall()
-        plan = await asyncio.to_thread(self.policy.replan, t, states)
+        try:
+            plan = await asyncio.to_thread(self.policy.replan, t, states)
+        except UavlocError as exc:  # keep flying the current missions; try again a little later
+            self._replan_not_before_s = t + REPLAN_BACKOFF_S
+            self._event("error", f"planning failed ({exc}); the vehicles keep their missions, retrying in "
+                        f"{REPLAN_BACKOFF_S:g} s")
+            return
         self._replans += 1
         self.store.add_plan(t, {"t_s": t, "makespan_s": plan.makespan_s, "runtime_s": plan.planner_runtime_s,
                                 "wall_s": self.wall() - w0, "time_limit_s": getattr(self.policy, "time_limit_s", None),
