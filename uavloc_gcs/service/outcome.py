@@ -67,7 +67,8 @@ def final_results(statuses, slots, scenario, frame: LocalFrame) -> list[PersonRe
     freezes a person's estimate when it first meets the accuracy; later passes usually sharpen it,
     while a constant-velocity fit over a whole search is hurt by people changing direction.
     A person counts as located if the policy located it or the final estimate is within the
-    required accuracy without mirror ambiguity; otherwise the policy's belief is reported."""
+    required accuracy without mirror ambiguity. A person the policy located keeps its fix unless
+    a refit is also within the required accuracy; otherwise the policy's belief is reported."""
     from ..estimation import ChannelModel  # noqa: PLC0415
 
     channel = ChannelModel.from_scenario(scenario)
@@ -79,8 +80,9 @@ def final_results(statuses, slots, scenario, frame: LocalFrame) -> list[PersonRe
         recent = part.take(part.t_s >= (part.t_s.max() - FINAL_WINDOW_S if len(part) else 0.0))
         est = None
         for data in (recent, part):  # a constant-velocity fit holds over minutes, not a whole search
-            est = _fit(data, channel, scenario.people.max_speed_m_s)
-            if est is not None:
+            fit = _fit(data, channel, scenario.people.max_speed_m_s)
+            if fit is not None and (fit.radius95_m <= required or not base.located):
+                est = fit  # never trade a located fix for a looser refit
                 break
         if est is None:
             out.append(base)
