@@ -69,3 +69,32 @@ def test_person_result_of_an_ambiguous_person_keeps_the_policys_candidate_and_re
     r = person_result(st, frame)
     assert (r.east_m, r.north_m) == (100.0, -50.0) and not r.located and not r.ambiguity_resolved
     assert r.reason.startswith("mirror ambiguity") and math.isnan(r.fix_time_s) and math.isnan(r.annulus_bound_m)
+
+
+def _two_lanes(sc, world):
+    t = np.arange(0.0, 40.0, sc.channel.slot_s)
+    lanes = []
+    for k, y in enumerate((40.0, 140.0)):
+        xyz = np.column_stack([15.0 * t, np.full(len(t), y), np.full(len(t), 100.0)])
+        lanes.append(world.hear_track(1, t + 60.0 * k, xyz))
+    from uavloc_gcs.observations import SlotBatch
+
+    return SlotBatch.concat(lanes)
+
+
+def test_final_results_refit_all_data_and_stay_consistent_with_located():
+    from sim_link.world import World
+    from tests.e2e_helpers import small_scenario
+    from uavloc_gcs.service.outcome import final_results
+
+    sc = small_scenario(seed=5)
+    world = World.with_people(sc, [[300.0, 90.0]], seed=5)
+    eid = int(world.emitter_ids[0])
+    slots = _two_lanes(sc, world)
+    est = _Est(np.array([280.0, 80.0]), np.zeros(2), 60.0, 14.0, 30.0)
+    st = _Status(eid, est, True, "located", (280.0, 80.0), 60.0, 60.0)
+    (good,) = final_results([st], slots, sc, sc.frame)
+    assert good.located and good.radius95_m <= sc.people.required_accuracy_m
+    assert math.hypot(good.east_m - 300.0, good.north_m - 90.0) < 10.0  # the refit, not the fix
+    (kept,) = final_results([st], slots.take(np.arange(5)), sc, sc.frame)  # too little to refit
+    assert kept.located and (kept.east_m, kept.north_m, kept.radius95_m) == (280.0, 80.0, 14.0)
