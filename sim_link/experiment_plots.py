@@ -23,18 +23,23 @@ def _series(rows, key_x, key_y, key_ci):
     return {m: np.array(v, dtype=float) for m, v in by.items()}
 
 
-def _plot(ax, series, *, bars: bool) -> None:
-    for m, a in series.items():
+def _plot(ax, series, *, bars: bool, log: bool) -> None:
+    # the reference method last and thickest: PSO/GA often coincide with it and would hide it
+    order = sorted(series, key=lambda m: m == "MLE-EPSO (M)")
+    for m in order:
+        a = series[m]
         color, marker, ls = STYLE.get(m, ("k", ".", "-"))
+        lw = 2.6 if m == "MLE-EPSO (M)" else 1.4
         x, y, ci = a[:, 0], a[:, 1], np.nan_to_num(a[:, 2], nan=0.0)
+        lo = np.maximum(y - ci, y / 10.0) if log else np.maximum(y - ci, 0.0)
         if bars:
-            ax.errorbar(x, y, yerr=ci, color=color, marker=marker, ls=ls, capsize=3, label=m)
+            ax.errorbar(x, y, yerr=[y - lo, ci], color=color, marker=marker, ls=ls, lw=lw, capsize=3, label=m)
         else:
-            ax.plot(x, y, color=color, ls=ls, label=m)
-            ax.fill_between(x, y - ci, y + ci, color=color, alpha=0.15, lw=0)
+            ax.plot(x, y, color=color, ls=ls, lw=lw, label=m)
+            ax.fill_between(x, lo, y + ci, color=color, alpha=0.08, lw=0)
 
 
-def plot_all(rows_a, rows_b, rows_c, out_dir: Path) -> list[Path]:
+def plot_all(rows_a, rows_b, rows_c, out_dir: Path, required_m: float | None = None) -> list[Path]:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -47,13 +52,13 @@ def plot_all(rows_a, rows_b, rows_c, out_dir: Path) -> list[Path]:
         ("fig_b_runtime.png", rows_b, "people", "runtime_mean_s", "runtime_ci95_s",
          "number of people", "algorithm run time [s]", "(b) Algorithm run time (planning / learning)", True, True),
         ("fig_c_error_vs_time.png", rows_c, "t_s", "max_error_mean_m", "max_error_ci95_m",
-         "task time [s]", "maximum localization error [m]", "(c) Maximum localization error, 10 people", False, True),
+         "task time [s]", "maximum localization error [m]", "(c) Maximum localization error vs time", False, True),
     ]
     for name, rows, kx, ky, kci, xl, yl, title, bars, logy in specs:
         if not rows:
             continue
         fig, ax = plt.subplots(figsize=(6.4, 4.2), dpi=120)
-        _plot(ax, _series(rows, kx, ky, kci), bars=bars)
+        _plot(ax, _series(rows, kx, ky, kci), bars=bars, log=logy)
         ax.set_xlabel(xl)
         ax.set_ylabel(yl)
         ax.set_title(title)
@@ -61,6 +66,10 @@ def plot_all(rows_a, rows_b, rows_c, out_dir: Path) -> list[Path]:
             vals = [r[ky] for r in rows if r[ky] is not None and math.isfinite(r[ky]) and r[ky] > 0]
             if vals:
                 ax.set_yscale("log")
+        else:
+            ax.set_ylim(bottom=0.0)
+        if name.startswith("fig_c") and required_m:
+            ax.axhline(required_m, color="k", lw=0.8, ls="--", label=f"required {required_m:g} m")
         ax.grid(True, alpha=0.3, which="both")
         ax.legend(fontsize=8)
         fig.tight_layout()

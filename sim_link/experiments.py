@@ -246,7 +246,7 @@ def summary_text(er: ExperimentResult, command: str = "") -> str:
     if command:
         lines += [f"Command: `{command}`", ""]
     lines += [f"Scenario `{cfg.scenario.name}`, {cfg.runs} run(s) per point, people {list(cfg.people)}, seed {cfg.seed}, "
-              f"planner {cfg.iterations} iterations per replan (local search "
+              f"scan coverage `{cfg.scenario.scan.coverage}`, planner {cfg.iterations} iterations per replan (local search "
               f"{'on' if cfg.scenario.planner.local_search else 'off'}, warm start "
               f"{'on' if cfg.scenario.planner.warm_start else 'off'}), required accuracy "
               f"{cfg.scenario.people.required_accuracy_m:g} m, motion `{cfg.scenario.simulation.motion}`.", ""]
@@ -286,5 +286,6 @@ def write_outputs(er: ExperimentResult, out_dir: Path, command: str = "") -> lis
     for name, text in files.items():
         (out_dir / name).write_text(text, encoding="utf-8")
         written.append(out_dir / name)
-    written += experiment_plots.plot_all(table_a(er), table_b(er), table_c(er), out_dir)
+    written += experiment_plots.plot_all(table_a(er), table_b(er), table_c(er), out_dir,
+                                         er.config.scenario.people.required_accuracy_m)
     return written

@@ -52,6 +52,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     pp.add_argument("--plain", action="store_true",
                     help="the paper's plain optimizers: no local search, no warm start (default: both on, "
                          "as the scenario says)")
+    pp.add_argument("--coverage", choices=("single", "double"), default=None,
+                    help="override the scan coverage (the paper's grid is 'single'; default: the scenario's)")
     pp.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
     pp.set_defaults(func=run)
     p.set_defaults(func=lambda args: (p.print_help(), 2)[1])
@@ -97,6 +99,8 @@ def run(args: argparse.Namespace) -> int:
         if bad:
             raise ConfigError(f"--methods: unknown method {bad[0]!r}; choose from {', '.join(ALL_METHODS)}")
     sc = load_scenario(args.scenario)
+    if args.coverage:
+        sc = sc.replace(scan={"coverage": args.coverage})
     if args.plain:
         sc = sc.replace(planner={"local_search": False, "warm_start": False})
     cfg = ExperimentConfig(sc, people=args.people or DEFAULT_PEOPLE, runs=args.runs, seed=args.seed,
