@@ -1,0 +1,106 @@
+"""The daemon's decisions without a network: who gets planned for, what gets uploaded."""
+
+import asyncio
+from types import SimpleNamespace
+
+import numpy as np
+
+from tests.e2e_helpers import small_scenario
+from uavloc_gcs.service.daemon import Daemon, DaemonOptions
+from uavloc_gcs.service.store import Store
+from uavloc_gcs.service.vehicle import Telemetry
+
+
+class _Agent:
+    def __init__(self, xy):
+        self.xy = xy
+        self.tel = Telemetry(battery_pct=80.0, mission_seq=0, armed=True, mode="AUTO")
+        self.flavour = SimpleNamespace(home_at_seq0=True, name="ardupilot")
+        self.uploads, self.switches, self.homes = [], [], 0
+
+    def position_xy_m(self):
+        return self.xy
+
+    def on_ground(self):
+        return False
+
+    async def upload(self, items):
+        self.uploads.append(items)
+
+    async def switch_to(self, seq, *, on_ground):
+        self.switches.append(seq)
+
+    async def return_home(self):
+        self.homes += 1
+
+
+class _Policy:
+    """Asks for a plan; gives every vehicle it is offered one look at person 7 (or 8)."""
+
+    time_limit_s = 0.1
+
+    def __init__(self):
+        self.offered = []
+
+    def done(self, t):
+        return False
+
+    def needs_replan(self, t, changed):
+        return bool(changed)
+
+    def replan(self, t, vehicles):
+        self.offered.append(sorted(v.id for v in vehicles))
+        tasks = [SimpleNamespace(vehicle_id=v.id, target_ids=(7 + k,), eta_s=t + 60, access_times_s=(t + 10,),
+                                 waypoints_xy_m=np.array([[100.0 * (k + 1), 50.0], [0.0, 0.0]]))
+                 for k, v in enumerate(vehicles)]
+        return SimpleNamespace(tasks=tuple(tasks), makespan_s=60.0, planner_runtime_s=0.01)
+
+
+def _daemon(tmp_path):
+    sc = small_scenario()
+    policy = _Policy()
+    d = Daemon(sc, [(1, "udpout:127.0.0.1:26990"), (2, "udpout:127.0.0.1:26991")],
+               DaemonOptions(store_path=tmp_path / "s.sqlite"), policy=policy)
+    d.store = Store(tmp_path / "s.sqlite")
+    for vid, v in d.vehicles.items():
+        v.agent = _Agent((50.0 * vid, 100.0))
+        v.scan_done, v.phase = True, "hovering (scan done)"
+    return d, policy
+
+
+def test_a_lost_vehicles_people_go_to_the_others_and_unchanged_missions_are_not_re_uploaded(tmp_path):
+    d, policy = _daemon(tmp_path)
+    try:
+        asyncio.run(d._step(100.0, {7}))
+        assert policy.offered == [["1", "2"]]
+        a1, a2 = d.vehicles[1].agent, d.vehicles[2].agent
+        assert len(a1.uploads) == 1 and len(a2.uploads) == 1
+        first_seq = d.vehicles[1].look_first_seq
+
+        asyncio.run(d._step(101.0, {7}))  # same plan, vehicles still before their looks
+        assert len(a1.uploads) == 1 and len(a2.uploads) == 1
+
+        d.vehicles[1].lost = True  # vehicle 1 goes silent: the plan is made for vehicle 2 alone
+        asyncio.run(d._step(102.0, set()))
+        assert policy.offered[-1] == ["2"]
+        assert len(a2.uploads) == 2 and d.vehicles[2].targets == (7,)
+
+        d.vehicles[1].lost = False  # back: planned for again
+        a2.tel.mission_seq = first_seq + 1  # vehicle 2 has passed its look: an equal plan is new to it
+        asyncio.run(d._step(103.0, set()))
+        assert policy.offered[-1] == ["1", "2"] and len(a2.uploads) == 3
+    finally:
+        d.store.close()
+
+
+def test_no_plan_until_every_vehicle_in_contact_has_finished_its_scan(tmp_path):
+    d, policy = _daemon(tmp_path)
+    try:
+        d.vehicles[2].scan_done, d.vehicles[2].phase = False, "scanning"
+        asyncio.run(d._step(50.0, {7}))
+        assert policy.offered == []
+        d.vehicles[2].lost = True  # ... unless the one still scanning is lost
+        asyncio.run(d._step(51.0, {7}))
+        assert policy.offered == [["1"]]
+    finally:
+        d.store.close()
