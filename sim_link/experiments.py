@@ -245,18 +245,21 @@ def summary_text(er: ExperimentResult, command: str = "") -> str:
     lines = ["# Paper experiment: summary", ""]
     if command:
         lines += [f"Command: `{command}`", ""]
-    lines += [f"Scenario `{cfg.scenario.name}`, {cfg.runs} run(s) per point, people {list(cfg.people)}, seed {cfg.seed}, "
-              f"scan coverage `{cfg.scenario.scan.coverage}`, planner {cfg.iterations} iterations per replan (local search "
-              f"{'on' if cfg.scenario.planner.local_search else 'off'}, warm start "
-              f"{'on' if cfg.scenario.planner.warm_start else 'off'}), required accuracy "
-              f"{cfg.scenario.people.required_accuracy_m:g} m, motion `{cfg.scenario.simulation.motion}`.", ""]
+    pl = cfg.scenario.planner
+    onoff = {True: "on", False: "off"}
+    lines += [f"Scenario `{cfg.scenario.name}`, {cfg.runs} run(s) per point, people {list(cfg.people)}, "
+              f"seed {cfg.seed}, scan coverage `{cfg.scenario.scan.coverage}`, planner {cfg.iterations} "
+              f"iterations per replan (local search {onoff[pl.local_search]}, warm start {onoff[pl.warm_start]}), "
+              f"required accuracy {cfg.scenario.people.required_accuracy_m:g} m, "
+              f"motion `{cfg.scenario.simulation.motion}`.", ""]
     lines += ["| method | people | completion time [s] | algorithm run time [s] | located | max error [m] |",
               "|---|---|---|---|---|---|"]
     b = {(r["method"], r["people"]): r for r in table_b(er)}
     for r in table_a(er):
         rb = b[(r["method"], r["people"])]
         lines.append(f"| {r['method']} | {r['people']} | {r['completion_time_mean_s']:.1f} ± "
-                     f"{_ci(r['completion_time_ci95_s'])} | {rb['runtime_mean_s']:.2f} ± {_ci(rb['runtime_ci95_s'], 2)} | "
+                     f"{_ci(r['completion_time_ci95_s'])} | {rb['runtime_mean_s']:.2f} ± "
+                     f"{_ci(rb['runtime_ci95_s'], 2)} | "
                      f"{100 * r['located_fraction_mean']:.0f} % | {r['max_error_mean_m']:.1f} |")
     lines += ["", f"Completion-time reduction of {REFERENCE} (the paper reports "
               f"{100 * PAPER_REDUCTION:.1f} % against its comparison scheme):", ""]

@@ -222,7 +222,8 @@ def simulate_mission(
         raise ValueError(f"unknown method {method!r}; expected one of {', '.join(METHODS)}")
     model_motion, optimizer = METHODS[method]
     policy = SearchPolicy(scenario, model_motion=model_motion, optimizer=optimizer,
-                          local_search=scenario.planner.local_search, seed=seed, time_limit_s=time_limit_s, max_iter=max_iter)
+                          local_search=scenario.planner.local_search, seed=seed, time_limit_s=time_limit_s,
+                          max_iter=max_iter)
     scan = plan_scan(scenario)
     m = scenario.fleet.vehicles
     vehicles = [Vehicle(i + 1, scenario) for i in range(m)]

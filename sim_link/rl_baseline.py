@@ -248,7 +248,9 @@ def _hover(world: World, agent: _Agent, shared: _Shared, required_m: float) -> N
     ch = sc.channel
     for eid in slots.emitters():
         s = slots.for_emitter(int(eid))
-        ln_r = np.log(ch.reference_distance_m) + (ch.reference_power_dbm - s.rssi_dbm) / (10 * ch.path_loss_exponent) * np.log(10)
+        # invert the calibrated path loss: ln r = ln d0 + (P0 - rssi) ln10 / (10 eta)
+        ln_r = np.log(ch.reference_distance_m) + (ch.reference_power_dbm - s.rssi_dbm) * np.log(10) / (
+            10 * ch.path_loss_exponent)
         n = int(np.sum(s.n_samples))
         mean = float(np.sum(ln_r * s.n_samples) / n)
         a = an.annulus_from_slots(agent.xy, mean, n, s_per_sample=ch.log_range_sigma,
