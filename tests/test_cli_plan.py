@@ -211,3 +211,10 @@ def test_preview_missing_file_and_bad_picture_suffix(small_out, tmp_path, uavloc
 def test_bad_overrides(tmp_path, uavloc_inproc, args, fragment):
     err = _one_sentence_error(uavloc_inproc("plan", EXAMPLES / "small.toml", "--out", tmp_path / "o", *args))
     assert fragment in err and not (tmp_path / "o").exists()
+
+
+def test_preview_of_a_mission_without_positions(tmp_path, uavloc_inproc):
+    f = tmp_path / "rtl.waypoints"
+    f.write_text("QGC WPL 110\n0\t1\t0\t16\t0\t0\t0\t0\t0\t0\t0\t1\n1\t0\t2\t20\t0\t0\t0\t0\t0\t0\t0\t1\n")
+    res = uavloc_inproc("preview", f)
+    assert res.returncode == 0 and "no positional items" in res.stdout and "NAV_RETURN_TO_LAUNCH" in res.stdout

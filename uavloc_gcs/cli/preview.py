@@ -67,8 +67,8 @@ def run(args: argparse.Namespace) -> int:
         else "autopilot not recorded"
     n_wp = sum(1 for it in mission.items if it.command == NAV_WAYPOINT)
     holds = sum(1 for it in mission.items if it.command == NAV_WAYPOINT and it.params[0] > 0)
-    print(f"{args.file}: {kind}, {ap}, {len(mission.items)} items, {n_wp} waypoints "
-          f"({'all pass-through' if holds == 0 else f'{holds} with a hold'})")
+    hold_text = "" if n_wp == 0 else (" (all pass-through)" if holds == 0 else f" ({holds} with a hold)")
+    print(f"{args.file}: {kind}, {ap}, {len(mission.items)} item(s), {n_wp} waypoint(s){hold_text}")
     if has_home:
         alt = "unknown AMSL altitude" if math.isnan(mission.home_alt_m) else f"{mission.home_alt_m:g} m AMSL"
         print(f"home {mission.home_lat_deg:.7f}, {mission.home_lon_deg:.7f} ({alt})")
@@ -97,8 +97,10 @@ def run(args: argparse.Namespace) -> int:
         layers.append(Layer(xy, "o", "points", labels=tuple(marks), name="waypoint"))
         if has_home:
             layers.append(Layer(np.zeros((1, 2)), "H", "points", name="home"))
-        if len(route) or len(xy):
+        if len(xy):
             print(char_map(layers, width=args.width))
+        else:
+            print("(no positional items to draw)")
     if not args.no_table:
         print()
         print(item_table(mission))
