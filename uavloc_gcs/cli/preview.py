@@ -101,6 +101,8 @@ def run(args: argparse.Namespace) -> int:
             print(char_map(layers, width=args.width))
         else:
             print("(no positional items to draw)")
+    else:
+        print("(no positional items to draw)")
     if not args.no_table:
         print()
         print(item_table(mission))
