@@ -15,13 +15,16 @@ Layout, in a frame rotated so that lanes are horizontal ("along" = lane directio
   one lane, about 30 % fewer lanes, but half-observable people. ``scan.lane_spacing_m`` replaces the
   mode's spacing (it is an upper bound; lanes are spread evenly across the area).
 * **Lanes** are the chords of the area at each offset (several per offset in concave areas;
-  the vehicle flies straight over a notch between them). A final repair pass samples the area and
-  lengthens lane ends wherever a sample is not within R of enough lanes (acute corners).
-* **Split.** Lanes ("rows") are partitioned into contiguous groups, one per vehicle, minimizing
-  the longest vehicle flight **including the transit from and back to the launch point** (exact
-  dynamic programme over contiguous groups; each group flown in the best of its four
-  boustrophedon entry choices). All hull-edge directions (plus east and north) are tried and
-  the one with the shortest makespan is kept.
+  the vehicle flies straight over a notch between them). Two repair passes lengthen lane ends
+  wherever a point is not within R of enough lanes (acute corners, slanted edges, notches):
+  first against a dense sample of the area, then against the exactly computed uncovered region
+  (polygon buffers of the lanes, which err on the side of "uncovered").
+* **Split**, balanced by flight time **including the transit from and back to the launch
+  point**; two ways are tried and the shorter longest flight wins: (a) lanes ("rows") in
+  contiguous groups, one per vehicle, by an exact dynamic programme, each group flown in the best
+  of its four boustrophedon entries; (b) one serpentine over all rows cut into consecutive pieces
+  anywhere, mid-lane too (bisection on the makespan with a greedy cut), which balances finer.
+  All hull-edge directions (plus east and north) are tried as lane directions.
 
 Time and energy use a constant cruise speed (``energy.route_cost``): climb, descent and turns are
 not modelled, so they are a lower bound on what the battery needs.
