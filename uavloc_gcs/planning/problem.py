@@ -113,8 +113,10 @@ class Plan:
 @dataclass
 class PlanResult:
     """scipy-style result. ``x`` is the best decision vector in the optimizer's own encoding
-    (random keys for EPSO/PSO, permutation + route sizes for GA); ``fun`` the makespan [s]
-    (penalized if ``success`` is False)."""
+    (random keys for EPSO/PSO, permutation + route sizes for GA, node order + route sizes for the
+    anchors); ``plan`` is authoritative (it includes the final polish); ``fun`` the makespan [s] of
+    ``plan``; ``success`` False when no energy-feasible plan was found (``message`` says which
+    vehicle lacks how much); ``history`` the best search fitness [s] after each iteration."""
 
     x: np.ndarray
     fun: float

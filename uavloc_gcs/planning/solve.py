@@ -119,7 +119,10 @@ def solve(problem: RoutingProblem, *, method: str = "epso", rng=None, time_limit
     polish = 0.05 * budget if local_search else 0.0
     deadline = t_start + budget - reserve - polish
 
+    history: list[float] = []
+
     def cb(x, fun, nit):
+        history.append(fun)
         if callback is None:
             return False
         try:
@@ -146,7 +149,9 @@ def solve(problem: RoutingProblem, *, method: str = "epso", rng=None, time_limit
         order, counts = ev.from_routes(routes)
         points = ls.evaluate(routes)[1]
     plan = ev.plan(order, counts, lb, points=points, deadline=t_start + budget)
-    return _result(ev, order, counts, plan, nit, message, t_start, np.asarray(x))
+    res = _result(ev, order, counts, plan, nit, message, t_start, np.asarray(x))
+    res.history = history
+    return res
 
 
 def _result(ev: Evaluator, order, counts, plan: Plan, nit: int, message: str, t_start: float,
