@@ -14,6 +14,7 @@ BENCHMARKS = {
     "localize": "estimator vs the Bayesian Cramér-Rao bound (RMSE ratio, 95 % coverage, solve time)",
     "plan": "route planner vs OR-Tools, PyVRP and the lower bound (makespan ratios, runtimes)",
     "link": "mission upload vs MAVSDK, replanning latency, RSSI ingestion rate",
+    "scan_coverage": "full adaptive mission with double vs single lane coverage (time, accuracy)",
 }
 
 
