@@ -26,11 +26,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "bench",
         help="benchmarks against external anchors",
-        description="Run benchmarks. " + "; ".join(f"{k}: {v}" for k, v in BENCHMARKS.items()),
+        description="Run benchmarks. "
+        + "; ".join(f"{k}: {v}" for k, v in BENCHMARKS.items()).replace("%", "%%"),
     )
     bsub = p.add_subparsers(dest="benchmark", metavar="NAME")
     for name, text in _available().items():
-        bp = bsub.add_parser(name, help=text, description=text)
+        safe = text.replace("%", "%%")  # argparse %-formats help strings
+        bp = bsub.add_parser(name, help=safe, description=safe)
         importlib.import_module(f"benchmarks.{name}").add_arguments(bp)
         bp.set_defaults(func=_runner(name))
     p.set_defaults(func=_run_all)
