@@ -9,18 +9,19 @@ import numpy as np
 
 from uavloc_gcs.scenario import loads_scenario
 
-# Two vehicles over 500 m x 300 m, three people: a whole search in ~200 s of mission time.
+# Two vehicles over 400 m x 250 m at 60 m, three people: a whole search in ~150 s of mission time.
 SMALL = """
 name = "e2e"
 [area]
 origin_lat_deg = 42.62500
 origin_lon_deg = 13.28300
-width_m = 500.0
-height_m = 300.0
+width_m = 400.0
+height_m = 250.0
 [fleet]
 vehicles = 2
 autopilot = "{autopilot}"
 speed_m_s = 15.0
+altitude_m = 60.0
 energy_budget_j = 200000.0
 [people]
 required_accuracy_m = 15.0

@@ -17,7 +17,7 @@ def test_twenty_percent_packet_loss(tmp_path):
     from sim_link.faults import FaultConfig
 
     # Under loss the protocol timeouts (wall clock) stretch: a lower speed-up keeps them realistic.
-    sc, result = run_e2e(tmp_path, "ardupilot", faults=FaultConfig(loss=0.2), speedup=12.0)
+    sc, result = run_e2e(tmp_path, "ardupilot", faults=FaultConfig(loss=0.2), speedup=15.0)
     check_everyone_found(sc, result)
 
 
