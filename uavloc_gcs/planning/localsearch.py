@@ -90,6 +90,8 @@ def or_opt(x: np.ndarray, route: list[int], max_len: int = 3, max_rounds: int = 
 class LocalSearch:
     """Local search bound to one evaluator (one problem)."""
 
+    segment_moves = True
+
     def __init__(self, ev: Evaluator):
         self.ev = ev
         self.max_len = ev.max_len
@@ -190,11 +192,18 @@ class LocalSearch:
             b2 = np.unravel_index(int(np.argmin(sc2)), sc2.shape)
             best_swap = sc2[b2]
         best_star, star_move = self._two_opt_star(routes, pts, lengths, c)
-        best = min(best_reloc, best_swap, best_star)
+        best_seg, seg_move = (self._segment_relocate(routes, pts, lengths, c, U, W, R, POS)
+                              if self.segment_moves else (np.inf, None))
+        best = min(best_reloc, best_swap, best_star, best_seg)
         if best >= Lc - 1e-6:
             return None
         routes = [list(r) for r in routes]
-        if best_star == best:
+        if best_seg == best:
+            i, ln, e, rev = seg_move
+            seg = routes[c][i:i + ln]
+            del routes[c][i:i + ln]
+            routes[R[e]][POS[e]:POS[e]] = seg[::-1] if rev else seg
+        elif best_star == best:
             v, i, j = star_move
             tail_c, tail_v = routes[c][i:], routes[v][j:]
             routes[c] = routes[c][:i] + tail_v
@@ -208,6 +217,35 @@ class LocalSearch:
             v, p, t = ov[o], op[o], ot[o]
             routes[c][i], routes[v][p] = t, routes[c][i]
         return routes
+
+    def _segment_relocate(self, routes, pts, lengths, c, U, W, R, POS):
+        """Best move of 2 or 3 consecutive targets of the longest route ``c`` into an edge
+        (U, W) of another route (``R``, insertion position ``POS``), possibly reversed; access
+        points held fixed (a conservative estimate)."""
+        xc = self._route_x(c, routes[c], pts)
+        k = len(routes[c])
+        Lc = lengths[c]
+        best, move = np.inf, None
+        for ln in (2, 3):
+            if k < ln:
+                continue
+            i = np.arange(k - ln + 1)  # first target index; slots i+1 .. i+ln
+            first, last = xc[i + 1], xc[i + ln]
+            inner = np.array([_norm(np.diff(xc[a + 1:a + ln + 1], axis=0)).sum() for a in i])
+            gain = (_norm(first - xc[i]) + inner + _norm(xc[i + ln + 1] - last)
+                    - _norm(xc[i + ln + 1] - xc[i]))
+            base = _norm(W - U)[None]
+            fwd = _norm(first[:, None] - U[None]) + _norm(W[None] - last[:, None]) - base
+            rev = _norm(last[:, None] - U[None]) + _norm(W[None] - first[:, None]) - base
+            add = np.minimum(fwd, rev) + inner[:, None]
+            new_v = lengths[R][None] + add
+            new_c = (Lc - gain)[:, None]
+            ok = new_v <= self.max_len[R][None] * (1 - 1e-12)
+            score = np.where(ok, np.maximum(new_v, new_c), np.inf)
+            a, e = np.unravel_index(int(np.argmin(score)), score.shape)
+            if score[a, e] < best:
+                best, move = float(score[a, e]), (int(a), ln, int(e), bool(rev[a, e] < fwd[a, e]))
+        return best, move
 
     def _two_opt_star(self, routes, pts, lengths, c):
         """Best exchange of route tails between the longest route ``c`` and another one:
