@@ -30,6 +30,8 @@ from pathlib import Path
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 HEARTBEAT_WAIT_S = 15.0
+CLEAR_ATTEMPTS = 4
+VEHICLE_TRANSFER_TIMEOUT_S = 8.0  # ArduPilot's upload timeout (PX4: 5 s)
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -118,16 +120,26 @@ async def _mavsdk(conn: str, items) -> float:
 async def _measure(args: argparse.Namespace) -> list[Row]:
     from sim_link.faults import FaultConfig
     from sim_link.fleet import FakeFleet
+    from uavloc_gcs.errors import MissionTransferError
     from uavloc_gcs.link import clear_mission, open_link
     from uavloc_gcs.scenario import load_scenario
 
     sc = load_scenario(EXAMPLES / "small.toml").replace(fleet={"autopilot": args.autopilot, "vehicles": 1})
     items = _mission(args.items, args.autopilot)
 
-    async def clear(conn: str) -> None:  # every upload starts from an empty vehicle
-        async with await open_link(conn, source_system=254) as link:
-            await link.wait_heartbeat(1, timeout_s=HEARTBEAT_WAIT_S)
-            await clear_mission(link, 1, 1)
+    async def clear(conn: str) -> None:
+        """Every upload starts from an empty vehicle. A vehicle still inside an aborted transfer
+        refuses (PX4: "Busy") until its own transfer timeout (5 s / 8 s) has passed."""
+        for attempt in range(CLEAR_ATTEMPTS):
+            try:
+                async with await open_link(conn, source_system=254) as link:
+                    await link.wait_heartbeat(1, timeout_s=HEARTBEAT_WAIT_S)
+                    await clear_mission(link, 1, 1)
+                return
+            except MissionTransferError:
+                if attempt == CLEAR_ATTEMPTS - 1:
+                    raise
+                await asyncio.sleep(VEHICLE_TRANSFER_TIMEOUT_S)
 
     rows = []
     for loss in [float(x) for x in args.loss.split(",") if x.strip()]:
