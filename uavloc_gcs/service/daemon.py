@@ -21,7 +21,6 @@ loss window).
 from __future__ import annotations
 
 import asyncio
-import dataclasses
 import logging
 import math
 import time
@@ -32,10 +31,11 @@ from typing import Callable, Sequence
 import numpy as np
 
 from ..errors import LinkError, UavlocError
-from ..mission import NAV_RETURN_TO_LAUNCH, NAV_WAYPOINT, WireItem, flight_mission, to_wire
+from ..mission import NAV_WAYPOINT, flight_mission, to_wire
 from ..observations import SlotBatch
 from ..scenario import Scenario
 from .liveview import LiveView, PersonStatusView, StatusSnapshot, VehicleStatus
+from .missionstate import ClockRate, final_seq, same_route, same_stored_mission, without_final_rtl
 from .outcome import SearchOutcome, estimate_row, final_results, statement_for
 from .store import Store, StoreReader, TelemetryRow
 from .vehicle import VehicleAgent
@@ -111,7 +111,7 @@ class Daemon:
         self._last_fleet: frozenset | None = None
         self._finishing_since: float | None = None
         self._stop = asyncio.Event()
-        self._rate = _ClockRate()
+        self._rate = ClockRate()
         self._last_tel_store: dict[int, float] = {}
         self._people_cache: list = []
         self._seq_before_crash: dict[int, int] = {}
@@ -256,7 +256,7 @@ class Daemon:
 
         # The scan ends hovering at its last waypoint (no RTL): the adaptive phase starts from
         # there, as the experiments model it; the autopilot's own link-loss failsafe still applies.
-        scans = [_without_final_rtl(m) for m in scan_missions(self.sc, plan_scan(self.sc))]
+        scans = [without_final_rtl(m) for m in scan_missions(self.sc, plan_scan(self.sc))]
         ap = self.sc.fleet.autopilot
         wires = {vid: to_wire(m, ap) for vid, m in zip(sorted(self.vehicles), scans)}
         to_start = []
@@ -266,7 +266,7 @@ class Daemon:
             if previous is not None:
                 on_board = await v.agent.download()
                 purpose, items = previous
-                if _same_mission(on_board, items, v.agent.flavour):
+                if same_stored_mission(on_board, items, v.agent.flavour):
                     self._adopt(v, purpose, items)
                     self._event("resume", f"vehicle {v.id} still flies its {purpose} mission "
                                 f"(item {v.agent.tel.mission_seq})", v.id)
@@ -330,7 +330,7 @@ class Daemon:
 
     def _adopt(self, v: _Vehicle, purpose: str, items: list) -> None:
         v.purpose, v.mission = purpose, list(items)
-        v.end_seq = _end_seq(items)
+        v.end_seq = final_seq(items)
         v.phase = {"scan": "scanning", "look": "localizing", "home": "returning"}.get(purpose, purpose)
 
     async def _upload(self, v: _Vehicle, purpose: str, items: list, first_seq: int | None,
@@ -535,7 +535,7 @@ class Daemon:
         seq = v.agent.tel.mission_seq
         passed = 0 if seq is None else int(np.clip(seq - v.look_first_seq, 0, len(v.look_xy_m)))
         remaining_xy, remaining_ids = v.look_xy_m[passed:], v.targets[passed:]
-        return tuple(targets) == tuple(remaining_ids) and _close(pts, remaining_xy)
+        return tuple(targets) == tuple(remaining_ids) and same_route(pts, remaining_xy, WAYPOINT_TOLERANCE_M)
 
     async def _upload_look(self, v: _Vehicle, pts: np.ndarray, targets: tuple) -> None:
         latlon = self.frame.to_wgs84_latlon(pts)
@@ -588,46 +588,3 @@ class Daemon:
         self.store.flush()
         return SearchOutcome(people, bool(people) and all(p.located for p in people), text, t, self._replans,
                              tuple(v.id for v in self.vehicles.values() if v.home), lost, returning)
-
-
-class _ClockRate:
-    """Mission seconds per wall second, from the vehicles' SYSTEM_TIME (the fake fleet's speed-up)."""
-
-    def __init__(self) -> None:
-        self.rate = 1.0
-        self._first: dict[int, tuple[float, float]] = {}
-
-    def observe(self, tel) -> None:
-        if tel.unix_s is None or tel.unix_wall_s is None:
-            return
-        key = id(tel)
-        first = self._first.setdefault(key, (tel.unix_s, tel.unix_wall_s))
-        dw = tel.unix_wall_s - first[1]
-        if dw > 0.5:
-            self.rate = max(1e-3, (tel.unix_s - first[0]) / dw)
-
-
-def _without_final_rtl(plan):
-    items = plan.items
-    if items and items[-1].command == NAV_RETURN_TO_LAUNCH:
-        return dataclasses.replace(plan, items=items[:-1])
-    return plan
-
-
-def _end_seq(items: Sequence[WireItem]) -> int:
-    rtl = [it.seq for it in items if it.command == NAV_RETURN_TO_LAUNCH]
-    return rtl[-1] if rtl else (items[-1].seq if items else 0)
-
-
-def _same_mission(on_board: Sequence[WireItem], sent: Sequence[WireItem], flavour) -> bool:
-    """Whether the vehicle stores what we sent (ArduPilot rewrites item 0 with its home)."""
-    if len(on_board) != len(sent):
-        return False
-    skip = 1 if flavour.home_at_seq0 else 0
-    return all(flavour.stored_equal(s, g) for s, g in zip(sent[skip:], on_board[skip:]))
-
-
-def _close(a: np.ndarray, b: np.ndarray | None) -> bool:
-    if b is None or a.shape != b.shape:
-        return False
-    return bool(np.all(np.linalg.norm(a - b, axis=1) <= WAYPOINT_TOLERANCE_M))

@@ -1,0 +1,57 @@
+"""Small pure helpers of the daemon: the mission clock's rate, and comparing missions/routes."""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Sequence
+
+import numpy as np
+
+from ..mission import NAV_RETURN_TO_LAUNCH, MissionPlan, WireItem
+
+
+class ClockRate:
+    """Mission seconds per wall second, from the vehicles' SYSTEM_TIME (the fake fleet's speed-up;
+    1 for real vehicles). Feed it each vehicle's :class:`~.vehicle.Telemetry`."""
+
+    def __init__(self) -> None:
+        self.rate = 1.0
+        self._first: dict[int, tuple[float, float]] = {}
+
+    def observe(self, tel) -> None:
+        if tel.unix_s is None or tel.unix_wall_s is None:
+            return
+        first = self._first.setdefault(id(tel), (tel.unix_s, tel.unix_wall_s))
+        dw = tel.unix_wall_s - first[1]
+        if dw > 0.5:
+            self.rate = max(1e-3, (tel.unix_s - first[0]) / dw)
+
+
+def without_final_rtl(plan: MissionPlan) -> MissionPlan:
+    """The mission without its closing RTL (the vehicle then holds at its last waypoint)."""
+    items = plan.items
+    if items and items[-1].command == NAV_RETURN_TO_LAUNCH:
+        return dataclasses.replace(plan, items=items[:-1])
+    return plan
+
+
+def final_seq(items: Sequence[WireItem]) -> int:
+    """Seq of the mission's last RTL item, else of its last item (0 when empty)."""
+    rtl = [it.seq for it in items if it.command == NAV_RETURN_TO_LAUNCH]
+    return rtl[-1] if rtl else (items[-1].seq if items else 0)
+
+
+def same_stored_mission(on_board: Sequence[WireItem], sent: Sequence[WireItem], flavour) -> bool:
+    """Whether the vehicle stores what we sent (ArduPilot rewrites item 0 with its home);
+    ``flavour`` is a ``link.Flavour``."""
+    if len(on_board) != len(sent):
+        return False
+    skip = 1 if flavour.home_at_seq0 else 0
+    return all(flavour.stored_equal(s, g) for s, g in zip(sent[skip:], on_board[skip:]))
+
+
+def same_route(a: np.ndarray, b: np.ndarray | None, tolerance_m: float) -> bool:
+    """Same number of points, each within ``tolerance_m`` [m] of its counterpart."""
+    if b is None or a.shape != b.shape:
+        return False
+    return bool(np.all(np.linalg.norm(a - b, axis=1) <= tolerance_m))
