@@ -36,7 +36,7 @@ def test_clean_upload_is_stored_exactly_and_verified(style):
 
 @pytest.mark.parametrize("style", [ARDUPILOT, PX4], ids=lambda s: s.name)
 def test_upload_survives_loss_duplication_and_reordering(style):
-    items = survey_items(8, style.name)
+    items = survey_items(6, style.name)
     faults = Faults(loss=0.2, duplicate=0.1, reorder=0.1, seed=7)
     result, got, v = run(_upload_and_read_back(style, items, faults), timeout_s=80)
     assert result.verified
