@@ -92,6 +92,9 @@ def test_daemon_killed_and_restarted_resumes_the_same_search(tmp_path):
         first.wait()
         second = subprocess.run(_daemon_cmd(cfg, out), capture_output=True, text=True, timeout=180)
         assert second.returncode == 0, second.stdout[-3000:] + second.stderr[-2000:]
+        # a finished search is not resumed by accident
+        third = subprocess.run(_daemon_cmd(cfg, out), capture_output=True, text=True, timeout=60)
+        assert third.returncode == 2 and "already finished" in third.stderr and "--fresh" in third.stderr
     finally:
         fleet.stop()
     with StoreReader(store) as rd:

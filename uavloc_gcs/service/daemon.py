@@ -30,7 +30,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from ..errors import LinkError, UavlocError
+from ..errors import ConfigError, LinkError, UavlocError
 from ..mission import NAV_WAYPOINT, flight_mission, to_wire
 from ..observations import SlotBatch
 from ..scenario import Scenario
@@ -188,6 +188,9 @@ class Daemon:
             if "epoch_unix_s" not in meta:
                 self.store.set_meta("scenario", self.sc.name)
                 return {}
+            if meta.get("finished"):
+                raise ConfigError(f"{self.opt.store_path} holds a search that already finished; "
+                                  "start a new one with --fresh or another --out")
             if meta.get("scenario") != self.sc.name:
                 raise UavlocError(f"the store {self.opt.store_path} holds the search '{meta.get('scenario')}', "
                                   f"not '{self.sc.name}'; use another --store or --fresh")
@@ -268,6 +271,9 @@ class Daemon:
                 purpose, items = previous
                 if same_stored_mission(on_board, items, v.agent.flavour):
                     self._adopt(v, purpose, items)
+                    v.scan_done = purpose != "scan"
+                    if not v.agent.tel.armed and v.agent.on_ground() and purpose != "scan":
+                        v.home, v.phase = True, "landed"
                     self._event("resume", f"vehicle {v.id} still flies its {purpose} mission "
                                 f"(item {v.agent.tel.mission_seq})", v.id)
                     if v.agent.tel.armed:
@@ -585,6 +591,7 @@ class Daemon:
         other = tuple(v.id for v in self.vehicles.values() if not v.home and not v.lost and v.phase != "returning")
         text = statement_for(people, self.sc.people.required_accuracy_m, lost, other, returning)
         self._event("end", text)
+        self.store.set_meta("finished", True)
         self.store.flush()
         return SearchOutcome(people, bool(people) and all(p.located for p in people), text, t, self._replans,
                              tuple(v.id for v in self.vehicles.values() if v.home), lost, returning)
