@@ -203,6 +203,7 @@ class FakeFleet:
         gcs_address: tuple[str, int] | None = None,
         epoch_unix_s: float | None = None,
         onboard_rssi: bool = True,
+        companion_heartbeat: bool = False,
         route: bool = False,
         peer_timeout_s: float = PEER_TIMEOUT_S,
     ):
@@ -230,7 +231,8 @@ class FakeFleet:
                 sysid=i, flavour=flavour, frame=scenario.frame, cruise_speed_m_s=f.speed_m_s,
                 max_accel_m_s2=f.max_acceleration_m_s2, energy_budget_j=f.energy_budget_j,
                 power=scenario.power_model, slot_s=scenario.channel.slot_s,
-                epoch_unix_s=self.clock.epoch_unix_s, rssi=onboard_rssi), world)
+                epoch_unix_s=self.clock.epoch_unix_s, rssi=onboard_rssi,
+                companion_heartbeat=companion_heartbeat), world)
             for i in range(1, f.vehicles + 1)
         ]
         seeds = np.random.SeedSequence(self.seed, spawn_key=(7,)).spawn(len(self.vehicles))

@@ -2,7 +2,7 @@
 
 Streams are scheduled in simulated time at the nominal rates of a real telemetry link, so the
 byte rate per simulated second is what a radio would carry (``docs/readme/sim.md``):
-HEARTBEAT 1 Hz (also from the companion, component 191, when RSSI is on), GLOBAL_POSITION_INT 5 Hz,
+HEARTBEAT 1 Hz (optionally also from the companion, component 191), GLOBAL_POSITION_INT 5 Hz,
 SYS_STATUS 1 Hz, SYSTEM_TIME 1 Hz, MISSION_CURRENT 1 Hz and on change, EXTENDED_SYS_STATE 1 Hz.
 MAV_CMD_SET_MESSAGE_INTERVAL changes a stream's interval.
 """
@@ -71,7 +71,7 @@ class TelemetryMixin:
         """The message with id ``msg_id`` now (stream or MAV_CMD_REQUEST_MESSAGE); [] if unknown."""
         if msg_id == mav.MAVLINK_MSG_ID_HEARTBEAT:
             out = [self.heartbeat_reply()]
-            if self.cfg.rssi and self.world is not None:
+            if self.cfg.companion_heartbeat and self.cfg.rssi and self.world is not None:
                 out.append(Reply(mav.MAVLink_heartbeat_message(
                     mav.MAV_TYPE_ONBOARD_CONTROLLER, mav.MAV_AUTOPILOT_INVALID, 0, 0, mav.MAV_STATE_ACTIVE, 3),
                     None, COMPANION_COMPONENT_ID))

@@ -60,6 +60,10 @@ class VehicleConfig:
     slot_s: float = 0.025
     epoch_unix_s: float = 0.0
     rssi: bool = True  # generate UAVLOC_RSSI_BATCH from the world (off when a companion does it)
+    # A real companion also sends a 1 Hz HEARTBEAT (MAV_TYPE_ONBOARD_CONTROLLER, MAV_AUTOPILOT_INVALID)
+    # from component 191. Off by default: with it, MAVSDK 4.1 on a lossy link intermittently takes
+    # the system for a non-ArduPilot one and NACKs ArduPilot's MISSION_REQUEST (seen in our tests).
+    companion_heartbeat: bool = False
 
 
 class FakeVehicle(TelemetryMixin):
