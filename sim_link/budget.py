@@ -54,7 +54,8 @@ def measure(scenario: Scenario, *, seed: int | None = None, signed: bool = False
             continue
         cfg = VehicleConfig(idx, flavour, scenario.frame, cruise_speed_m_s=f.speed_m_s,
                             max_accel_m_s2=f.max_acceleration_m_s2, energy_budget_j=f.energy_budget_j,
-                            power=scenario.power_model, slot_s=scenario.channel.slot_s, epoch_unix_s=1.8e9)
+                            power=scenario.power_model, slot_s=scenario.channel.slot_s, epoch_unix_s=1.8e9,
+                            companion_heartbeat=True)  # a real companion's 1 Hz HEARTBEAT counts too
         v = FakeVehicle(cfg, world)
         v.mission.stores[0] = to_wire(plan, f.autopilot)
         v.executor.reset()
