@@ -115,7 +115,7 @@ class World:
             raise ValueError(f"vehicle {vehicle}: slot times must not go backwards "
                              f"(last {state.last_t_s:.3f} s, got {t.min():.3f} s)")
         people = self.tracks.positions(t)  # (N, S, 2)
-        n, s = len(t), len(self)
+        s = len(self)
         if s == 0:
             state.last_t_s = float(t[-1])
             return SlotBatch.empty()

@@ -7,7 +7,7 @@ import subprocess
 import sys
 import time
 
-from tests.e2e_helpers import SMALL, small_scenario, truth_errors_m, world_ids
+from tests.e2e_helpers import SMALL, small_scenario, world_ids
 from tests.test_e2e_daemon import check_everyone_found, run_e2e
 from uavloc_gcs.cli._fleet import start_fleet_process
 from uavloc_gcs.service.store import StoreReader

@@ -19,7 +19,7 @@ Two levels:
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Iterable, Literal, Sequence
 
 from .errors import UavlocError

@@ -76,7 +76,7 @@ def particle_swarm(ev: Evaluator, *, adaptive: bool, rng: np.random.Generator, d
     where the decoder would have split the tour differently.
     """
     codec = _Codec(ev, opts.encoding)
-    n, m, P = ev.n, ev.m, opts.n_particles
+    n, P = ev.n, opts.n_particles
     span = codec.span
     hi = span * (1 - 1e-9)
     vmax = opts.v_max * span
