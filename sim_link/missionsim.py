@@ -18,7 +18,6 @@ vehicle lands (computed exactly from the path, not rounded to the step).
 from __future__ import annotations
 
 import math
-import time
 from dataclasses import dataclass, field
 
 import numpy as np

@@ -221,9 +221,9 @@ def _train(agent: _Agent, shared: _Shared, pending: list[int]) -> None:
             if not opts:
                 break
             if agent.rng.random() < cfg.epsilon:
-                k, nxt, _ = opts[int(agent.rng.integers(len(opts)))]
+                _, nxt, _ = opts[int(agent.rng.integers(len(opts)))]
             else:
-                k, nxt, _ = max(opts, key=lambda o: agent.q[cell][o[0]])
+                _, nxt, _ = max(opts, key=lambda o: agent.q[cell][o[0]])
             xy = agent.grid.centre(*nxt)
             for e in pending:
                 if np.hypot(*(shared.est[e][0] - xy)) <= agent.sc.horizontal_range_m:
@@ -240,7 +240,7 @@ def _in_strip(agent: _Agent, xy) -> bool:
 def _hover(world: World, agent: _Agent, shared: _Shared, required_m: float) -> None:
     sc, cfg = agent.sc, agent.cfg
     slot = sc.channel.slot_s
-    t = agent.t_s + np.arange(int(round(cfg.hover_s / slot))) * slot
+    t = agent.t_s + np.arange(round(cfg.hover_s / slot)) * slot
     xyz = np.column_stack([np.tile(agent.xy, (len(t), 1)), np.full(len(t), sc.fleet.altitude_m)])
     slots = world.hear_track(agent.index, t, xyz)
     agent.t_s += cfg.hover_s
@@ -256,7 +256,7 @@ def _hover(world: World, agent: _Agent, shared: _Shared, required_m: float) -> N
         a = an.annulus_from_slots(agent.xy, mean, n, s_per_sample=ch.log_range_sigma,
                                   altitude_m=sc.fleet.altitude_m, z=cfg.z, t_s=float(t[-1]))
         shared.add(int(eid), a, agent.t_s, required_m, sc.horizontal_range_m)
-    heard = set(int(e) for e in slots.emitters())
+    heard = {int(e) for e in slots.emitters()}
     for eid, (x, _, _) in list(shared.est.items()):  # expected in range but silent: not there
         if eid not in heard and np.hypot(*(x - agent.xy)) < 0.9 * sc.horizontal_range_m:
             known = shared.silent.setdefault(eid, [])

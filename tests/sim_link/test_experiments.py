@@ -9,8 +9,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sim_link.experiments import (ALL_METHODS, ExperimentConfig, make_tasks, mean_ci95, reductions, run_experiment,
-                                  world_seed)
+from sim_link.experiments import (
+    ALL_METHODS,
+    ExperimentConfig,
+    make_tasks,
+    mean_ci95,
+    reductions,
+    run_experiment,
+    world_seed,
+)
 from uavloc_gcs.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parents[2]

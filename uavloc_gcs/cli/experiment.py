@@ -81,8 +81,14 @@ class _Bar:
 
 
 def run(args: argparse.Namespace) -> int:
-    from sim_link.experiments import (ALL_METHODS, DEFAULT_PEOPLE, ExperimentConfig, run_experiment, summary_text,
-                                      write_outputs)
+    from sim_link.experiments import (
+        ALL_METHODS,
+        DEFAULT_PEOPLE,
+        ExperimentConfig,
+        run_experiment,
+        summary_text,
+        write_outputs,
+    )
 
     from ..scenario import load_scenario
     from ._output import atomic_output_dir

@@ -117,7 +117,9 @@ class SearchPolicy:
         time_limit_s: float | None = None,
         max_iter: int | None = None,
     ) -> None:
-        from ..estimation import ChannelModel  # local: keeps `import uavloc_gcs.search` light
+        from ..estimation import (
+            ChannelModel,  # local: keeps `import uavloc_gcs.search` light
+        )
 
         self.scenario = scenario
         self.model_motion = model_motion

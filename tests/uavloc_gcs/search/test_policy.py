@@ -42,7 +42,7 @@ def test_scan_finds_everyone_and_located_people_are_accurate(small):
     world = World(small, seed=3, people=3, motion="static")
     policy, changed, t_end, _ = _scan_policy(small, world)
     people = policy.people(t_end)
-    assert {p.emitter_id for p in people} == set(int(e) for e in world.emitter_ids)
+    assert {p.emitter_id for p in people} == {int(e) for e in world.emitter_ids}
     assert changed == {p.emitter_id for p in people}  # all new
     truth = world.positions(0.0)
     for p in people:
