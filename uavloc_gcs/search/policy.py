@@ -49,7 +49,8 @@ class PersonStatus:
     """What the policy believes about one emitter.
 
     ``located``: estimate ok, calibrated 95 % radius <= required accuracy, no mirror ambiguity.
-    ``xy_m`` is the believed position at ``t_ref_s`` (the mirror candidate if that one was chosen);
+    ``xy_m`` is the believed position at ``t_ref_s`` from the *latest* estimate (the mirror
+    candidate if that one was chosen), which can be newer than the fix estimate in ``estimate``;
     ``fix_t_s`` the time the person became located (None if not yet).
     """
 
