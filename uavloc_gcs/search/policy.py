@@ -377,11 +377,26 @@ class SearchPolicy:
     def _classify(self, p: _Person, t_s: float) -> None:
         if p.fix_t_s is not None or p.gave_up or not self._ok(p):
             return
-        r95 = float(getattr(p.estimate, "radius95_m", math.inf))
+        r95 = self._radius95(p)
         if r95 <= self.required_m and not self._ambiguous(p):
             p.fix_t_s = p.last_slot_t_s if math.isfinite(p.last_slot_t_s) else t_s
             p.fix_estimate = p.estimate
             self._awaiting.pop(p.emitter_id, None)
+
+    def _radius95(self, p: _Person) -> float:
+        """Calibrated 95 % radius [m] of the candidate we believe. The estimator's ``radius95_m``
+        covers both mirror candidates when ambiguous; once the area rules one out, only the other
+        candidate's own radius counts."""
+        est = p.estimate
+        r95 = float(getattr(est, "radius95_m", math.inf))
+        if getattr(est, "ambiguous", False) and getattr(est, "mirror", None) is not None and not self._ambiguous(p):
+            primary = tg.candidates(est, p.last_slot_t_s)[0]
+            chosen = self._candidate(p)
+            if chosen is not None and np.allclose(chosen.xy_m, primary.xy_m):
+                r95 = float(getattr(est, "mode_radius95_m", r95))
+            else:
+                r95 = float(getattr(est.mirror, "radius95_m", r95))
+        return r95
 
     def _signature(self, p: _Person):
         if p.estimate is None:
@@ -437,5 +452,4 @@ class SearchPolicy:
             return f"estimate status {getattr(p.estimate, 'status', '?')}"
         if self._ambiguous(p):
             return "mirror ambiguity: needs a look off the flight line"
-        r95 = float(getattr(p.estimate, "radius95_m", math.inf))
-        return f"95 % radius {r95:.1f} m > {self.required_m:g} m"
+        return f"95 % radius {self._radius95(p):.1f} m > {self.required_m:g} m"

@@ -116,3 +116,32 @@ def test_person_heard_too_little_to_fit_gets_a_look_where_heard(small):
     assert policy.done(t)
     (status,) = policy.people(t)
     assert not status.located and "given up" in status.reason
+
+
+def test_mirror_outside_the_area_does_not_block_a_fix(small, monkeypatch):
+    """An estimate ambiguous only because of a mirror image outside the area counts as located
+    with the believed candidate's own radius; a mirror inside the area keeps it pending."""
+    import uavloc_gcs.estimation as estimation
+    from uavloc_gcs.estimation import Candidate, Estimate
+    from uavloc_gcs.observations import SlotBatch
+
+    area = small.area_xy_m()
+    inside = area.mean(axis=0)
+    outside = area.max(axis=0) + 200.0
+
+    def fake(mirror_xy):
+        mirror = Candidate(np.asarray(mirror_xy, float), np.zeros(2), 0.9, 6.0, np.eye(4))
+        est = Estimate(5, "ok", 3.0, inside.copy(), np.zeros(2), np.eye(4) * 4.0, radius95_m=400.0,
+                       ambiguous=True, mirror=mirror, mode_radius95_m=7.0, max_speed_m_s=1.5)
+        return lambda *a, **k: est
+
+    slots = SlotBatch.from_columns([1.0, 2.0, 3.0], [1, 1, 1], [[0, 0, 100]] * 3, [5, 5, 5], [-80.0] * 3, [10] * 3)
+    for mirror_xy, located in ((outside, True), (inside + [60.0, 0.0], False)):
+        monkeypatch.setattr(estimation, "estimate_emitter", fake(mirror_xy))
+        policy = SearchPolicy(small)
+        policy.ingest(slots)
+        policy.update(4.0)
+        (status,) = policy.people(4.0)
+        assert status.located is located, status.reason
+        if not located:
+            assert "mirror" in status.reason
