@@ -191,7 +191,7 @@ def person_results(world: World, statuses: list, t_end_s: float) -> tuple[Person
         t_ref = s.t_ref_s if s.t_ref_s is not None else t_end_s
         truth = world.positions(t_ref)[i]
         err = float(np.hypot(s.xy_m[0] - truth[0], s.xy_m[1] - truth[1]))
-        claim = float(getattr(s.estimate, "radius95_m", math.nan))
+        claim = float(s.radius95_m)
         out.append(PersonResult(int(eid), True, s.located, math.nan if s.fix_t_s is None else s.fix_t_s, err,
                                 claim))
     return tuple(out)

@@ -62,6 +62,7 @@ class PersonStatus:
     t_ref_s: float | None = None
     fix_t_s: float | None = None
     looks: int = 0
+    radius95_m: float = math.inf  # calibrated radius of the believed candidate (at the fix if located)
 
 
 @dataclass(frozen=True)
@@ -102,6 +103,7 @@ class _Person:
     gave_up: str = ""
     fix_t_s: float | None = None
     fix_estimate: object = None
+    fix_radius95_m: float = math.inf
 
 
 class SearchPolicy:
@@ -196,7 +198,9 @@ class SearchPolicy:
             out.append(PersonStatus(
                 emitter_id=eid, estimate=est, located=p.fix_t_s is not None, reason=self._reason(p),
                 xy_m=None if cand is None else (float(cand.xy_m[0]), float(cand.xy_m[1])),
-                t_ref_s=None if cand is None else cand.t_ref_s, fix_t_s=p.fix_t_s, looks=p.looks))
+                t_ref_s=None if cand is None else cand.t_ref_s, fix_t_s=p.fix_t_s, looks=p.looks,
+                radius95_m=p.fix_radius95_m if p.fix_t_s is not None else (
+                    self._radius95(p) if p.estimate is not None else math.inf)))
         return out
 
     def pending_ids(self) -> list[int]:
@@ -381,6 +385,7 @@ class SearchPolicy:
         if r95 <= self.required_m and not self._ambiguous(p):
             p.fix_t_s = p.last_slot_t_s if math.isfinite(p.last_slot_t_s) else t_s
             p.fix_estimate = p.estimate
+            p.fix_radius95_m = r95
             self._awaiting.pop(p.emitter_id, None)
 
     def _radius95(self, p: _Person) -> float:
@@ -440,8 +445,7 @@ class SearchPolicy:
 
     def _reason(self, p: _Person) -> str:
         if p.fix_t_s is not None:
-            r95 = float(getattr(p.fix_estimate, "radius95_m", math.nan))
-            return f"located: 95 % radius {r95:.1f} m <= {self.required_m:g} m"
+            return f"located: 95 % radius {p.fix_radius95_m:.1f} m <= {self.required_m:g} m"
         if p.gave_up:
             return f"given up: {p.gave_up}"
         if p.error:
