@@ -21,7 +21,17 @@ prints, measured in the same run:
   the paper's annulus bound (an empty ring intersection counts as a miss);
 - the fraction flagged ambiguous, the median radius / RMSE, and the solve time per emitter;
 
-plus the solve time for exactly 1,000 slots. Times are the thread's CPU time (one core), so other
+plus the solve time for exactly 1,000 slots.
+
+A second table ("maneuvering people") uses ``random_waypoint`` people (they turn, pause and change
+speed; |v| <= v_max) over a realistic mission geometry: two scan lanes of 600 m at a spacing
+uniform in [0.5 R, R] (the person between them, passes 0-50 s apart), then a look pass
+30-180 s later through the two-lane estimate's predicted position (random heading, offset uniform
+in [0, 0.5 R]); reference time = each estimate's last slot. It reports the coverage of radius95
+and of ``Estimate.predict`` 30 and 60 s later, with the median radii, for the default estimator and
+for the pure constant-velocity model (``maneuver_time_s = inf``, the estimator before the
+maneuver process noise). "small area" confines the walk to a 250 m square (a turn every few
+minutes instead of every several). Times are the thread's CPU time (one core), so other
 load on the machine does not inflate them. Targets (issue 3): RMSE <= 1.2 x bound with two
 looks, coverage 0.93-0.97 (i.i.d.) and >= 0.85 (correlated), < 10 ms per emitter at 1,000 slots.
 """
@@ -80,6 +90,23 @@ FAMILIES = [
     Family("two parallel, moving, corr.", "parallel", True, True),
     Family("crossing, moving, corr.", "crossing", True, True),
 ]
+
+
+@dataclass(frozen=True)
+class ManeuverFamily:
+    name: str
+    stage: str  # "lanes" (two scan lanes) | "look" (lanes + a later look pass)
+    area_m: tuple[float, float] | None = None  # a smaller rectangle than the paper's
+
+
+MANEUVER_FAMILIES = [
+    ManeuverFamily("rwp, two lanes", "lanes"),
+    ManeuverFamily("rwp, two lanes + look", "look"),
+    ManeuverFamily("rwp, small area, two lanes", "lanes", (250.0, 250.0)),
+    ManeuverFamily("rwp, small area, lanes + look", "look", (250.0, 250.0)),
+]
+MISSION_LANE_M = 600.0
+PREDICT_S = (30.0, 60.0)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -210,6 +237,63 @@ def time_1000_slots(sc, repeats: int = 30) -> float:
     return float(np.median(times))
 
 
+def _maneuver_slots(fam: ManeuverFamily, world: World, rng: np.random.Generator, sc, channel, vmax):
+    """Slots of one maneuver run: two scan lanes around the person, optionally a look pass."""
+    v, slot, alt, reach = sc.fleet.speed_m_s, sc.channel.slot_s, sc.fleet.altitude_m, sc.horizontal_range_m
+    t0 = rng.uniform(0.0, 600.0)  # the walk's phase
+    p0 = world.positions(t0)[0]
+    spacing = rng.uniform(0.5, 1.0) * reach
+    y1 = p0[1] - rng.uniform(0.0, spacing)
+    x0 = p0[0] - rng.uniform(0.0, MISSION_LANE_M)
+    t1, x1 = _leg([x0, y1], [x0 + MISSION_LANE_M, y1], t0, v, slot, alt)
+    t2, x2 = _leg([x0 + MISSION_LANE_M, y1 + spacing], [x0, y1 + spacing], t1[-1] + TURN_S + spacing / v, v, slot, alt)
+    slots = SlotBatch.concat([world.hear_track(1, t1, x1), world.hear_track(1, t2, x2)])
+    if fam.stage == "lanes" or len(slots) < 3:
+        return slots
+    first = estimate_emitter(slots, channel, max_speed_m_s=vmax)
+    t_look = float(slots.t_s.max()) + rng.uniform(30.0, 180.0)
+    aim, _ = first.predict(t_look)
+    psi = rng.uniform(0.0, 2 * np.pi)
+    u, n = np.array([math.cos(psi), math.sin(psi)]), np.array([-math.sin(psi), math.cos(psi)])
+    mid = aim + n * rng.uniform(0.0, 0.5 * reach)
+    half = reach + 60.0
+    t3, x3 = _leg(mid - half * u, mid + half * u, t_look - half / v, v, slot, alt)
+    return SlotBatch.concat([slots, world.hear_track(2, t3, x3)])  # another vehicle looks
+
+
+def run_maneuver_family(fam: ManeuverFamily, runs: int, seed: int, sc) -> dict:
+    if fam.area_m is not None:
+        sc = sc.replace(area={"width_m": fam.area_m[0], "height_m": fam.area_m[1]})
+    channel = ChannelModel.from_scenario(sc)
+    vmax = sc.people.max_speed_m_s
+    rng = np.random.default_rng(seed)
+    rows = {"new": [], "cv": []}
+    span = []
+    for k in range(runs):
+        world = World(sc, seed=seed * 100_003 + k, people=1, motion="random_waypoint", horizon_s=1800.0)
+        slots = _maneuver_slots(fam, world, rng, sc, channel, vmax)
+        if len(slots) < 3:
+            continue
+        span.append(float(slots.t_s.max() - slots.t_s.min()))
+        for key, tm in (("new", None), ("cv", math.inf)):
+            opts = {} if tm is None else {"maneuver_time_s": tm}
+            est = estimate_emitter(slots, channel, max_speed_m_s=vmax, **opts)
+            out = [float(np.linalg.norm(est.position_xy_m - world.positions(est.t_ref_s)[0])), est.radius95_m]
+            for dt in PREDICT_S:
+                p, r = est.predict(est.t_ref_s + dt)
+                out += [float(np.linalg.norm(p - world.positions(est.t_ref_s + dt)[0])), r]
+            rows[key].append(out)
+    res = {"family": fam.name, "runs": len(span), "span": float(np.median(span))}
+    for key, a in rows.items():
+        a = np.array(a)
+        res[key] = {
+            "rmse": float(np.sqrt(np.mean(a[:, 0] ** 2))), "median_err": float(np.median(a[:, 0])),
+            "cover": [float(np.mean(a[:, 2 * j] <= a[:, 2 * j + 1])) for j in range(1 + len(PREDICT_S))],
+            "median_r": [float(np.median(a[:, 2 * j + 1])) for j in range(1 + len(PREDICT_S))],
+        }
+    return res
+
+
 def main(args: argparse.Namespace) -> int:
     sc = load_scenario(PAPER)
     fams = [f for f in FAMILIES if not args.family or any(s in f.name for s in args.family)]
@@ -224,5 +308,22 @@ def main(args: argparse.Namespace) -> int:
         print(f"{r['family']:34s} {r['runs']:4d} {r['rmse']:7.2f} {r['rmse_near']:7.2f} {r['vt']:7.2f} "
               f"{r['ratio']:6.2f} {r['eff']:6.2f} {r['cover95']:6.2f} {r['cover_annulus']:6.2f} {r['ambiguous']:6.2f} "
               f"{r['median_r95_over_rmse']:8.2f} {r['ms']:6.1f}")
-    print(f"\nsolve time, one emitter, 1,000 slots: {time_1000_slots(sc):.1f} ms (median of 30)")
+    mfams = [f for f in MANEUVER_FAMILIES if not args.family or any(s in f.name for s in args.family)]
+    if mfams:
+        print("\nmaneuvering people (random_waypoint); coverage / median radius [m] at the last slot, "
+              "and predicted +30 s, +60 s; 'CV' = pure constant-velocity model")
+        head = f"{'family':30s} {'runs':>4s} {'span s':>6s} {'RMSE m':>7s} {'med e':>6s} {'cov':>5s} {'r95':>6s} " \
+               f"{'cov30':>5s} {'r30':>6s} {'cov60':>5s} {'r60':>6s} | {'CV RMSE':>7s} {'cov':>5s} {'r95':>5s} " \
+               f"{'cov30':>5s} {'cov60':>5s}"
+        print(head)
+        print("-" * len(head))
+        for fam in mfams:
+            r = run_maneuver_family(fam, args.runs, args.seed + 5000 + 1000 * MANEUVER_FAMILIES.index(fam), sc)
+            n, c = r["new"], r["cv"]
+            print(f"{r['family']:30s} {r['runs']:4d} {r['span']:6.0f} {n['rmse']:7.2f} {n['median_err']:6.2f} "
+                  f"{n['cover'][0]:5.2f} {n['median_r'][0]:6.1f} {n['cover'][1]:5.2f} {n['median_r'][1]:6.1f} "
+                  f"{n['cover'][2]:5.2f} {n['median_r'][2]:6.1f} | {c['rmse']:7.2f} {c['cover'][0]:5.2f} "
+                  f"{c['median_r'][0]:5.1f} {c['cover'][1]:5.2f} {c['cover'][2]:5.2f}")
+    if not args.family:
+        print(f"\nsolve time, one emitter, 1,000 slots: {time_1000_slots(sc):.1f} ms (median of 30)")
     return 0

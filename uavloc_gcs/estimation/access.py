@@ -20,6 +20,7 @@ import math
 import numpy as np
 
 from .estimate import Estimate
+from .maneuver import state_noise
 from .model import ChannelModel
 
 CHORD_POINTS = 48
@@ -50,7 +51,8 @@ def access_radius_m(
     dt = t_pass_s - estimate.t_ref_s
     a = np.eye(4)
     a[0, 2] = a[1, 3] = dt
-    cov = a @ estimate.covariance @ a.T if moving else estimate.covariance
+    cov = a @ estimate.covariance @ a.T + state_noise(estimate.process_noise_m2_s3, dt) if moving \
+        else estimate.covariance
     cov = cov if moving else cov[:2, :2] + np.eye(2) * (estimate.max_speed_m_s * abs(dt) / K95) ** 2
     info_now = np.linalg.pinv(0.5 * (cov + cov.T), rcond=1e-12)
 

@@ -26,6 +26,7 @@ import numpy as np
 from ..errors import EstimationError
 from ..observations import SlotBatch
 from .annulus import annulus_bound_m, reach_bound_m
+from .maneuver import MANEUVER_TIME_S, find_passes, intensity_m2_s3, state_noise
 from .fit import Problem, inflation_factor, leg_lines, mirror_point, prepare, principal_line, start_points
 from .model import ChannelModel, radius_of_probability
 
@@ -37,6 +38,7 @@ TX_PRIOR_SIGMA_DB = 6.0
 PROBE_NFEV = 6
 POWER_TEST_CHI2 = 10.83  # chi^2_1 quantile at 0.999
 PROBE_MERGE_M = 3.0
+MIRROR_PRIOR_SKIP = 12.0  # extra maneuver-prior cost (chi^2 units) beyond which a one-pass mirror is not tried
 
 
 @dataclass(frozen=True)
@@ -69,6 +71,7 @@ class Estimate:
     max_speed_m_s: float = 0.0
     model_motion: bool = True
     inflation: float = 1.0  # information deflation applied (1 = i.i.d. model held)
+    process_noise_m2_s3: float = 0.0  # maneuver intensity q per axis (see .maneuver); 0 = pure CV
 
     @property
     def ok(self) -> bool:
@@ -77,28 +80,30 @@ class Estimate:
     def predict(self, t_s: float) -> tuple[np.ndarray, float]:
         """Predicted position (2,) and 95 % radius [m] at time t_s.
 
-        Moving model: the constant-velocity extrapolation with its covariance, but never more
+        Moving model: the constant-velocity extrapolation with its covariance plus the maneuver
+        process noise (turns, stops: ``process_noise_m2_s3``, see :mod:`.maneuver`), but never more
         than the reach of the speed bound (the current radius + (|v| + v_max) |dt|), which holds
         whatever the person does. Static model: the radius grows by v_max |dt|.
         """
+        q = self.process_noise_m2_s3
         pos, r = _predict_mode(self.position_xy_m, self.velocity_m_s, self.covariance, self.mode_radius95_m,
-                               t_s - self.t_ref_s, self.max_speed_m_s, self.model_motion)
+                               t_s - self.t_ref_s, self.max_speed_m_s, self.model_motion, q)
         if self.ambiguous and self.mirror is not None:
             mpos, mr = _predict_mode(self.mirror.position_xy_m, self.mirror.velocity_m_s, self.mirror.covariance,
                                      self.mirror.radius95_m, t_s - self.t_ref_s, self.max_speed_m_s,
-                                     self.model_motion)
+                                     self.model_motion, q)
             r = max(r, float(np.linalg.norm(mpos - pos)) + mr)
         return pos, r
 
 
-def _predict_mode(p, v, cov, r0, dt, vmax, moving) -> tuple[np.ndarray, float]:
+def _predict_mode(p, v, cov, r0, dt, vmax, moving, q=0.0) -> tuple[np.ndarray, float]:
     if not math.isfinite(r0):
         return p + v * dt, math.inf
     if not moving:
         return p.copy(), r0 + vmax * abs(dt)
     a = np.eye(4)
     a[0, 2] = a[1, 3] = dt
-    c = a @ cov @ a.T
+    c = a @ cov @ a.T + state_noise(q, dt)
     r = min(radius_of_probability(c[:2, :2]), r0 + (float(np.hypot(*v)) + vmax) * abs(dt))
     return p + v * dt, max(r, r0 if dt == 0 else 0.0)
 
@@ -112,6 +117,7 @@ def estimate_emitter(
     model_motion: bool = True,
     estimate_tx_power: bool = False,
     previous: "Estimate | None" = None,
+    maneuver_time_s: float = MANEUVER_TIME_S,
 ) -> Estimate:
     """Estimate one emitter from its slots (all rows must carry the same emitter id).
 
@@ -119,6 +125,10 @@ def estimate_emitter(
     (static person). ``previous`` (the last estimate of this emitter) only adds a start point.
     Too few slots (fewer than 3, or fewer than 3 observations once slots of one vehicle within
     0.1 s are merged) give ``status="not_enough_data"``, not an exception.
+
+    ``maneuver_time_s`` sets the maneuver process noise q = v_max^2 / maneuver_time_s (people turn
+    and stop; see :mod:`.maneuver`): slots far in time from ``t_ref_s`` may have left the
+    constant-velocity line and are down-weighted accordingly. ``math.inf`` is the pure CV model.
     """
     if max_speed_m_s < 0 or not math.isfinite(max_speed_m_s):
         raise EstimationError(f"max_speed_m_s must be a finite non-negative number, got {max_speed_m_s}")
@@ -136,8 +146,10 @@ def estimate_emitter(
     data = prepare(slots, channel)
     if len(data.t_s) < MIN_SLOTS:  # e.g. three slots within 0.1 s are one observation
         return _not_enough(emitter, slots, t_ref, last, max_speed_m_s, moving)
+    q = intensity_m2_s3(max_speed_m_s, maneuver_time_s) if moving else 0.0
+    t_anchor = min(max(t_ref, float(data.t_s.min())), float(data.t_s.max()))
     problem = Problem(data, moving, bool(estimate_tx_power), float(max_speed_m_s),
-                      TX_PRIOR_SIGMA_DB * channel.nepers_per_db)
+                      TX_PRIOR_SIGMA_DB * channel.nepers_per_db, find_passes(data.t_s, t_anchor, q))
     starts = start_points(problem)
     if previous is not None and previous.ok:
         warm = np.zeros(problem.size)
@@ -145,7 +157,7 @@ def estimate_emitter(
         if moving:
             warm[2:4] = previous.velocity_m_s
         if problem.tx:
-            warm[-1] = previous.tx_offset_db * channel.nepers_per_db
+            warm[problem.beta_index] = previous.tx_offset_db * channel.nepers_per_db
         starts.insert(0, warm)
     modes = _distinct_modes(problem, starts)
     best = modes[0]
@@ -153,14 +165,18 @@ def estimate_emitter(
     if not problem.tx and _power_contradicted(problem, best, factor):
         log.info("emitter %d: the data contradict the nominal transmit power; estimating it", emitter)
         return estimate_emitter(slots, channel, max_speed_m_s=max_speed_m_s, t_ref_s=t_ref_s,
-                                model_motion=model_motion, estimate_tx_power=True, previous=previous)
+                                model_motion=model_motion, estimate_tx_power=True, previous=previous,
+                                maneuver_time_s=maneuver_time_s)
     laplace = [_laplace(problem, theta, cost, factor) for theta, cost in modes]
     order = np.argsort([-lm for _, lm in laplace])
     modes = [modes[i] for i in order]
     laplace = [laplace[i] for i in order]
     (theta, _), (cov_c, logmass) = modes[0], laplace[0]
     pos, vel, cov = _at(theta, cov_c, moving, t_ref - data.t_c)
-    beta = theta[-1] if problem.tx else 0.0
+    # beyond the data (t_ref outside their span) the person may have maneuvered since the anchor
+    extra = state_noise(q, t_ref - t_anchor)
+    cov = cov + extra
+    beta = theta[problem.beta_index] if problem.tx else 0.0
     mode_r = _mode_radius(cov, moving, max_speed_m_s, t_ref - data.t_c)
     # where the phone was heard at all bounds everything, e.g. the lateral error right under a track
     reach = reach_bound_m(pos, t_ref, data.t_s, data.a_xy, data.h_m, channel.comm_range_m, max_speed_m_s)
@@ -168,6 +184,7 @@ def estimate_emitter(
     if len(modes) > 1:
         (m_theta, _), (m_cov_c, m_logmass) = modes[1], laplace[1]
         m_pos, m_vel, m_cov = _at(m_theta, m_cov_c, moving, t_ref - data.t_c)
+        m_cov = m_cov + extra
         rel = float(math.exp(min(m_logmass - logmass, 0.0)))
         mirror = Candidate(m_pos, m_vel, rel, _mode_radius(m_cov, moving, max_speed_m_s, t_ref - data.t_c), m_cov)
     ambiguous = mirror is not None and mirror.relative_likelihood / (1 + mirror.relative_likelihood) > AMBIGUITY_MASS
@@ -180,7 +197,7 @@ def estimate_emitter(
                             channel.log_range_sigma, max_speed_m_s)
     return Estimate(
         emitter, "ok", t_ref, pos, vel, cov, radius, bound, ambiguous, mirror, len(slots), last,
-        beta / channel.nepers_per_db, mode_r, float(max_speed_m_s), moving, factor,
+        beta / channel.nepers_per_db, mode_r, float(max_speed_m_s), moving, factor, q,
     )
 
 
@@ -213,6 +230,13 @@ def _distinct_modes(problem: Problem, starts: list[np.ndarray]) -> list[tuple[np
         center, direction, _ = principal_line(problem.data)
         legs = [(center, direction, problem.data.t_c)]
     more = list(starts[1:]) + [_mirror_state(problem, modes[0][0], c, d, t - problem.data.t_c) for c, d, t in legs]
+    if problem.passes is not None:  # maneuver model: also mirror one pass alone, the others kept in place
+        base = _offset_prior_cost(problem, modes[0][0])
+        for c, d, t in legs:
+            s = _mirror_one_pass(problem, modes[0][0], c, d, t)
+            # a mirror that needs a many-sigma maneuver cannot hold posterior mass: not worth a fit
+            if _offset_prior_cost(problem, s) - base < MIRROR_PRIOR_SKIP:
+                more.append(s)
     for s in more:
         theta, cost = problem.fit(s, max_nfev=PROBE_NFEV)
         if any(np.linalg.norm(theta[:2] - m[0][:2]) < PROBE_MERGE_M for m in modes):
@@ -231,8 +255,9 @@ def _distinct_modes(problem: Problem, starts: list[np.ndarray]) -> list[tuple[np
 def _power_contradicted(problem: Problem, best: tuple[np.ndarray, float], factor: float) -> bool:
     """Likelihood-ratio test of the nominal transmit power: refit with the offset free (its prior
     included) and compare; the (deflated) statistic against chi^2_1 at 1e-3."""
-    free = Problem(problem.data, problem.moving, True, problem.max_speed_m_s, problem.tx_sigma_nepers)
-    _, cost = free.fit(np.append(best[0], 0.0))
+    free = Problem(problem.data, problem.moving, True, problem.max_speed_m_s, problem.tx_sigma_nepers,
+                   problem.passes)
+    _, cost = free.fit(np.insert(best[0], problem.base_size, 0.0))
     return (best[1] - cost) / factor > POWER_TEST_CHI2
 
 
@@ -244,6 +269,34 @@ def _mirror_state(problem: Problem, theta: np.ndarray, center, direction, tau: f
     out[:2] = p_leg - v_m * tau
     if problem.moving:
         out[2:4] = v_m
+    b = problem.base_size
+    for k in range(b, problem.size, 2):  # the pass offsets are vectors: reflect them too
+        out[k: k + 2] = mirror_point(theta[k: k + 2], np.zeros(2), direction)
+    return out
+
+
+def _offset_prior_cost(problem: Problem, theta: np.ndarray) -> float:
+    off = theta[problem.base_size:].reshape(-1, 2)
+    w = problem.passes.whiten
+    return float(np.sum((w @ off[:, 0]) ** 2) + np.sum((w @ off[:, 1]) ** 2))
+
+
+def _mirror_one_pass(problem: Problem, theta: np.ndarray, center, direction, t_leg_s: float) -> np.ndarray:
+    """Mirror only the pass flown at t_leg_s across its leg; where the other passes put the person
+    stays put (their offsets absorb the change). With maneuver offsets the old passes are loosely
+    tied to the current pass, so the current pass's own mirror is a separate local optimum."""
+    d, ps, b = problem.data, problem.passes, problem.base_size
+    p, v = theta[:2], theta[2:4]
+    off = theta[b:].reshape(-1, 2)
+    tau = np.array([np.mean(d.tau_s[ps.index == j]) for j in range(ps.count)])
+    where = p + np.outer(tau, v) + off  # the person at each offset pass
+    j = int(ps.index[int(np.argmin(np.abs(d.t_s - t_leg_s)))])
+    out = theta.copy()
+    if j >= 0:
+        out[b + 2 * j: b + 2 * j + 2] = mirror_point(where[j], center, direction) - p - v * tau[j]
+        return out
+    out = _mirror_state(problem, theta, center, direction, t_leg_s - d.t_c)
+    out[b:] = (where - out[:2] - np.outer(tau, out[2:4])).ravel()
     return out
 
 

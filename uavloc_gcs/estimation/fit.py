@@ -25,7 +25,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import leastsq
 
-from .model import ChannelModel, geometry, log_range_jacobian
+from .maneuver import Passes, offset_jacobian
+from .model import ChannelModel, log_range_jacobian
 
 SPEED_BOUND_SOFTNESS_M_S = 0.05
 VELOCITY_PRIOR_FRACTION = 0.6  # sigma_v / v_max per axis (see the module docstring)
@@ -93,19 +94,54 @@ class Problem:
     tx: bool
     max_speed_m_s: float
     tx_sigma_nepers: float
+    passes: Passes | None = None  # maneuver offsets per old pass (see .maneuver); None = pure CV
+
+    @property
+    def base_size(self) -> int:
+        """Size of (x, y[, vx, vy][, beta]); the pass offsets (dx_1, dy_1, ...) follow."""
+        return 2 + 2 * self.moving + self.tx
 
     @property
     def size(self) -> int:
-        return 2 + 2 * self.moving + self.tx
+        return self.base_size + (2 * self.passes.count if self.passes is not None else 0)
+
+    @property
+    def beta_index(self) -> int:
+        return self.base_size - 1
 
     @property
     def sigma_v(self) -> float:
         return max(self.max_speed_m_s, 1e-3) * VELOCITY_PRIOR_FRACTION
 
+    def _geometry(self, theta: np.ndarray):
+        """Offsets g (N, 2) person - vehicle and squared 3-D distances (N,); the last evaluation is
+        cached (MINPACK asks for the residuals and the Jacobian at the same point)."""
+        key = theta.tobytes()
+        cache = self.__dict__.get("_cache")
+        if cache is not None and cache[0] == key:
+            return cache[1], cache[2]
+        d = self.data
+        pos = np.outer(d.tau_s, theta[2:4]) + theta[:2] if self.moving else np.broadcast_to(theta[:2], d.a_xy.shape)
+        if self.passes is not None:  # index -1 (no offset) picks the appended zero row
+            off = np.vstack([theta[self.base_size:].reshape(-1, 2), np.zeros((1, 2))])
+            pos = pos + off[self.passes.index]
+        g = pos - d.a_xy
+        d2 = g[:, 0] * g[:, 0] + g[:, 1] * g[:, 1] + d.h_m * d.h_m
+        object.__setattr__(self, "_cache", (key, g, d2))
+        return g, d2
+
+    def _data_jacobian(self, theta: np.ndarray) -> np.ndarray:
+        d = self.data
+        g, d2 = self._geometry(theta)
+        jac = log_range_jacobian(g, d2, d.tau_s, self.moving, self.tx)
+        if self.passes is not None:
+            jac = np.hstack([jac, offset_jacobian(g, d2, self.passes)])
+        return jac
+
     def residuals(self, theta: np.ndarray) -> np.ndarray:
         d = self.data
-        g, d2 = geometry(theta, d.tau_s, d.a_xy, d.h_m, self.moving)
-        beta = theta[-1] if self.tx else 0.0
+        g, d2 = self._geometry(theta)
+        beta = theta[self.beta_index] if self.tx else 0.0
         sw = np.sqrt(d.w)
         parts = [sw * (d.y - 0.5 * np.log(d2) + beta)]
         if self.moving:
@@ -115,12 +151,14 @@ class Problem:
         if self.tx:
             parts.append([beta / self.tx_sigma_nepers])
         parts.append((theta[:2] - d.center) / POSITION_PRIOR_SIGMA_M)
+        if self.passes is not None:
+            off = theta[self.base_size:].reshape(-1, 2)
+            parts += [self.passes.whiten @ off[:, 0], self.passes.whiten @ off[:, 1]]
         return np.concatenate([np.asarray(p, float).ravel() for p in parts])
 
     def jacobian(self, theta: np.ndarray) -> np.ndarray:
         d = self.data
-        g, d2 = geometry(theta, d.tau_s, d.a_xy, d.h_m, self.moving)
-        rows = [-np.sqrt(d.w)[:, None] * log_range_jacobian(g, d2, d.tau_s, self.moving, self.tx)]
+        rows = [-np.sqrt(d.w)[:, None] * self._data_jacobian(theta)]
         p = self.size
         if self.moving:
             prior = np.zeros((3, p))
@@ -132,11 +170,17 @@ class Problem:
             rows.append(prior)
         if self.tx:
             row = np.zeros((1, p))
-            row[0, -1] = 1.0 / self.tx_sigma_nepers
+            row[0, self.beta_index] = 1.0 / self.tx_sigma_nepers
             rows.append(row)
         pos = np.zeros((2, p))
         pos[0, 0] = pos[1, 1] = 1.0 / POSITION_PRIOR_SIGMA_M
         rows.append(pos)
+        if self.passes is not None:
+            m, b = self.passes.count, self.base_size
+            off = np.zeros((2 * m, p))
+            off[:m, b::2] = self.passes.whiten
+            off[m:, b + 1::2] = self.passes.whiten
+            rows.append(off)
         return np.vstack(rows)
 
     def prior_information(self) -> np.ndarray:
@@ -145,14 +189,17 @@ class Problem:
         if self.moving:
             j[2, 2] = j[3, 3] = self.sigma_v**-2
         if self.tx:
-            j[-1, -1] = self.tx_sigma_nepers**-2
+            j[self.beta_index, self.beta_index] = self.tx_sigma_nepers**-2
+        if self.passes is not None:
+            b = self.base_size
+            ww = self.passes.whiten.T @ self.passes.whiten
+            j[b::2, b::2] = ww
+            j[b + 1::2, b + 1::2] = ww
         return j
 
     def data_information(self, theta: np.ndarray) -> np.ndarray:
-        d = self.data
-        g, d2 = geometry(theta, d.tau_s, d.a_xy, d.h_m, self.moving)
-        jac = log_range_jacobian(g, d2, d.tau_s, self.moving, self.tx)
-        return (jac * d.w[:, None]).T @ jac
+        jac = self._data_jacobian(theta)
+        return (jac * self.data.w[:, None]).T @ jac
 
     def data_residuals(self, theta: np.ndarray) -> np.ndarray:
         """Normalised data residuals (unit variance under the model)."""
@@ -195,7 +242,8 @@ def leg_lines(data: Prepared, *, min_slots: int = 20, max_legs: int = 3) -> list
     brk = (np.diff(t) > 1.0) | (veh[1:] != veh[:-1]) | (np.hypot(step[:, 0], step[:, 1]) < 1e-9)
     seg = np.concatenate([[0], np.cumsum(brk)])
     # within a segment, a new leg whenever the heading leaves its 30-degree bin
-    bins = np.floor((heading - heading[0]) / np.radians(30.0))
+    # centred on the first heading: float noise around a straight leg must not flip between bins
+    bins = np.floor((heading - heading[0]) / np.radians(30.0) + 0.5)
     leg = seg * 1000 + np.concatenate([[bins[0]], bins]).astype(int)
     change = np.concatenate([[True], leg[1:] != leg[:-1]])
     ids = np.cumsum(change)
@@ -246,7 +294,7 @@ def start_points(problem: Problem) -> list[np.ndarray]:
         theta[:2] = p
         if problem.tx:
             lnd_p = 0.5 * np.log(np.sum((p - d.a_xy) ** 2, axis=1) + d.h_m**2)
-            theta[-1] = float(np.average(lnd_p - d.y, weights=d.w))
+            theta[problem.beta_index] = float(np.average(lnd_p - d.y, weights=d.w))
         if not any(np.linalg.norm(theta[:2] - q[:2]) < START_SEPARATION_M for q in out):
             out.append(theta)
     return out
