@@ -278,7 +278,8 @@ def run_maneuver_family(fam: ManeuverFamily, runs: int, seed: int, sc) -> dict:
         for key, tm in (("new", None), ("cv", math.inf)):
             opts = {} if tm is None else {"maneuver_time_s": tm}
             est = estimate_emitter(slots, channel, max_speed_m_s=vmax, **opts)
-            out = [float(np.linalg.norm(est.position_xy_m - world.positions(est.t_ref_s)[0])), est.radius95_m]
+            out = [float(np.linalg.norm(est.position_xy_m - world.positions(est.t_ref_s)[0])), est.radius95_m,
+                   float(est.ambiguous)]
             for dt in PREDICT_S:
                 p, r = est.predict(est.t_ref_s + dt)
                 out += [float(np.linalg.norm(p - world.positions(est.t_ref_s + dt)[0])), r]
@@ -288,8 +289,9 @@ def run_maneuver_family(fam: ManeuverFamily, runs: int, seed: int, sc) -> dict:
         a = np.array(a)
         res[key] = {
             "rmse": float(np.sqrt(np.mean(a[:, 0] ** 2))), "median_err": float(np.median(a[:, 0])),
-            "cover": [float(np.mean(a[:, 2 * j] <= a[:, 2 * j + 1])) for j in range(1 + len(PREDICT_S))],
-            "median_r": [float(np.median(a[:, 2 * j + 1])) for j in range(1 + len(PREDICT_S))],
+            "ambiguous": float(np.mean(a[:, 2])),
+            "cover": [float(np.mean(a[:, c] <= a[:, c + 1])) for c in (0, 3, 5)],
+            "median_r": [float(np.median(a[:, c + 1])) for c in (0, 3, 5)],
         }
     return res
 
@@ -299,20 +301,21 @@ def main(args: argparse.Namespace) -> int:
     fams = [f for f in FAMILIES if not args.family or any(s in f.name for s in args.family)]
     print(f"uavloc bench localize: {args.runs} runs per family, paper channel (eta 2, sigma 4 dB, 10 samples/slot), "
           f"h {sc.fleet.altitude_m:g} m, R {sc.horizontal_range_m:.1f} m, v_max {sc.people.max_speed_m_s} m/s")
-    head = f"{'family':34s} {'runs':>4s} {'RMSE m':>7s} {'near m':>7s} {'BCRB m':>7s} {'ratio':>6s} " \
-           f"{'eff':>6s} {'cov95':>6s} {'covAnn':>6s} {'ambig':>6s} {'r95/RMSE':>8s} {'ms':>6s}"
-    print(head)
-    print("-" * len(head))
-    for fam in fams:
-        r = run_family(fam, args.runs, args.seed + 1000 * FAMILIES.index(fam), sc)
-        print(f"{r['family']:34s} {r['runs']:4d} {r['rmse']:7.2f} {r['rmse_near']:7.2f} {r['vt']:7.2f} "
-              f"{r['ratio']:6.2f} {r['eff']:6.2f} {r['cover95']:6.2f} {r['cover_annulus']:6.2f} {r['ambiguous']:6.2f} "
-              f"{r['median_r95_over_rmse']:8.2f} {r['ms']:6.1f}")
+    if fams:
+        head = f"{'family':34s} {'runs':>4s} {'RMSE m':>7s} {'near m':>7s} {'BCRB m':>7s} {'ratio':>6s} " \
+               f"{'eff':>6s} {'cov95':>6s} {'covAnn':>6s} {'ambig':>6s} {'r95/RMSE':>8s} {'ms':>6s}"
+        print(head)
+        print("-" * len(head))
+        for fam in fams:
+            r = run_family(fam, args.runs, args.seed + 1000 * FAMILIES.index(fam), sc)
+            print(f"{r['family']:34s} {r['runs']:4d} {r['rmse']:7.2f} {r['rmse_near']:7.2f} {r['vt']:7.2f} "
+                  f"{r['ratio']:6.2f} {r['eff']:6.2f} {r['cover95']:6.2f} {r['cover_annulus']:6.2f} {r['ambiguous']:6.2f} "
+                  f"{r['median_r95_over_rmse']:8.2f} {r['ms']:6.1f}")
     mfams = [f for f in MANEUVER_FAMILIES if not args.family or any(s in f.name for s in args.family)]
     if mfams:
         print("\nmaneuvering people (random_waypoint); coverage / median radius [m] at the last slot, "
               "and predicted +30 s, +60 s; 'CV' = pure constant-velocity model")
-        head = f"{'family':30s} {'runs':>4s} {'span s':>6s} {'RMSE m':>7s} {'med e':>6s} {'cov':>5s} {'r95':>6s} " \
+        head = f"{'family':30s} {'runs':>4s} {'span s':>6s} {'RMSE m':>7s} {'med e':>6s} {'ambig':>5s} {'cov':>5s} {'r95':>6s} " \
                f"{'cov30':>5s} {'r30':>6s} {'cov60':>5s} {'r60':>6s} | {'CV RMSE':>7s} {'cov':>5s} {'r95':>5s} " \
                f"{'cov30':>5s} {'cov60':>5s}"
         print(head)
@@ -320,7 +323,7 @@ def main(args: argparse.Namespace) -> int:
         for fam in mfams:
             r = run_maneuver_family(fam, args.runs, args.seed + 5000 + 1000 * MANEUVER_FAMILIES.index(fam), sc)
             n, c = r["new"], r["cv"]
-            print(f"{r['family']:30s} {r['runs']:4d} {r['span']:6.0f} {n['rmse']:7.2f} {n['median_err']:6.2f} "
+            print(f"{r['family']:30s} {r['runs']:4d} {r['span']:6.0f} {n['rmse']:7.2f} {n['median_err']:6.2f} {n['ambiguous']:5.2f} "
                   f"{n['cover'][0]:5.2f} {n['median_r'][0]:6.1f} {n['cover'][1]:5.2f} {n['median_r'][1]:6.1f} "
                   f"{n['cover'][2]:5.2f} {n['median_r'][2]:6.1f} | {c['rmse']:7.2f} {c['cover'][0]:5.2f} "
                   f"{c['median_r'][0]:5.1f} {c['cover'][1]:5.2f} {c['cover'][2]:5.2f}")

@@ -81,9 +81,11 @@ class Estimate:
         """Predicted position (2,) and 95 % radius [m] at time t_s.
 
         Moving model: the constant-velocity extrapolation with its covariance plus the maneuver
-        process noise (turns, stops: ``process_noise_m2_s3``, see :mod:`.maneuver`), but never more
-        than the reach of the speed bound (the current radius + (|v| + v_max) |dt|), which holds
-        whatever the person does. Static model: the radius grows by v_max |dt|.
+        process noise (turns, stops: ``process_noise_m2_s3``, see :mod:`.maneuver`), and with the
+        maneuver model at least the current radius + v_max |dt| (every stop, and every turn that
+        leaves the person within v_max |dt| of the CV prediction, is covered whatever its timing),
+        but never more than the reach of the speed bound (the current radius + (|v| + v_max) |dt|),
+        which holds whatever the person does. Static model: the radius grows by v_max |dt|.
         """
         q = self.process_noise_m2_s3
         pos, r = _predict_mode(self.position_xy_m, self.velocity_m_s, self.covariance, self.mode_radius95_m,
@@ -104,7 +106,10 @@ def _predict_mode(p, v, cov, r0, dt, vmax, moving, q=0.0) -> tuple[np.ndarray, f
     a = np.eye(4)
     a[0, 2] = a[1, 3] = dt
     c = a @ cov @ a.T + state_noise(q, dt)
-    r = min(radius_of_probability(c[:2, :2]), r0 + (float(np.hypot(*v)) + vmax) * abs(dt))
+    r = radius_of_probability(c[:2, :2])
+    if q > 0:  # a stop or a turn at any moment moves the person off the CV prediction
+        r = max(r, r0 + vmax * abs(dt))
+    r = min(r, r0 + (float(np.hypot(*v)) + vmax) * abs(dt))
     return p + v * dt, max(r, r0 if dt == 0 else 0.0)
 
 

@@ -16,11 +16,16 @@ covariance, so an old pass informs the current position only as far as the perso
 left the line since: old slots are down-weighted, not trusted, and a pass far from the current
 position cannot dominate.
 
-q = v_max^2 / ``MANEUVER_TIME_S``: a velocity change of the order of v_max per axis every
-``MANEUVER_TIME_S`` seconds. Random waypoint in the paper area has a stop and a start (|dv| ~ v,
-E v^2 ~ 1.3 m^2/s^2) about every 400 s of walking plus pause, i.e. about 2 x 1.3 / 2 per axis per
-400 s = 0.0033 m^2/s^3; v_max^2 / 600 s = 0.00375 m^2/s^3 is that rounded up. ``maneuver_time_s =
-inf`` gives the pure CV model.
+q = v_max^2 / ``MANEUVER_TIME_S`` with ``MANEUVER_TIME_S`` = 600 s: a velocity change of the order
+of v_max per axis every 600 s. Random waypoint in the paper area has a stop, a start and a turn
+(|dv| ~ v, E v^2 ~ 1.3 m^2/s^2) about every 400 s of walk and pause; matching the per-axis
+variance gives ~0.0033 m^2/s^3, and v_max^2 / 600 s = 0.00375 m^2/s^3 is that rounded up.
+Measured trade-off (``uavloc bench localize``, tests/uavloc_gcs/estimation/test_maneuver.py): the
+real process is a jump process with heavier tails than this Gaussian, so a sharp turn at full
+speed right after the scan can still mislead the fix (the old lanes pick the wrong mirror of a
+single later look pass in 2 of 6 seeds of the turn test); 300 s covers those, but then old data
+decay so fast that short look passes no longer bring a static person below 15 m
+(tests/sim_link/test_missionsim.py). ``maneuver_time_s = inf`` gives the pure CV model.
 """
 
 from __future__ import annotations
@@ -30,7 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-MANEUVER_TIME_S = 600.0
+MANEUVER_TIME_S = 600.0  # see the module docstring
 PASS_GAP_S = 2.0  # a silence longer than this starts a new pass
 PASS_MAX_S = 15.0  # a continuous pass is cut into pieces of at most this length
 MAX_PASSES = 8  # more passes are merged (adjacent in time) to bound the cost

@@ -1,0 +1,191 @@
+"""People who turn and stop: the maneuver process noise (uavloc_gcs/estimation/maneuver.py).
+
+Known answers: a person who walks east and then turns north (the constant-velocity model is
+wrong), and a person who stood still and then walked away (old slots far from the current
+position must not dominate). The pure CV model (``maneuver_time_s=inf``) is run alongside to show
+that these cases do break it, i.e. that the assertions could fail.
+"""
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from sim_link.people import Tracks
+from sim_link.world import World
+from uavloc_gcs.estimation import ChannelModel, estimate_emitter
+from uavloc_gcs.estimation.maneuver import (
+    MAX_PASSES, find_passes, intensity_m2_s3, irw_covariance, state_noise,
+)
+from uavloc_gcs.observations import SlotBatch
+from uavloc_gcs.scenario import load_scenario
+
+EXAMPLES = Path(__file__).resolve().parents[3] / "examples"
+VMAX = 1.5
+
+
+@pytest.fixture(scope="module")
+def sc():
+    return load_scenario(EXAMPLES / "paper.toml")
+
+
+@pytest.fixture(scope="module")
+def channel(sc):
+    return ChannelModel.from_scenario(sc)
+
+
+def leg(world, vehicle, a, b, t0_s):
+    """One straight leg at 100 m and 25 m/s from a to b starting at t0_s."""
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    n = int(np.linalg.norm(b - a) / 25.0 / 0.025)
+    f = np.arange(n) / n
+    return world.hear_track(vehicle, t0_s + f * n * 0.025, np.column_stack([a + np.outer(f, b - a), np.full(n, 100.0)]))
+
+
+def track(times_s, points_xy_m):
+    return Tracks((np.asarray(times_s, float),), (np.asarray(points_xy_m, float),))
+
+
+# east at 1.2 m/s for 60 s, then north at 1.2 m/s
+TURN = track([0.0, 60.0, 1000.0], [[500.0, 300.0], [572.0, 300.0], [572.0, 300.0 + 1.2 * 940.0]])
+
+
+def turn_mission(world):
+    """Two scan lanes (100 m apart) while the person walks east; after the turn one look pass at
+    ~150 s (north-south, 28 m east of the person), and a crossing second look at ~170 s."""
+    lanes = SlotBatch.concat([leg(world, 1, (200, 250), (800, 250), 10.0), leg(world, 1, (800, 350), (200, 350), 43.0)])
+    one = SlotBatch.concat([lanes, leg(world, 2, (600, 250), (600, 550), 146.0)])
+    return lanes, one, SlotBatch.concat([one, leg(world, 2, (450, 440), (750, 440), 166.0)])
+
+
+def error_m(est, world, dt_s=0.0):
+    return float(np.linalg.norm(est.predict(est.t_ref_s + dt_s)[0] - world.positions(est.t_ref_s + dt_s)[0]))
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_a_person_who_turns_is_inside_the_radius(sc, channel, seed):
+    world = World(sc, seed=seed, tracks=TURN)
+    slots = turn_mission(world)[2]
+    est = estimate_emitter(slots, channel, max_speed_m_s=VMAX)
+    assert est.ok and not est.ambiguous
+    assert error_m(est, world) <= est.radius95_m <= 15.0  # honest and still useful
+    # ... and 30 s later (the person keeps walking north)
+    assert error_m(est, world, 30.0) <= est.predict(est.t_ref_s + 30.0)[1]
+
+
+def test_the_constant_velocity_model_misses_the_turn(sc, channel):
+    """Why the above could fail: the pure CV fit of the same slots is outside its own radius in
+    half of the seeds (measured: 3 of 6; errors 9-10 m against radii 6.5-8.6 m)."""
+    misses = 0
+    for seed in range(6):
+        world = World(sc, seed=seed, tracks=TURN)
+        cv = estimate_emitter(turn_mission(world)[2], channel, max_speed_m_s=VMAX, maneuver_time_s=math.inf)
+        misses += error_m(cv, world) > cv.radius95_m
+    assert misses >= 2
+
+
+def test_one_look_after_a_turn_is_mostly_covered(sc, channel):
+    """A single look pass after the turn: its mirror is resolved only by the old lanes, which
+    point the wrong way after a sharp turn. Known limit (measured): covered in 4 of 6 seeds
+    (one of them flagged ambiguous), the CV model in none (errors ~50 m, radii 8-16 m)."""
+    new = cv = 0
+    for seed in range(6):
+        world = World(sc, seed=seed, tracks=TURN)
+        slots = turn_mission(world)[1]
+        est = estimate_emitter(slots, channel, max_speed_m_s=VMAX)
+        old = estimate_emitter(slots, channel, max_speed_m_s=VMAX, maneuver_time_s=math.inf)
+        new += error_m(est, world) <= est.radius95_m
+        cv += error_m(old, world) <= old.radius95_m
+    assert new >= 4 and cv <= 1
+
+
+def test_before_the_turn_the_lanes_alone_are_as_good_as_before(sc, channel):
+    world = World(sc, seed=1, tracks=TURN)
+    lanes = turn_mission(world)[0]
+    est = estimate_emitter(lanes, channel, max_speed_m_s=VMAX)
+    cv = estimate_emitter(lanes, channel, max_speed_m_s=VMAX, maneuver_time_s=math.inf)
+    assert error_m(est, world) <= est.radius95_m <= 1.2 * cv.radius95_m
+    # the prediction grows at least by v_max dt (the person may stop or turn at any moment)
+    _, r60 = est.predict(est.t_ref_s + 60.0)
+    assert r60 >= est.radius95_m + VMAX * 60.0 - 1e-9
+    assert error_m(est, world, 60.0) <= r60
+
+
+def test_an_old_fix_far_from_the_person_does_not_dominate(sc, channel):
+    """Stood at (450, 300) for 60 s (scan lanes), then walked north-east 150 m; two crossing look
+    passes at ~200 s over the new position. The old lanes say 'static at (450, 300)'."""
+    walk = track([0.0, 60.0, 60.0 + 150.0 / 1.2, 1000.0],
+                 [[450.0, 300.0], [450.0, 300.0], [450.0 + 106.07, 300.0 + 106.07], [450.0 + 106.07, 300.0 + 106.07]])
+    for seed in range(3):  # measured: errors 2-6 m, radii ~8 m; CV 10-12 m off with radii 5-7 m
+        world = World(sc, seed=seed, tracks=walk)
+        slots = SlotBatch.concat([
+            leg(world, 1, (150, 250), (750, 250), 0.0), leg(world, 1, (750, 350), (150, 350), 33.0),
+            leg(world, 2, (380, 440), (730, 440), 185.0), leg(world, 2, (590, 520), (590, 250), 205.0)])
+        est = estimate_emitter(slots, channel, max_speed_m_s=VMAX)
+        cv = estimate_emitter(slots, channel, max_speed_m_s=VMAX, maneuver_time_s=math.inf)
+        e = error_m(est, world)
+        assert e <= est.radius95_m and e < 10.0
+        assert est.radius95_m <= 15.0
+        assert error_m(cv, world) > cv.radius95_m  # the CV fit is dragged towards the old position
+
+
+def test_static_and_cv_people_keep_their_coverage(sc, channel):
+    """i.i.d. shadowing, CV truth, two crossing looks ~20-40 s apart: the maneuver model still
+    covers ~95 % and does not blow the radius up."""
+    rng = np.random.default_rng(11)
+    hits, ratio = 0, []
+    n = 40
+    for k in range(n):
+        ang, sp = rng.uniform(0, 2 * np.pi), VMAX * math.sqrt(rng.uniform())
+        world = World.with_people(sc, [[560.0, 320.0]], [[sp * math.cos(ang), sp * math.sin(ang)]], seed=500 + k)
+        y, x = 320.0 - rng.uniform(0, 80), 560.0 - rng.uniform(0, 80)
+        slots = SlotBatch.concat([leg(world, 1, (330, y), (790, y), 0.0), leg(world, 1, (x, 90), (x, 550), 23.0)])
+        est = estimate_emitter(slots, channel, max_speed_m_s=VMAX)
+        cv = estimate_emitter(slots, channel, max_speed_m_s=VMAX, maneuver_time_s=math.inf)
+        hits += error_m(est, world) <= est.radius95_m
+        ratio.append(est.mode_radius95_m / cv.mode_radius95_m)
+    assert hits >= 0.85 * n
+    assert np.median(ratio) < 1.3
+
+
+def test_irw_covariance_known_values():
+    q = 0.01
+    lags = np.array([-100.0, -40.0, 0.0, 30.0])
+    c = irw_covariance(lags, q)
+    assert c[0, 0] == pytest.approx(q * 100.0**3 / 3.0)
+    assert c[0, 1] == pytest.approx(q * 40.0**2 * (3 * 100.0 - 40.0) / 6.0)
+    assert c[0, 3] == 0.0 and c[2, 2] == 0.0  # opposite sides of the anchor are independent
+    assert np.all(np.linalg.eigvalsh(c) >= -1e-9)
+    # the same numbers from simulated white-noise acceleration
+    rng = np.random.default_rng(0)
+    dt = 0.5
+    acc = rng.standard_normal((4000, 200)) * math.sqrt(q / dt)
+    dev = np.cumsum(np.cumsum(acc, axis=1) * dt, axis=1) * dt  # deviation after t = (k+1) dt
+    i40, i100 = int(40 / dt) - 1, int(100 / dt) - 1
+    emp = np.cov(dev[:, [i100, i40]].T)
+    assert emp[0, 0] == pytest.approx(c[0, 0], rel=0.1)
+    assert emp[0, 1] == pytest.approx(c[0, 1], rel=0.1)
+
+
+def test_state_noise_is_the_irw_prediction_noise():
+    n = state_noise(0.02, 10.0)
+    assert n[0, 0] == pytest.approx(0.02 * 1000 / 3) and n[2, 2] == pytest.approx(0.2)
+    assert n[0, 2] == pytest.approx(0.02 * 50) and n[0, 1] == 0.0
+    assert np.all(state_noise(0.0, 10.0) == 0) and np.all(state_noise(0.02, 0.0) == 0)
+    assert np.all(np.linalg.eigvalsh(state_noise(0.02, -7.0)) >= -1e-12)
+    assert intensity_m2_s3(VMAX, math.inf) == 0.0 and intensity_m2_s3(0.0) == 0.0
+
+
+def test_passes_from_slot_times():
+    q = intensity_m2_s3(VMAX)
+    t = np.concatenate([np.arange(0, 8, 0.1), np.arange(40, 48, 0.1), np.arange(150, 158, 0.1)])
+    ps = find_passes(t, 158.0, q)
+    assert ps.count == 2  # the last pass is the anchor's: on the CV line, no offset
+    assert np.all(ps.index[t >= 150] == -1)
+    assert len(set(ps.index[t < 8])) == 1 and len(set(ps.index[(t >= 40) & (t < 48)])) == 1
+    assert ps.index[0] != ps.index[-81]
+    assert find_passes(t[t >= 150], 158.0, q) is None  # one pass: nothing to deviate
+    assert find_passes(t, 158.0, 0.0) is None  # pure CV
+    many = np.concatenate([np.arange(k * 20.0, k * 20.0 + 3, 0.1) for k in range(20)])
+    assert find_passes(many, many[-1], q).count == MAX_PASSES
