@@ -49,11 +49,21 @@ class Kinematics:
                 v_des = 0.0
         vh = self.vel[:2].copy()
         s = float(math.hypot(vh[0], vh[1]))
+        behind = False
+        if dist > 1e-9 and s >= SLOW_M_S:
+            # A target beside or behind the vehicle is only reachable by slowing down: the circle
+            # tangent to the velocity through the target has radius dist / (2 sin|err|), which
+            # bounds the speed at sqrt(a r). Otherwise the vehicle would orbit the target.
+            err0 = (math.atan2(d[1], d[0]) - math.atan2(vh[1], vh[0]) + math.pi) % (2.0 * math.pi) - math.pi
+            behind = abs(err0) > math.pi / 2 and dist < s * s / a
+            if abs(err0) > 1e-3:
+                radius = dist / (2.0 * math.sin(min(abs(err0), math.pi / 2)))
+                v_des = min(v_des, max(SLOW_M_S, math.sqrt(0.8 * a * radius)))
         if dist < 1e-9:
             want = np.zeros(2)
         else:
             want = d / dist * v_des
-        if s < SLOW_M_S or v_des < SLOW_M_S:
+        if s < SLOW_M_S or v_des < SLOW_M_S or behind:
             dv = want - vh
             n = float(math.hypot(dv[0], dv[1]))
             lim = a * dt_s
@@ -62,9 +72,14 @@ class Kinematics:
             heading = math.atan2(vh[1], vh[0])
             desired = math.atan2(want[1], want[0]) if dist > 1e-9 else heading
             err = (desired - heading + math.pi) % (2.0 * math.pi) - math.pi
-            a_lat = min(a, s * abs(err) / dt_s)
+            if v_des < s:
+                # Braking first: slowing down also tightens the turn.
+                a_tan = min(a, (s - v_des) / dt_s)
+                a_lat = min(math.sqrt(max(0.0, a * a - a_tan * a_tan)), s * abs(err) / dt_s)
+            else:
+                a_lat = min(a, s * abs(err) / dt_s)
+                a_tan = math.sqrt(max(0.0, a * a - a_lat * a_lat))
             heading += math.copysign(a_lat * dt_s / s, err)
-            a_tan = math.sqrt(max(0.0, a * a - a_lat * a_lat))
             s = s + max(-a_tan * dt_s, min(a_tan * dt_s, v_des - s))
             vh = np.array([math.cos(heading), math.sin(heading)]) * max(s, 0.0)
         dz = target[2] - self.pos[2]
