@@ -74,6 +74,7 @@ class Flavour:
     upload_request: str  # message the vehicle requests items with during an upload
     stored_params: dict[int, tuple[int, ...]] = field(default_factory=dict)
     alt_resolution_m: float = 0.0  # ArduPilot stores altitudes as whole centimetres
+    latlon_tolerance_e7: int = 0  # PX4 keeps lat/lon as doubles and may round back off by one
 
     # -- modes ----------------------------------------------------------------------------
 
@@ -115,7 +116,8 @@ class Flavour:
             return False
         if _FRAME_CLASS.get(sent.frame, sent.frame) != _FRAME_CLASS.get(got.frame, got.frame):
             return False
-        if (sent.x, sent.y) != (got.x, got.y):
+        tol = self.latlon_tolerance_e7 if sent.frame in _FRAME_CLASS else 0
+        if abs(sent.x - got.x) > tol or abs(sent.y - got.y) > tol:
             return False
         if not (_feq(sent.z, got.z) or abs(sent.z - got.z) <= self.alt_resolution_m / 2 + 1e-6):
             return False
@@ -134,7 +136,7 @@ class Flavour:
 ARDUPILOT = Flavour("ardupilot", "ArduPilot", mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA, home_at_seq0=True,
                     upload_request="MISSION_REQUEST", stored_params=_AP_STORED_PARAMS, alt_resolution_m=0.01)
 PX4 = Flavour("px4", "PX4", mavlink.MAV_AUTOPILOT_PX4, home_at_seq0=False,
-              upload_request="MISSION_REQUEST_INT", stored_params=_PX4_STORED_PARAMS)
+              upload_request="MISSION_REQUEST_INT", stored_params=_PX4_STORED_PARAMS, latlon_tolerance_e7=1)
 GENERIC = Flavour("generic", "MAVLink vehicle", mavlink.MAV_AUTOPILOT_GENERIC, home_at_seq0=False,
                   upload_request="MISSION_REQUEST_INT")
 

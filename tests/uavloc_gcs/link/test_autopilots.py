@@ -60,3 +60,9 @@ def test_px4_ignores_pass_radius_but_keeps_the_rest():
     assert PX4.stored_equal(dataclasses.replace(WP, param3=5.0), got)
     assert not PX4.stored_equal(dataclasses.replace(WP, param2=5.0), got)
     assert GENERIC.stored_equal(WP, WP) and not GENERIC.stored_equal(dataclasses.replace(WP, param3=5.0), WP)
+
+
+def test_px4_may_round_positions_back_by_one_unit_but_no_more():
+    assert PX4.stored_equal(WP, dataclasses.replace(WP, x=WP.x - 1, y=WP.y + 1))
+    assert not PX4.stored_equal(WP, dataclasses.replace(WP, x=WP.x - 2))
+    assert not ARDUPILOT.stored_equal(WP, dataclasses.replace(WP, x=WP.x - 1, param4=0.0))

@@ -81,9 +81,9 @@ def test_verification_catches_a_vehicle_that_stores_something_else():
                 await link.wait_heartbeat(timeout_s=5)
                 orig = v._on_mission_item_int
 
-                def corrupt(msg):  # a vehicle that truncates latitude precision on item 5
+                def corrupt(msg):  # a vehicle that stores item 5 about 1 m further north
                     if msg.seq == 5:
-                        msg.x = msg.x // 100 * 100 + (1 if msg.x % 100 == 0 else 0)
+                        msg.x += 90
                     orig(msg)
                 v._on_mission_item_int = corrupt
                 await upload_mission(link, 1, 1, items)
