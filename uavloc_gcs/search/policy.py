@@ -49,9 +49,10 @@ class PersonStatus:
     """What the policy believes about one emitter.
 
     ``located``: estimate ok, calibrated 95 % radius <= required accuracy, no mirror ambiguity.
-    ``xy_m`` is the believed position at ``t_ref_s`` from the *latest* estimate (the mirror
-    candidate if that one was chosen), which can be newer than the fix estimate in ``estimate``;
-    ``fix_t_s`` the time the person became located (None if not yet).
+    ``xy_m`` [m], ``velocity_m_s`` and ``t_ref_s`` [s] are the believed candidate (the mirror
+    candidate if that one was chosen) that ``radius95_m`` belongs to: for a located person the
+    candidate at the fix (``estimate`` is then the fix estimate), otherwise the latest estimate's.
+    ``fix_t_s`` is the time the person became located (None if not yet).
     """
 
     emitter_id: int
@@ -63,6 +64,7 @@ class PersonStatus:
     fix_t_s: float | None = None
     looks: int = 0
     radius95_m: float = math.inf  # calibrated radius of the believed candidate (at the fix if located)
+    velocity_m_s: tuple[float, float] | None = None  # of the believed candidate [m/s]
 
 
 @dataclass(frozen=True)
@@ -104,6 +106,7 @@ class _Person:
     fix_t_s: float | None = None
     fix_estimate: object = None
     fix_radius95_m: float = math.inf
+    fix_candidate: tg.Candidate | None = None  # the believed candidate at the fix
 
 
 class SearchPolicy:
@@ -193,14 +196,18 @@ class SearchPolicy:
         """Status of every emitter heard so far, by id."""
         out = []
         for eid, p in sorted(self._people.items()):
-            cand = self._candidate(p)
-            est = p.fix_estimate if p.fix_estimate is not None else p.estimate
+            located = p.fix_t_s is not None
+            # position and radius always of the same candidate: the fix's when located
+            cand = p.fix_candidate if located else self._candidate(p)
+            est = p.fix_estimate if located else p.estimate
             out.append(PersonStatus(
-                emitter_id=eid, estimate=est, located=p.fix_t_s is not None, reason=self._reason(p),
+                emitter_id=eid, estimate=est, located=located, reason=self._reason(p),
                 xy_m=None if cand is None else (float(cand.xy_m[0]), float(cand.xy_m[1])),
                 t_ref_s=None if cand is None else cand.t_ref_s, fix_t_s=p.fix_t_s, looks=p.looks,
-                radius95_m=p.fix_radius95_m if p.fix_t_s is not None else (
-                    self._radius95(p) if p.estimate is not None else math.inf)))
+                radius95_m=p.fix_radius95_m if located else (
+                    self._radius95(p) if p.estimate is not None else math.inf),
+                velocity_m_s=None if cand is None else (float(cand.velocity_m_s[0]),
+                                                        float(cand.velocity_m_s[1]))))
         return out
 
     def pending_ids(self) -> list[int]:
@@ -382,10 +389,12 @@ class SearchPolicy:
         if p.fix_t_s is not None or p.gave_up or not self._ok(p):
             return
         r95 = self._radius95(p)
-        if r95 <= self.required_m and not self._ambiguous(p):
+        cand = self._candidate(p)
+        if r95 <= self.required_m and not self._ambiguous(p) and cand is not None:
             p.fix_t_s = p.last_slot_t_s if math.isfinite(p.last_slot_t_s) else t_s
             p.fix_estimate = p.estimate
             p.fix_radius95_m = r95
+            p.fix_candidate = cand
             self._awaiting.pop(p.emitter_id, None)
 
     def _radius95(self, p: _Person) -> float:

@@ -425,7 +425,7 @@ class Daemon:
                             v.agent.tel.battery_pct if v.agent else None,
                             v.agent.tel.mission_seq if v.agent else None, v.end_seq or None, v.lost)
               for v in self.vehicles.values()]
-        people = [PersonStatusView(p.emitter_id, float(getattr(p.estimate, "radius95_m", math.nan) or math.nan),
+        people = [PersonStatusView(p.emitter_id, float(p.radius95_m),
                                    p.located, p.reason) for p in self._people_cache]
         return StatusSnapshot(t, vs, people, self._n_slots, self.sc.people.required_accuracy_m, self._replans)
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+import logging
 import math
 from dataclasses import dataclass
 from typing import Sequence
@@ -12,6 +14,8 @@ from ..errors import UavlocError
 from ..geo import LocalFrame
 from .results import PersonResult
 from .store import EstimateRow
+
+log = logging.getLogger(__name__)
 
 
 def _f(value, default: float = math.nan) -> float:
@@ -35,18 +39,18 @@ def person_result(status, frame: LocalFrame, *, epoch_t_s: float = 0.0) -> Perso
     ``epoch_t_s`` is subtracted from the fix time so it reads as seconds since the search began.
     """
     est = status.estimate
-    # A located person is reported as fixed (status.estimate is then the fix estimate; xy_m and
-    # t_ref_s may come from a later estimate); otherwise as the policy currently believes.
-    own_xy = _vec(getattr(est, "position_xy_m", None))
-    own_t = _f(getattr(est, "t_ref_s", None))
-    if status.located and math.isfinite(own_xy[0]) and math.isfinite(own_t):
-        (e, n), t_ref_abs = own_xy, own_t
-    elif status.xy_m is not None:
+    # Position, velocity, time and radius all of the policy's believed candidate (the fix's when
+    # located). The estimate's own position_xy_m / radius95_m must not be used: when the estimator
+    # reports a mirror ambiguity that the area resolved, they are the other candidate's position
+    # and a radius reaching over both.
+    if status.xy_m is not None:
         (e, n), t_ref_abs = status.xy_m, _f(status.t_ref_s)
+        r95 = _f(getattr(status, "radius95_m", None))
     else:
-        (e, n), t_ref_abs = own_xy, own_t
-    ve, vn = _vec(getattr(est, "velocity_m_s", None))
-    r95 = _f(getattr(est, "radius95_m", None))
+        (e, n), t_ref_abs = (math.nan, math.nan), math.nan
+        r95 = math.nan
+    vel = getattr(status, "velocity_m_s", None)
+    ve, vn = _vec(vel if vel is not None else getattr(est, "velocity_m_s", None))
     bound = _f(getattr(est, "annulus_bound_m", getattr(est, "bound_m", None)))
     if math.isfinite(e) and math.isfinite(n):
         lat, lon = frame.to_wgs84(e, n)
@@ -54,11 +58,12 @@ def person_result(status, frame: LocalFrame, *, epoch_t_s: float = 0.0) -> Perso
     else:
         lat = lon = math.nan
     fix = _f(status.fix_t_s) - epoch_t_s if status.fix_t_s is not None else math.nan
-    ambiguous = bool(getattr(est, "ambiguous", False))
-    reason = "" if status.located else status.reason
+    located = bool(status.located) and math.isfinite(r95) and math.isfinite(e)
+    ambiguous = bool(getattr(est, "ambiguous", False)) and not located  # a fix is unambiguous
+    reason = "" if located else (status.reason or "no position")
     t_ref = t_ref_abs - epoch_t_s
     return PersonResult(int(status.emitter_id), lat, lon, float(e), float(n), ve, vn, r95, bound, fix,
-                        bool(status.located), not ambiguous, reason, t_ref)
+                        located, not ambiguous, reason, t_ref)
 
 
 def final_results(statuses, slots, scenario, frame: LocalFrame) -> list[PersonResult]:
@@ -89,12 +94,21 @@ def final_results(statuses, slots, scenario, frame: LocalFrame) -> list[PersonRe
             continue
         e, n = (float(v) for v in est.position_xy_m)
         lat, lon = (float(v) for v in frame.to_wgs84(e, n))
-        located = base.located or est.radius95_m <= required
+        located = base.located or est.radius95_m <= required  # est radius <= required if base located
         out.append(PersonResult(base.emitter_id, lat, lon, e, n, float(est.velocity_m_s[0]),
                                 float(est.velocity_m_s[1]), float(est.radius95_m),
                                 _f(est.annulus_bound_m), base.fix_time_s, located, True,
                                 "" if located else base.reason, float(est.t_ref_s)))
-    return out
+    return [_never_located_beyond(r, required) for r in out]
+
+
+def _never_located_beyond(r: PersonResult, required_m: float) -> PersonResult:
+    """A person whose reported radius exceeds the required accuracy is never reported located."""
+    if not r.located or r.radius95_m <= required_m:
+        return r
+    log.warning("person %d: reported radius %.1f m > required %.1f m; not counted as located",
+                r.emitter_id, r.radius95_m, required_m)
+    return dataclasses.replace(r, located=False, reason=f"95 % radius {r.radius95_m:.1f} m > {required_m:g} m")
 
 
 def _fit(data, channel, max_speed_m_s: float):

@@ -4,6 +4,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+import pytest
 
 from uavloc_gcs.geo import LocalFrame
 from uavloc_gcs.service.outcome import person_result, statement_for
@@ -49,14 +50,18 @@ class _Status:
     xy_m: tuple | None
     t_ref_s: float | None
     fix_t_s: float | None
+    radius95_m: float = math.inf
+    velocity_m_s: tuple | None = None
 
 
-def test_person_result_reports_a_located_person_at_its_fix():
+def test_person_result_reports_the_believed_candidate_with_its_own_radius():
     frame = LocalFrame(42.625, 13.283)
-    est = _Est(np.array([100.0, 50.0]), np.array([0.5, -0.5]), 80.0, 9.0, 20.0)
-    st = _Status(7, est, True, "located", (130.0, 20.0), 120.0, 80.0)  # xy_m from a later estimate
+    # the estimate's own position / radius are the ruled-out mirror and a radius over both
+    est = _Est(np.array([2100.0, 50.0]), np.array([0.5, -0.5]), 80.0, 1156.0, 20.0, ambiguous=True)
+    st = _Status(7, est, True, "located", (100.0, 50.0), 80.0, 80.0, 9.0, (0.25, 0.0))
     r = person_result(st, frame)
     assert (r.east_m, r.north_m, r.t_ref_s, r.radius95_m, r.annulus_bound_m) == (100.0, 50.0, 80.0, 9.0, 20.0)
+    assert (r.vel_east_m_s, r.vel_north_m_s) == (0.25, 0.0)
     lat, lon = frame.to_wgs84(100.0, 50.0)
     assert math.isclose(r.lat_deg, lat) and math.isclose(r.lon_deg, lon)
     assert r.located and r.reason == "" and r.ambiguity_resolved
@@ -65,9 +70,11 @@ def test_person_result_reports_a_located_person_at_its_fix():
 def test_person_result_of_an_ambiguous_person_keeps_the_policys_candidate_and_reason():
     frame = LocalFrame(42.625, 13.283)
     est = _Est(np.array([100.0, 50.0]), np.zeros(2), 80.0, 40.0, math.nan, ambiguous=True)
-    st = _Status(8, est, False, "mirror ambiguity: needs a look off the flight line", (100.0, -50.0), 80.0, None)
+    st = _Status(8, est, False, "mirror ambiguity: needs a look off the flight line", (100.0, -50.0), 80.0, None,
+                 40.0)
     r = person_result(st, frame)
-    assert (r.east_m, r.north_m) == (100.0, -50.0) and not r.located and not r.ambiguity_resolved
+    assert (r.east_m, r.north_m, r.radius95_m) == (100.0, -50.0, 40.0)
+    assert not r.located and not r.ambiguity_resolved
     assert r.reason.startswith("mirror ambiguity") and math.isnan(r.fix_time_s) and math.isnan(r.annulus_bound_m)
 
 
@@ -92,9 +99,69 @@ def test_final_results_refit_all_data_and_stay_consistent_with_located():
     eid = int(world.emitter_ids[0])
     slots = _two_lanes(sc, world)
     est = _Est(np.array([280.0, 80.0]), np.zeros(2), 60.0, 14.0, 30.0)
-    st = _Status(eid, est, True, "located", (280.0, 80.0), 60.0, 60.0)
+    st = _Status(eid, est, True, "located", (280.0, 80.0), 60.0, 60.0, 14.0)
     (good,) = final_results([st], slots, sc, sc.frame)
     assert good.located and good.radius95_m <= sc.people.required_accuracy_m
     assert math.hypot(good.east_m - 300.0, good.north_m - 90.0) < 10.0  # the refit, not the fix
     (kept,) = final_results([st], slots.take(np.arange(5)), sc, sc.frame)  # too little to refit
     assert kept.located and (kept.east_m, kept.north_m, kept.radius95_m) == (280.0, 80.0, 14.0)
+
+
+def test_final_results_never_report_located_beyond_the_required_accuracy():
+    from tests.e2e_helpers import small_scenario
+    from uavloc_gcs.observations import SlotBatch
+    from uavloc_gcs.service.outcome import final_results
+
+    sc = small_scenario(seed=5)
+    est = _Est(np.array([280.0, 80.0]), np.zeros(2), 60.0, 14.0, 30.0)
+    wide = sc.people.required_accuracy_m + 5.0
+    st = _Status(3, est, True, "located", (280.0, 80.0), 60.0, 60.0, wide)
+    (r,) = final_results([st], SlotBatch.empty(), sc, sc.frame)
+    assert not r.located and r.radius95_m == wide and "radius" in r.reason
+
+
+def test_a_fix_on_the_mirror_candidate_is_reported_there_with_its_radius(small_sc_and_fake):
+    """Regression: primary 2 km outside the area, mirror inside and sharp -> located at the mirror
+    with the mirror's radius, not at the primary with a radius spanning both; and a later estimate
+    does not move the reported fix away from its radius."""
+    from uavloc_gcs.search import SearchPolicy
+
+    sc, fake, slots = small_sc_and_fake
+    area = sc.area_xy_m()
+    inside = area.mean(axis=0)
+    far = area.max(axis=0) + np.array([2000.0, 0.0])
+    policy = SearchPolicy(sc)
+    fake(far, inside, 6.0, 3.0)
+    policy.ingest(slots(1.0))
+    policy.update(4.0)
+    fake(far + 30.0, inside + 40.0, 25.0, 9.0)  # later, looser estimate elsewhere
+    policy.ingest(slots(5.0))
+    policy.update(10.0)
+    (st,) = policy.people(10.0)
+    assert st.located and st.radius95_m == 6.0
+    r = person_result(st, sc.frame)
+    assert (r.east_m, r.north_m) == tuple(float(v) for v in inside) and r.t_ref_s == 3.0
+    assert r.radius95_m == 6.0 and r.located
+
+
+@pytest.fixture
+def small_sc_and_fake(monkeypatch):
+    import uavloc_gcs.estimation as estimation
+    from tests.e2e_helpers import small_scenario
+    from uavloc_gcs.estimation import Candidate, Estimate
+    from uavloc_gcs.observations import SlotBatch
+
+    sc = small_scenario(seed=5)
+
+    def fake(primary_xy, mirror_xy, mirror_r95, t_ref):
+        mirror = Candidate(np.asarray(mirror_xy, float), np.zeros(2), 0.9, mirror_r95, np.eye(4))
+        spread = float(np.linalg.norm(np.asarray(primary_xy) - mirror_xy)) + mirror_r95
+        est = Estimate(5, "ok", t_ref, np.asarray(primary_xy, float), np.zeros(2), np.eye(4), radius95_m=spread,
+                       ambiguous=True, mirror=mirror, mode_radius95_m=7.0, max_speed_m_s=1.5)
+        monkeypatch.setattr(estimation, "estimate_emitter", lambda *a, **k: est)
+
+    def slots(t0):
+        return SlotBatch.from_columns([t0, t0 + 1, t0 + 2], [1, 1, 1], [[0, 0, 100]] * 3, [5, 5, 5], [-80.0] * 3,
+                                      [10] * 3)
+
+    return sc, fake, slots
