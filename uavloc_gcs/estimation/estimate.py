@@ -156,6 +156,13 @@ def estimate_emitter(
     problem = Problem(data, moving, bool(estimate_tx_power), float(max_speed_m_s),
                       TX_PRIOR_SIGMA_DB * channel.nepers_per_db, find_passes(data.t_s, t_anchor, q))
     starts = start_points(problem)
+    if problem.passes is not None:
+        # the CV fit from the best start first: with free pass offsets the maneuver fit has more
+        # local optima, and the straight-line solution is the natural place to begin
+        cv = Problem(data, moving, problem.tx, problem.max_speed_m_s, problem.tx_sigma_nepers)
+        first = np.zeros(problem.size)
+        first[: problem.base_size] = cv.fit(starts[0][: problem.base_size])[0]
+        starts.insert(0, first)
     if previous is not None and previous.ok:
         warm = np.zeros(problem.size)
         warm[:2] = previous.position_xy_m + previous.velocity_m_s * (data.t_c - previous.t_ref_s)
@@ -300,7 +307,10 @@ def _mirror_one_pass(problem: Problem, theta: np.ndarray, center, direction, t_l
     if j >= 0:
         out[b + 2 * j: b + 2 * j + 2] = mirror_point(where[j], center, direction) - p - v * tau[j]
         return out
-    out = _mirror_state(problem, theta, center, direction, t_leg_s - d.t_c)
+    # the current pass: its position reflected, the velocity kept (the older passes, through their
+    # offsets, say where the person came from, not which way the mirror image walks)
+    tau_leg = t_leg_s - d.t_c
+    out[:2] = mirror_point(p + v * tau_leg, center, direction) - v * tau_leg
     out[b:] = (where - out[:2] - np.outer(tau, out[2:4])).ravel()
     return out
 

@@ -23,7 +23,7 @@ variance gives ~0.0033 m^2/s^3, and v_max^2 / 600 s = 0.00375 m^2/s^3 is that ro
 Measured trade-off (``uavloc bench localize``, tests/uavloc_gcs/estimation/test_maneuver.py): the
 real process is a jump process with heavier tails than this Gaussian, so a sharp turn at full
 speed right after the scan can still mislead the fix (the old lanes pick the wrong mirror of a
-single later look pass in 2 of 6 seeds of the turn test); 300 s covers those, but then old data
+single later look pass in 3 of 6 seeds of the turn test); 300 s covers more, but then old data
 decay so fast that short look passes no longer bring a static person below 15 m
 (tests/sim_link/test_missionsim.py). ``maneuver_time_s = inf`` gives the pure CV model.
 """
