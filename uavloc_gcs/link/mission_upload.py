@@ -75,6 +75,7 @@ async def upload_mission(link: Link, target_system: int, target_component: int, 
     opaque_id = 0
     ack_lost = False
 
+    messages = [item_message(mav, target_system, target_component, it) for it in items]
     with link.subscribe(REQUEST_TYPES, source_system=target_system) as replies:
         last_sent = mav.mission_count_encode(target_system, target_component, n, mission_type)
         await link.send(last_sent)
@@ -119,8 +120,8 @@ async def upload_mission(link: Link, target_system: int, target_component: int, 
                         # request for k+1 was lost. Send k+1 now rather than wait ~1 s for its
                         # re-request; if we guessed wrong it NACKs again and re-requests.
                         highest_sent += 1
-                        last_sent = item_message(mav, target_system, target_component, items[highest_sent])
-                        await link.send(last_sent)
+                        last_sent = messages[highest_sent]
+                        link.send_nowait(last_sent)
                         last_is_resend = False
                     continue
                 if n and highest_sent == n - 1 and resends and verify:
@@ -140,7 +141,7 @@ async def upload_mission(link: Link, target_system: int, target_component: int, 
                 log.debug("vehicle %s requested item %d of %d; ignored", vehicle, seq, n)
                 continue
             last_is_resend = seq <= highest_sent
-            last_sent = item_message(mav, target_system, target_component, items[seq])
+            last_sent = messages[seq]
             link.send_nowait(last_sent)
             timeout_s = ITEM_TIMEOUT_S
             if seq != last_requested:  # the vehicle moved on (or restarted): progress
