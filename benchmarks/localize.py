@@ -47,7 +47,13 @@ from pathlib import Path
 import numpy as np
 
 from sim_link.world import World
-from uavloc_gcs.estimation import ChannelModel, data_information, estimate_emitter, position_rmse_bound_m, prior_information
+from uavloc_gcs.estimation import (
+    ChannelModel,
+    data_information,
+    estimate_emitter,
+    position_rmse_bound_m,
+    prior_information,
+)
 from uavloc_gcs.observations import SlotBatch
 from uavloc_gcs.scenario import load_scenario
 

@@ -26,8 +26,16 @@ import numpy as np
 from ..errors import EstimationError
 from ..observations import SlotBatch
 from .annulus import annulus_bound_m, reach_bound_m
+from .fit import (
+    Problem,
+    inflation_factor,
+    leg_lines,
+    mirror_point,
+    prepare,
+    principal_line,
+    start_points,
+)
 from .maneuver import MANEUVER_TIME_S, find_passes, intensity_m2_s3, state_noise
-from .fit import Problem, inflation_factor, leg_lines, mirror_point, prepare, principal_line, start_points
 from .model import ChannelModel, radius_of_probability
 
 log = logging.getLogger(__name__)

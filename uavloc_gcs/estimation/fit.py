@@ -140,7 +140,7 @@ class Problem:
 
     def residuals(self, theta: np.ndarray) -> np.ndarray:
         d = self.data
-        g, d2 = self._geometry(theta)
+        _, d2 = self._geometry(theta)
         beta = theta[self.beta_index] if self.tx else 0.0
         sw = np.sqrt(d.w)
         parts = [sw * (d.y - 0.5 * np.log(d2) + beta)]

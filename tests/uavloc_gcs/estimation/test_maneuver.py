@@ -16,7 +16,11 @@ from sim_link.people import Tracks
 from sim_link.world import World
 from uavloc_gcs.estimation import ChannelModel, estimate_emitter
 from uavloc_gcs.estimation.maneuver import (
-    MAX_PASSES, find_passes, intensity_m2_s3, irw_covariance, state_noise,
+    MAX_PASSES,
+    find_passes,
+    intensity_m2_s3,
+    irw_covariance,
+    state_noise,
 )
 from uavloc_gcs.observations import SlotBatch
 from uavloc_gcs.scenario import load_scenario
