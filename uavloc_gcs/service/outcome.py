@@ -68,11 +68,12 @@ def person_result(status, frame: LocalFrame, *, epoch_t_s: float = 0.0) -> Perso
 
 def final_results(statuses, slots, scenario, frame: LocalFrame) -> list[PersonResult]:
     """Each person re-estimated at the end from the slots of its last FINAL_WINDOW_S seconds of
-    being heard (all of them if that window does not give a valid, unambiguous fit). The policy
+    being heard (all of them if that window does not give a usable fit). The policy
     freezes a person's estimate when it first meets the accuracy; later passes usually sharpen it,
     while a constant-velocity fit over a whole search is hurt by people changing direction.
-    A person counts as located if the policy located it or the final estimate is within the
-    required accuracy without mirror ambiguity. A person the policy located keeps its fix unless
+    The reported position is always the one the reported radius is about.
+    A person counts as located if the policy located it or the final estimate's 95 % circle (over
+    both mirror candidates if ambiguous) is within the required accuracy. A person the policy located keeps its fix unless
     a refit is also within the required accuracy; otherwise the policy's belief is reported."""
     from ..estimation import ChannelModel  # noqa: PLC0415
 
@@ -86,8 +87,10 @@ def final_results(statuses, slots, scenario, frame: LocalFrame) -> list[PersonRe
         est = None
         for data in (recent, part):  # a constant-velocity fit holds over minutes, not a whole search
             fit = _fit(data, channel, scenario.people.max_speed_m_s)
-            if fit is not None and (fit.radius95_m <= required or not base.located):
-                est = fit  # never trade a located fix for a looser refit
+            # never trade a located fix for a looser refit, nor the policy's area-resolved belief
+            # for an ambiguous refit that does not meet the accuracy either way
+            if fit is not None and (fit.radius95_m <= required or not (base.located or fit.ambiguous)):
+                est = fit
                 break
         if est is None:
             out.append(base)
@@ -95,9 +98,10 @@ def final_results(statuses, slots, scenario, frame: LocalFrame) -> list[PersonRe
         e, n = (float(v) for v in est.position_xy_m)
         lat, lon = (float(v) for v in frame.to_wgs84(e, n))
         located = base.located or est.radius95_m <= required  # est radius <= required if base located
+        resolved = located or not est.ambiguous
         out.append(PersonResult(base.emitter_id, lat, lon, e, n, float(est.velocity_m_s[0]),
                                 float(est.velocity_m_s[1]), float(est.radius95_m),
-                                _f(est.annulus_bound_m), base.fix_time_s, located, True,
+                                _f(est.annulus_bound_m), base.fix_time_s, located, resolved,
                                 "" if located else base.reason, float(est.t_ref_s)))
     return [_never_located_beyond(r, required) for r in out]
 
@@ -112,7 +116,7 @@ def _never_located_beyond(r: PersonResult, required_m: float) -> PersonResult:
 
 
 def _fit(data, channel, max_speed_m_s: float):
-    """A valid, unambiguous estimate from ``data``, or None."""
+    """A valid estimate from ``data`` (its radius covering a mirror image if ambiguous), or None."""
     from ..estimation import estimate_emitter  # noqa: PLC0415
 
     if len(data) == 0:
@@ -121,7 +125,9 @@ def _fit(data, channel, max_speed_m_s: float):
         est = estimate_emitter(data, channel, max_speed_m_s=max_speed_m_s, model_motion=True)
     except UavlocError:
         return None
-    if not est.ok or not math.isfinite(est.radius95_m) or est.ambiguous:
+    # An ambiguous estimate's radius95_m is centred on its primary and reaches over the mirror,
+    # so position and radius still belong together; it is located only if that circle is small.
+    if not est.ok or not math.isfinite(est.radius95_m):
         return None
     return est
 
