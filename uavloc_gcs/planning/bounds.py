@@ -37,38 +37,92 @@ def _prim_mst_m(d: np.ndarray) -> float:
     return total
 
 
+class _Geometry:
+    """The radius-independent parts of the static bound, computed once per problem."""
+
+    def __init__(self, problem: RoutingProblem) -> None:
+        self.V = problem.speed_m_s
+        self.m = len(problem.vehicles)
+        self.s, self.h = problem.starts_xy_m, problem.homes_xy_m
+        self.home_s = float(np.max(np.linalg.norm(self.h - self.s, axis=1))) / self.V
+        self.n = len(problem.targets)
+        if self.n:
+            self.c = problem.centres_xy_m
+            self.cc = np.linalg.norm(self.c[:, None] - self.c[None], axis=2)
+            depots = np.concatenate([self.s, self.h])
+            self.cdep = np.min(np.linalg.norm(self.c[:, None] - depots[None], axis=2), axis=1)
+
+    def visit_s(self, radii: np.ndarray) -> float:
+        """Every target visited by someone: max_i min_v (start_v -> disk_i -> home_v) / V."""
+        _, single = best_point_between(self.s[None], self.h[None], self.c[:, None], radii[:, None])
+        return float(np.max(np.min(single, axis=1))) / self.V
+
+    def mst_s(self, radii: np.ndarray) -> float:
+        """MST over the disks and the merged depot node, gap distances, over m vehicles."""
+        n = self.n
+        d = np.zeros((n + 1, n + 1))
+        d[:n, :n] = np.maximum(self.cc - radii[:, None] - radii[None], 0.0)
+        d[n, :n] = d[:n, n] = np.maximum(self.cdep - radii, 0.0)
+        return _prim_mst_m(d) / (self.m * self.V)
+
+    def bound_s(self, radii: np.ndarray) -> float:
+        if self.n == 0:
+            return self.home_s
+        return max(self.home_s, self.visit_s(radii), self.mst_s(radii))
+
+
 def _static_bound_s(problem: RoutingProblem, radii: np.ndarray) -> float:
-    V = problem.speed_m_s
-    s, h = problem.starts_xy_m, problem.homes_xy_m
-    lb = float(np.max(np.linalg.norm(h - s, axis=1))) / V
-    if len(problem.targets) == 0:
-        return lb
-    c = problem.centres_xy_m
-    _, single = best_point_between(s[None], h[None], c[:, None], radii[:, None])
-    lb = max(lb, float(np.max(np.min(single, axis=1))) / V)
-    gap = np.maximum(np.linalg.norm(c[:, None] - c[None], axis=2) - radii[:, None] - radii[None], 0.0)
-    depots = np.concatenate([s, h])
-    dep = np.maximum(np.min(np.linalg.norm(c[:, None] - depots[None], axis=2), axis=1) - radii, 0.0)
-    n = len(c)
-    d = np.zeros((n + 1, n + 1))
-    d[:n, :n] = gap
-    d[n, :n] = d[:n, n] = dep
-    mst = _prim_mst_m(d)
-    return max(lb, mst / (len(problem.vehicles) * V))
+    return _Geometry(problem).bound_s(radii)
+
+
+def _fixed_point_s(g, hi_s: float, tol_s: float) -> float:
+    """Largest ``T`` known to satisfy ``T < T*`` (within ``tol_s``), where ``T* = g(T*)`` for a
+    non-increasing ``g`` with ``g(hi_s) <= hi_s``. Regula falsi (Illinois) on ``g(T) - T``, which
+    is strictly decreasing; keeps a bracket, so the returned lower end is always a valid bound."""
+    lo, hi = 0.0, hi_s
+    f_lo, f_hi = g(lo) - lo, g(hi) - hi
+    if f_lo <= 0:
+        return 0.0
+    if f_hi >= 0:
+        return hi
+    side = 0
+    for _ in range(100):
+        if hi - lo <= tol_s:
+            break
+        mid = (lo * f_hi - hi * f_lo) / (f_hi - f_lo)
+        if not (lo < mid < hi) or (hi - lo) < 4 * tol_s:
+            mid = 0.5 * (lo + hi)
+        f = g(mid) - mid
+        if f > 0:
+            lo, f_lo = mid, f
+            if side == 1:
+                f_hi *= 0.5
+            side = 1
+        elif f < 0:
+            hi, f_hi = mid, f
+            if side == -1:
+                f_lo *= 0.5
+            side = -1
+        else:
+            return mid
+    return lo
 
 
 def lower_bound_s(problem: RoutingProblem) -> float:
-    """A makespan [s] no plan can beat (see the module docstring)."""
+    """A makespan [s] no plan can beat (see the module docstring).
+
+    With moving targets, ``T* = max(T_home, T*_visit, T*_mst)``: every term of ``g`` is
+    non-increasing in ``T``, so ``T >= g(T)`` holds exactly when ``T`` is at least each term's
+    own fixed point. Each is found by a bracketing root search to 1e-6 s (relative 1e-9)."""
+    geo = _Geometry(problem)
     radii = problem.radii_m
     speeds = np.linalg.norm(problem.velocities_m_s, axis=1) if problem.targets else np.zeros(0)
     if not np.any(speeds > 0):
-        return _static_bound_s(problem, radii)
-    lo, hi = 0.0, _static_bound_s(problem, radii)
-    # g(T) <= g(0) = hi, so the fixed point lies in [0, hi].
-    for _ in range(50):
-        mid = 0.5 * (lo + hi)
-        if _static_bound_s(problem, radii + speeds * mid) > mid:
-            lo = mid
-        else:
-            hi = mid
-    return lo
+        return geo.bound_s(radii)
+    out = geo.home_s
+    for term in (geo.visit_s, geo.mst_s):
+        hi = term(radii)  # g(T) <= g(0), so the fixed point lies in [0, g(0)]
+        if hi > out:  # a term whose value at T = 0 is below the others cannot raise the bound
+            out = max(out, _fixed_point_s(lambda t, term=term: term(radii + speeds * t), hi,
+                                          max(1e-6, 1e-9 * hi)))
+    return out

@@ -41,6 +41,7 @@ log = logging.getLogger(__name__)
 MAX_LOOKS = 4  # planned looks per person before giving up (the mission must end)
 MAX_MISSES = 2  # looks that heard nothing before giving up
 MATERIAL_SHIFT_FRACTION = 0.5  # estimate moved > this x required accuracy => replan
+ACCESS_TIME_QUANTUM_S = 2.0  # access radii are computed for pass times rounded up to this
 RADIUS_RECHECK_FRACTION = 0.85  # replan once more if a planned radius shrinks below this fraction
 
 
@@ -147,6 +148,8 @@ class SearchPolicy:
         self._plan: SearchPlan | None = None
         self._awaiting: dict[int, float] = {}  # emitter -> planned access time [s]
         self._replans = 0
+        self._access_cache: dict[tuple[int, float], tuple[object, float]] = {}  # (emitter, t) -> (est, m)
+        self._target_t_pass: dict[int, float] = {}  # emitter -> pass time its current radius is for
         self.planner_runtime_s = 0.0  # total over all replans
         self.estimator_runtime_s = 0.0
 
@@ -245,6 +248,9 @@ class SearchPolicy:
         from ..planning import RoutingProblem, solve
 
         self._replans += 1
+        self._access_cache = {k: v for k, v in self._access_cache.items()
+                              if v[0] is self._people[k[0]].estimate}  # drop superseded estimates
+        self._target_t_pass = {}
         rng = np.random.default_rng([self.seed, self._replans])
         runtime = 0.0
         targets = self._targets(t_s, vehicles, None)
@@ -267,7 +273,7 @@ class SearchPolicy:
             runtime += time.perf_counter() - t0
             planned_times = {int(tid): float(ta) for r in result.plan.routes
                              for tid, ta in zip(r.target_ids, r.access_times_s)}
-            rechecked = self._targets(t_s, vehicles, planned_times)
+            rechecked = self._targets(t_s, vehicles, planned_times, targets)
             shrunk = any(b.radius_m < RADIUS_RECHECK_FRACTION * a.radius_m for a, b in zip(targets, rechecked))
             if not shrunk:
                 break
@@ -292,11 +298,16 @@ class SearchPolicy:
             return None
         return self._plan.plan
 
-    def _targets(self, t_s: float, vehicles: list, planned_times: dict[int, float] | None) -> list:
-        from ..estimation import access_radius_m
+    def _targets(self, t_s: float, vehicles: list, planned_times: dict[int, float] | None,
+                 previous: list | None = None) -> list:
+        """Planner targets of the pending people. ``planned_times``: pass times [s] of a plan just
+        made (the recheck); ``previous``: the targets that plan was made for, whose look radii are
+        kept where the planned pass is no later than the time they were computed for (an earlier
+        pass only allows a larger radius)."""
         from ..planning import Target
 
         starts = np.array([v.start_xy_m for v in vehicles], dtype=float).reshape(-1, 2)
+        before = {t.id: t for t in previous} if previous is not None else {}
         out = []
         for eid in self.pending_ids():
             p = self._people[eid]
@@ -308,16 +319,16 @@ class SearchPolicy:
             centre = cand.at(t_s)
             if planned_times is not None and eid in planned_times:
                 t_pass = planned_times[eid]
+            elif eid in self._awaiting and self._awaiting[eid] > t_s:
+                t_pass = self._awaiting[eid]  # the last plan's pass time: a warm start keeps most
             else:
                 near = float(np.min(np.linalg.norm(starts - centre, axis=1))) if len(starts) else 0.0
                 t_pass = t_s + near / self.speed_m_s
-            try:
-                rho = float(access_radius_m(
-                    p.estimate, t_pass_s=t_pass, altitude_m=self.scenario.fleet.altitude_m,
-                    speed_m_s=self.speed_m_s, channel=self.channel, required_accuracy_m=self.required_m,
-                    comm_range_m=self.scenario.fleet.comm_range_m))
-            except (EstimationError, ValueError):
-                rho = 0.0
+            old = before.get(str(eid))
+            if old is not None and t_pass <= self._target_t_pass.get(eid, -math.inf):
+                out.append(old)
+                continue
+            rho = self._access_radius(p, t_pass)
             sep = self._separation(p)
             vel = cand.velocity_m_s if self.model_motion else np.zeros(2)
             vmax_plan = 0.45 * self.speed_m_s
@@ -327,6 +338,28 @@ class SearchPolicy:
             out.append(Target(str(eid), (float(centre[0]), float(centre[1])),
                               (float(vel[0]), float(vel[1])), tg.look_radius_m(rho, sep)))
         return out
+
+    def _access_radius(self, p: _Person, t_pass_s: float) -> float:
+        """The access radius [m] of ``p``'s estimate for a pass at ``t_pass_s``, rounded up to the
+        next ACCESS_TIME_QUANTUM_S (a later pass gets a smaller radius, so this errs safe) and
+        cached per estimate: replans minutes apart mostly ask the same question again."""
+        from ..estimation import access_radius_m
+
+        t_key = math.ceil(t_pass_s / ACCESS_TIME_QUANTUM_S) * ACCESS_TIME_QUANTUM_S
+        self._target_t_pass[p.emitter_id] = t_key
+        key = (p.emitter_id, t_key)
+        hit = self._access_cache.get(key)
+        if hit is not None and hit[0] is p.estimate:
+            return hit[1]
+        try:
+            rho = float(access_radius_m(
+                p.estimate, t_pass_s=t_key, altitude_m=self.scenario.fleet.altitude_m,
+                speed_m_s=self.speed_m_s, channel=self.channel, required_accuracy_m=self.required_m,
+                comm_range_m=self.scenario.fleet.comm_range_m))
+        except (EstimationError, ValueError):
+            rho = 0.0
+        self._access_cache[key] = (p.estimate, rho)
+        return rho
 
     def _drop_unreachable(self, problem, message: str) -> bool:
         """Give up the target named in an InfeasibleError; False if no target can be blamed."""

@@ -42,3 +42,20 @@ def test_bound_below_found_plans(seed, speed):
         static = RoutingProblem(p.vehicles, tuple(Target(t.id, t.xy_m, (0.0, 0.0), t.radius_m)
                                                   for t in p.targets), p.speed_m_s)
         assert lb <= lower_bound_s(static)
+
+
+@pytest.mark.parametrize("seed,speed", [(3, 0.5), (4, 1.5), (5, 8.0)])
+def test_moving_bound_is_the_fixed_point_of_the_static_bound(seed, speed):
+    """The per-term root search gives the fixed point T* = g(T*) of the whole static bound g
+    (found here by plain bisection), from below, within its tolerance."""
+    from uavloc_gcs.planning.bounds import _static_bound_s
+
+    p = random_problem(30, 3, seed=seed, speed_person=speed)
+    radii, v = p.radii_m, np.linalg.norm(p.velocities_m_s, axis=1)
+    lo, hi = 0.0, _static_bound_s(p, radii)
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if _static_bound_s(p, radii + v * mid) > mid else (lo, mid)
+    lb = lower_bound_s(p)
+    assert lo - 1e-5 <= lb <= hi + 1e-9
+    assert _static_bound_s(p, radii + v * lb) >= lb - 1e-9  # still a valid bound: T* >= lb

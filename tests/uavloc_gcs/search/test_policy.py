@@ -145,3 +145,26 @@ def test_mirror_outside_the_area_does_not_block_a_fix(small, monkeypatch):
         assert status.located is located, status.reason
         if not located:
             assert "mirror" in status.reason
+
+
+def test_replan_reuses_access_radii(small, monkeypatch):
+    """The estimator's access radius is the costly part of a replan. A replan asks for it once per
+    pending person at the pass time it assumes, and again only for people the plan reaches later
+    than assumed; a replan with unchanged estimates starts from the last plan's pass times and
+    asks nothing new."""
+    import uavloc_gcs.estimation as estimation
+
+    sc = small.replace(people={"required_accuracy_m": 4.0})
+    world = World(sc, seed=3, people=3, motion="static")
+    policy, _, t_end, states = _scan_policy(sc, world)
+    calls = []
+    real = estimation.access_radius_m
+    monkeypatch.setattr(estimation, "access_radius_m",
+                        lambda est, **kw: calls.append((est.emitter_id, kw["t_pass_s"])) or real(est, **kw))
+    n = len([e for e in policy.pending_ids() if policy._ok(policy._people[e])])
+    assert n > 0
+    policy.replan(t_end, states)
+    assert n <= len(calls) <= 2 * n and len(set(calls)) == len(calls)
+    calls.clear()
+    policy.replan(t_end, states)
+    assert calls == []
