@@ -42,6 +42,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--autopilot", choices=("px4", "ardupilot"), default="px4", help="fake vehicle flavour")
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--no-mavsdk", action="store_true", help="measure uavloc only")
+    p.add_argument("--no-upload", action="store_true", help="skip the upload comparison")
+    p.add_argument("--no-service", action="store_true",
+                   help="skip the replanning latency, ingestion rate and kill -9 loss window")
 
 
 @dataclass
@@ -197,9 +200,14 @@ def print_upload_table(rows: list[Row], args: argparse.Namespace) -> None:
 
 
 def service_measurements(args: argparse.Namespace) -> int:
-    """Replanning latency and RSSI ingestion rate, measured by ``benchmarks._service`` (the
-    daemon's part of this benchmark). The lead wires it in here; returns an exit code."""
-    return 0
+    """Replanning latency, RSSI ingestion rate and the store's kill -9 loss window, measured by
+    ``benchmarks._service`` on the paper scenario; returns an exit code."""
+    if args.no_service:
+        return 0
+    from benchmarks._service import main as service_main
+
+    print("\nService (paper scenario):")
+    return int(service_main() or 0)
 
 
 def _quiet_mavsdk() -> None:
@@ -216,7 +224,9 @@ def main(args: argparse.Namespace) -> int:
     logging.getLogger("uavloc_gcs").setLevel(logging.ERROR)
     if not args.no_mavsdk:
         _quiet_mavsdk()
-    rows = asyncio.run(_measure(args))
-    print_upload_table(rows, args)
-    ok = all(r.ours_ok == r.runs for r in rows)
+    ok = True
+    if not args.no_upload:
+        rows = asyncio.run(_measure(args))
+        print_upload_table(rows, args)
+        ok = all(r.ours_ok == r.runs for r in rows)
     return max(0 if ok else 1, service_measurements(args))
