@@ -92,6 +92,10 @@ class MissionServer:
     _last_done: tuple | None = None  # (peer ids, mission_type, last seq) of the last completed upload
     _download_next: int | None = None  # PX4: the seq the downloading GCS may ask for next
     _warned: set = field(default_factory=set)
+    # Download snapshot per mission type, (store list, items), so that serving item i is O(1)
+    # (rebuilding the list per request made a 500-item read-back quadratic); dropped whenever the
+    # store changes, and ignored when the store list was replaced (reboot).
+    _download_cache: dict = field(default_factory=dict)
 
     # ------------------------------------------------------------------------ queries
     def mission(self) -> list[WireItem]:
@@ -133,12 +137,16 @@ class MissionServer:
             return [self._request(up)]
         return []
 
+    def _changed(self, mtype: int) -> None:
+        self._download_cache.pop(mtype, None)
+        self.on_changed(mtype)
+
     def clear(self, mission_type: int = 0) -> None:
         types = (0, 1, 2) if mission_type == mav.MAV_MISSION_TYPE_ALL else (mission_type,)
         for t in types:
             if t in self.stores:
                 self.stores[t] = []
-                self.on_changed(t)
+                self._changed(t)
 
     # ------------------------------------------------------------------------ upload
     def _on_count(self, msg, peer: Peer, wall_s: float) -> list[Reply]:
@@ -164,7 +172,7 @@ class MissionServer:
         if not self.flavour.atomic_upload:
             # ArduPilot truncates on MISSION_COUNT: uploads are not atomic.
             self.stores[mtype] = self.stores[mtype][: msg.count]
-            self.on_changed(mtype)
+            self._changed(mtype)
         self.upload = _Upload(peer, mtype, msg.count, [], 0, wall_s, wall_s)
         return [self._request(self.upload)]
 
@@ -200,7 +208,7 @@ class MissionServer:
                 store[item.seq] = item
             else:
                 store.append(item)
-            self.on_changed(mtype)
+            self._changed(mtype)
         up.next_seq += 1
         if up.next_seq < up.count:
             up.last_request_s = wall_s
@@ -209,7 +217,7 @@ class MissionServer:
             self.stores[mtype] = up.items
         self.upload = None
         self._last_done = ((peer.sysid, peer.compid), mtype, item.seq)
-        self.on_changed(mtype)
+        self._changed(mtype)
         return replies + [self._ack(peer, mav.MAV_MISSION_ACCEPTED, mtype)]
 
     def _validate(self, it: WireItem) -> int:
@@ -267,7 +275,8 @@ class MissionServer:
         if self.upload is not None:
             code = mav.MAV_MISSION_DENIED if self.flavour.name == "ardupilot" else mav.MAV_MISSION_ERROR
             return [self._ack(peer, code, mtype)]
-        count = len(self._download_items(mtype))
+        self._download_cache.pop(mtype, None)  # a new download serves the mission as it is now
+        count = len(self._download_snapshot(mtype))
         self._download_next = 0
         return [Reply(mav.MAVLink_mission_count_message(peer.sysid, peer.compid, count, mtype), peer)]
 
@@ -275,7 +284,7 @@ class MissionServer:
         mtype = getattr(msg, "mission_type", 0)
         if mtype not in self.stores or self.upload is not None:
             return []  # during an upload, our own requests are what matter
-        items = self._download_items(mtype)
+        items = self._download_snapshot(mtype)
         if not 0 <= msg.seq < len(items):
             return [self._ack(peer, mav.MAV_MISSION_INVALID_SEQUENCE, mtype)]
         if self.flavour.strict_download_order and self._download_next is not None:
@@ -299,6 +308,14 @@ class MissionServer:
             peer.sysid, peer.compid, it.seq, it.frame, it.command, it.current, it.autocontinue,
             it.param1, it.param2, it.param3, it.param4, it.x * scale, it.y * scale, it.z, mtype)
         return replies + [Reply(out, peer)]
+
+    def _download_snapshot(self, mtype: int) -> list[WireItem]:
+        """The items a download serves, rebuilt only when the store changed (or was replaced)."""
+        store = self.stores[mtype]
+        cached = self._download_cache.get(mtype)
+        if cached is None or cached[0] is not store:
+            cached = self._download_cache[mtype] = (store, self._download_items(mtype))
+        return cached[1]
 
     def _download_items(self, mtype: int) -> list[WireItem]:
         items = list(self.stores[mtype])
