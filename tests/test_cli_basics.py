@@ -25,3 +25,19 @@ def test_every_command_has_working_help():
         for action in nested:
             for subname, subp in action.choices.items():
                 assert subp.format_help(), f"{name} {subname}"
+
+
+def test_bench_help_lists_benchmarks_and_their_options():
+    out = subprocess.run([sys.executable, "-m", "uavloc_gcs", "bench", "--help"], capture_output=True, text=True)
+    assert out.returncode == 0 and "localize" in out.stdout and "plan" in out.stdout
+    out = subprocess.run([sys.executable, "-m", "uavloc_gcs", "bench", "plan", "--help"], capture_output=True, text=True)
+    assert out.returncode == 0 and "uavloc bench plan" in out.stdout
+    out = subprocess.run([sys.executable, "-m", "uavloc_gcs", "bench", "nope"], capture_output=True, text=True)
+    assert out.returncode == 2 and "invalid choice" in out.stderr
+
+
+def test_startup_does_not_load_the_simulator_or_scipy():
+    code = ("import sys; from uavloc_gcs.cli import build_parser; build_parser(); "
+            "print(sorted(m for m in ('sim_link.world', 'scipy.optimize', 'benchmarks.localize') if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert out.stdout.strip() == "[]", out.stdout + out.stderr

@@ -1,7 +1,8 @@
-"""``uavloc bench [NAME ...]``: run benchmarks from the ``benchmarks`` package.
+"""``uavloc bench [NAME [OPTIONS]]``: run benchmarks from the ``benchmarks`` package.
 
 Each benchmark module ``benchmarks/<name>.py`` defines ``add_arguments(parser)`` and
 ``main(args) -> int``; it measures against its named anchors in the same run and prints ratios.
+Benchmark modules are imported only when ``bench`` runs, so other commands start quickly.
 """
 
 from __future__ import annotations
@@ -23,35 +24,33 @@ def _available() -> dict[str, str]:
 
 
 def register(sub: argparse._SubParsersAction) -> None:
+    listing = "\n".join(f"  {k:<14} {v}" for k, v in BENCHMARKS.items())
     p = sub.add_parser(
         "bench",
         help="benchmarks against external anchors",
-        description="Run benchmarks. "
-        + "; ".join(f"{k}: {v}" for k, v in BENCHMARKS.items()).replace("%", "%%"),
+        description="Run a benchmark (or all of them, quick settings, when no NAME is given). "
+        "'uavloc bench NAME --help' lists its options.",
+        epilog="benchmarks:\n" + listing,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    bsub = p.add_subparsers(dest="benchmark", metavar="NAME")
-    for name, text in _available().items():
-        safe = text.replace("%", "%%")  # argparse %-formats help strings
-        bp = bsub.add_parser(name, help=safe, description=safe)
-        importlib.import_module(f"benchmarks.{name}").add_arguments(bp)
-        bp.set_defaults(func=_runner(name))
-    p.set_defaults(func=_run_all)
+    p.add_argument("benchmark", nargs="?", metavar="NAME", choices=list(BENCHMARKS), help="which benchmark")
+    p.add_argument("options", nargs=argparse.REMAINDER, help="options of that benchmark")
+    p.set_defaults(func=run)
 
 
-def _runner(name: str):
-    def run(args: argparse.Namespace) -> int:
-        return int(importlib.import_module(f"benchmarks.{name}").main(args) or 0)
+def _parser_for(name: str, module) -> argparse.ArgumentParser:
+    bp = argparse.ArgumentParser(prog=f"uavloc bench {name}", description=BENCHMARKS[name])
+    module.add_arguments(bp)
+    return bp
 
-    return run
 
-
-def _run_all(args: argparse.Namespace) -> int:
-    """``uavloc bench`` with no name: every benchmark with its default (quick) settings."""
+def run(args: argparse.Namespace) -> int:
+    names = [args.benchmark] if args.benchmark else list(_available())
     rc = 0
-    for name in _available():
-        mod = importlib.import_module(f"benchmarks.{name}")
-        parser = argparse.ArgumentParser()
-        mod.add_arguments(parser)
-        print(f"\n=== uavloc bench {name} ===")
-        rc = max(rc, int(mod.main(parser.parse_args([])) or 0))
+    for name in names:
+        module = importlib.import_module(f"benchmarks.{name}")
+        bargs = _parser_for(name, module).parse_args(args.options if args.benchmark else [])
+        if not args.benchmark:
+            print(f"\n=== uavloc bench {name} ===", flush=True)
+        rc = max(rc, int(module.main(bargs) or 0))
     return rc
