@@ -2,17 +2,14 @@
 
 from __future__ import annotations
 
-import contextlib
 import math
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
+from uavloc_gcs.atomicfile import atomic_write_text
 from uavloc_gcs.errors import FileFormatError
 
-FILE_MODE = 0o644
 
 
 def read_text(path: str | Path) -> str:
@@ -32,18 +29,7 @@ def read_text(path: str | Path) -> str:
 
 def write_text(path: str | Path, text: str) -> Path:
     """Write ``text`` atomically (temporary file + rename), so a reader never sees half a file."""
-    p = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", dir=p.parent if str(p.parent) else ".")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="") as fh:
-            fh.write(text)
-        os.chmod(tmp, FILE_MODE)  # mkstemp makes 0600; mission files are meant to be shared
-        os.replace(tmp, p)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
-        raise
-    return p
+    return atomic_write_text(path, text)
 
 
 def fmt_float(value: float) -> str:

@@ -20,3 +20,4 @@ def test_concat_select_and_sort():
 def test_shape_mismatch_is_refused():
     with pytest.raises(ValueError, match="xyz_m"):
         SlotBatch(np.zeros(2), np.zeros(2, int), np.zeros((3, 3)), np.zeros(2, int), np.zeros(2), np.ones(2, int))
+

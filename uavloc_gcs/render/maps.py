@@ -17,10 +17,7 @@ written atomically.
 
 from __future__ import annotations
 
-import contextlib
 import math
-import os
-import tempfile
 from pathlib import Path
 from typing import Sequence
 
@@ -30,6 +27,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.patches import Circle, Polygon as MplPolygon
 
+from ..atomicfile import atomic_open
 from . import palette
 
 __all__ = [
@@ -250,14 +248,6 @@ def save_figure(fig: Figure, path: str | Path) -> Path:
     if fmt not in ("png", "svg"):
         raise ValueError(f"picture format must be .png or .svg, got {p.name!r}")
     metadata = {"Software": None} if fmt == "png" else {"Date": None, "Creator": None}
-    fd, tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=f".{fmt}", dir=p.parent if str(p.parent) else ".")
-    try:
-        with os.fdopen(fd, "wb") as fh, matplotlib.rc_context({"svg.hashsalt": "uavloc"}):
-            fig.savefig(fh, format=fmt, metadata=metadata, bbox_inches="tight", pad_inches=0.2)
-        os.chmod(tmp, 0o644)  # mkstemp makes 0600
-        os.replace(tmp, p)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
-        raise
+    with atomic_open(p, "wb", suffix=f".{fmt}") as fh, matplotlib.rc_context({"svg.hashsalt": "uavloc"}):
+        fig.savefig(fh, format=fmt, metadata=metadata, bbox_inches="tight", pad_inches=0.2)
     return p
