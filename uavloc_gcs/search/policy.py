@@ -19,7 +19,9 @@ predicted position; the vehicle flies through the access point without stopping.
 mirror-ambiguous the look goes to the more likely candidate with a radius small enough to keep
 the pass off the mirror line; if the pass hears nothing, the next look goes to the other candidate.
 Mirror candidates well outside the search area are discarded (people are inside it). Looks are
-capped per person (:data:`MAX_LOOKS`) so a mission always ends.
+capped per person (:data:`MAX_LOOKS`) so a mission always ends. A look is judged R/V after its
+planned time, or -- when the caller reports flown looks (``look_reports``, ``look_flown``, as the
+daemon does) -- R/V after the vehicle really passed it.
 """
 
 from __future__ import annotations
@@ -41,6 +43,7 @@ log = logging.getLogger(__name__)
 MAX_LOOKS = 4  # planned looks per person before giving up (the mission must end)
 MAX_MISSES = 2  # looks that heard nothing before giving up
 MATERIAL_SHIFT_FRACTION = 0.5  # estimate moved > this x required accuracy => replan
+LOOK_LATE_S = 180.0  # with look reports: an unreported look counts only this long after its (re-based) time
 ACCESS_TIME_QUANTUM_S = 2.0  # access radii are computed for pass times rounded up to this
 RADIUS_RECHECK_FRACTION = 0.85  # replan once more if a planned radius shrinks below this fraction
 
@@ -146,7 +149,12 @@ class SearchPolicy:
         self.speed_m_s = scenario.fleet.speed_m_s
         self._people: dict[int, _Person] = {}
         self._plan: SearchPlan | None = None
-        self._awaiting: dict[int, float] = {}  # emitter -> planned access time [s]
+        self._awaiting: dict[int, float] = {}  # emitter -> planned access time [s] (re-based on reports)
+        self._look_vehicle: dict[int, str] = {}  # emitter -> vehicle planned to look at it
+        self._flown: dict[int, float] = {}  # emitter -> time [s] its look was reported flown
+        # Set by a caller that reports flown looks (``look_flown``, the daemon): a look is then
+        # judged from when it was flown, not from its planned time (real flights run late).
+        self.look_reports = False
         self._replans = 0
         self._access_cache: dict[tuple[int, float], tuple[object, float]] = {}  # (emitter, t) -> (est, m)
         self._target_t_pass: dict[int, float] = {}  # emitter -> pass time its current radius is for
@@ -290,7 +298,27 @@ class SearchPolicy:
         self.planner_runtime_s += runtime
         self._plan = self._to_search_plan(t_s, vehicles, result, runtime)
         self._awaiting = {e: ta for task in self._plan.tasks for e, ta in zip(task.target_ids, task.access_times_s)}
+        self._look_vehicle = {e: task.vehicle_id for task in self._plan.tasks for e in task.target_ids}
+        self._flown = {}
         return self._plan
+
+    def look_flown(self, emitter_id: int, t_s: float) -> None:
+        """The vehicle planned to look at ``emitter_id`` passed its access point at ``t_s`` [s].
+
+        The look is judged (heard or missed) from ``t_s``, and the same vehicle's later looks are
+        re-based by its delay, so a vehicle running late (turns, climb, upload) is not taken for
+        a miss. Unknown or already judged looks are ignored."""
+        eid = int(emitter_id)
+        if eid not in self._awaiting or eid in self._flown:
+            return
+        planned = self._awaiting[eid]
+        self._flown[eid] = float(t_s)
+        delay = float(t_s) - planned
+        if delay > 0:
+            vid = self._look_vehicle.get(eid)
+            for other, ta in self._awaiting.items():
+                if other not in self._flown and self._look_vehicle.get(other) == vid and ta > planned:
+                    self._awaiting[other] = ta + delay
 
     # -- internals -------------------------------------------------------------------------
     def _warm_start(self):
@@ -461,13 +489,21 @@ class SearchPolicy:
 
     def _check_looks(self, t_s: float) -> set[int]:
         """Planned looks whose time has passed: count them; a look that heard nothing is a miss
-        (flip to the mirror candidate if ambiguous; give up after MAX_MISSES)."""
+        (flip to the mirror candidate if ambiguous; give up after MAX_MISSES). A look reported
+        flown is judged R/V after it was flown; with ``look_reports`` an unreported one only
+        LOOK_LATE_S after its (re-based) planned time, otherwise R/V after its planned time."""
         changed = set()
         grace_s = self.range_m / self.speed_m_s
         for eid, t_access in list(self._awaiting.items()):
-            if t_s < t_access + grace_s:
+            if eid in self._flown:
+                t_access = self._flown[eid]
+                due = t_access + grace_s
+            else:
+                due = t_access + grace_s + (LOOK_LATE_S if self.look_reports else 0.0)
+            if t_s < due:
                 continue
             del self._awaiting[eid]
+            self._flown.pop(eid, None)
             p = self._people[eid]
             if p.fix_t_s is not None or p.gave_up:
                 continue

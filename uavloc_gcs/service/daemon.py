@@ -78,6 +78,7 @@ class _Vehicle:
     targets: tuple = ()
     look_xy_m: np.ndarray | None = None
     look_first_seq: int = 0  # wire seq of the first look waypoint
+    looks_reported: int = 0  # looks of the current mission reported flown to the policy
     lost: bool = False
     scan_done: bool = False
     home: bool = False
@@ -103,6 +104,8 @@ class Daemon:
                                   local_search=scenario.planner.local_search, seed=scenario.planner.seed,
                                   time_limit_s=options.planner_time_limit_s)
         self.policy = policy
+        if hasattr(policy, "look_flown"):
+            policy.look_reports = True  # looks are judged from when the vehicle really passed them
         self.store: Store | None = None
         self.epoch_unix_s: float | None = None
         self._slots_in: list[SlotBatch] = []
@@ -440,6 +443,7 @@ class Daemon:
                     new = SlotBatch.concat(batches)
                     self._n_slots += len(new)
                     self.policy.ingest(new)
+                self._report_looks(t)
                 changed = await asyncio.to_thread(self.policy.update, t)
                 people = self.policy.people(t)
                 self._people_cache = people
@@ -450,6 +454,26 @@ class Daemon:
                     return
         finally:
             self._stop.set()
+
+    def _report_looks(self, t: float) -> None:
+        """Tell the policy which looks the vehicles have flown: a look waypoint is flown once the
+        mission has moved past it (MISSION_CURRENT) or the vehicle is within WAYPOINT_TOLERANCE_M
+        of it."""
+        report = getattr(self.policy, "look_flown", None)
+        if report is None:
+            return
+        for v in self._active():
+            if v.purpose != "look" or v.look_xy_m is None or self.wall() < v.ignore_seq_until_wall:
+                continue
+            seq = v.agent.tel.mission_seq
+            passed = 0 if seq is None else int(np.clip(seq - v.look_first_seq, 0, len(v.look_xy_m)))
+            xy = v.agent.position_xy_m()
+            if passed < len(v.look_xy_m) and xy is not None and \
+                    math.dist(xy, v.look_xy_m[passed]) <= WAYPOINT_TOLERANCE_M:
+                passed += 1
+            while v.looks_reported < passed:
+                report(v.targets[v.looks_reported], t)
+                v.looks_reported += 1
 
     def _active(self) -> list[_Vehicle]:
         return [v for v in self.vehicles.values() if not v.lost and v.agent is not None]
@@ -552,7 +576,7 @@ class Daemon:
         items = to_wire(plan, f.autopilot)
         first = 1 if v.agent.flavour.home_at_seq0 else 0  # the takeoff (on the ground) or the speed item
         await self._upload(v, "look", items, first_seq=first, on_ground=on_ground)
-        v.targets, v.look_xy_m = targets, pts
+        v.targets, v.look_xy_m, v.looks_reported = targets, pts, 0
         v.look_first_seq = next(it.seq for it in items if it.command == NAV_WAYPOINT and it.seq > 0)
         v.home = False
         self._event("plan", f"vehicle {v.id} looks at {', '.join(map(str, targets))}", v.id)

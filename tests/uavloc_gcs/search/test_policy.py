@@ -168,3 +168,44 @@ def test_replan_reuses_access_radii(small, monkeypatch):
     calls.clear()
     policy.replan(t_end, states)
     assert calls == []
+
+
+def test_reported_looks_are_judged_from_when_they_were_flown(small):
+    """With look reports (the daemon), a vehicle running late is not taken for a miss: the look
+    counts from when it is reported flown; without them, from its planned time (the simulator)."""
+    from uavloc_gcs.observations import SlotBatch
+    from uavloc_gcs.search.policy import LOOK_LATE_S
+
+    def fresh(reports):
+        policy = SearchPolicy(small, time_limit_s=20.0, max_iter=5)
+        policy.look_reports = reports
+        policy.ingest(SlotBatch.from_columns([1.0, 1.025], [1, 1], [[100, 50, 100], [100.5, 50, 100]], [77, 77],
+                                             [-80.0, -80.5], [10, 10]))
+        policy.update(2.0)
+        (task,) = policy.replan(2.0, [VehicleState("1", (0.0, 0.0), (0.0, 0.0), small.usable_energy_j)]).tasks
+        return policy, task.access_times_s[0]
+
+    grace = small.horizontal_range_m / small.fleet.speed_m_s
+    late = 60.0  # the vehicle passes a minute after its planned time
+    policy, t_plan = fresh(False)
+    policy.update(t_plan + grace + 1.0)
+    (st,) = policy.people(t_plan + grace + 1.0)
+    assert st.looks == 1  # judged on the planned time: a miss before the vehicle got there
+
+    policy, t_plan = fresh(True)
+    policy.update(t_plan + grace + 1.0)
+    assert policy.people(0.0)[0].looks == 0  # not flown yet: still waiting
+    t_pass = t_plan + late
+    policy.ingest(SlotBatch.from_columns([t_pass - 1.0], [1], [[100, 50, 100]], [77], [-79.0], [10]))
+    policy.look_flown(77, t_pass)
+    policy.update(t_pass + grace - 1.0)
+    assert policy.people(0.0)[0].looks == 0  # within R/V of the pass: more slots may come
+    policy.update(t_pass + grace + 1.0)
+    st = policy.people(0.0)[0]
+    assert st.looks == 1 and "not heard" not in st.reason  # heard on the real pass: no miss
+
+    policy, t_plan = fresh(True)  # never reported: counted LOOK_LATE_S after the planned time
+    policy.update(t_plan + grace + LOOK_LATE_S - 1.0)
+    assert policy.people(0.0)[0].looks == 0
+    policy.update(t_plan + grace + LOOK_LATE_S + 1.0)
+    assert policy.people(0.0)[0].looks == 1

@@ -104,3 +104,61 @@ def test_no_plan_until_every_vehicle_in_contact_has_finished_its_scan(tmp_path):
         assert policy.offered == [["1"]]
     finally:
         d.store.close()
+
+
+class _ReportingPolicy(_Policy):
+    """_Policy that also takes look reports."""
+
+    look_reports = False
+
+    def __init__(self):
+        super().__init__()
+        self.flown = []
+
+    def look_flown(self, emitter_id, t_s):
+        self.flown.append((emitter_id, t_s))
+
+
+def test_the_daemon_reports_a_look_when_the_vehicle_passes_it(tmp_path):
+    sc = small_scenario()
+    policy = _ReportingPolicy()
+    d = Daemon(sc, [(1, "udpout:127.0.0.1:26990")], DaemonOptions(store_path=tmp_path / "s.sqlite"), policy=policy)
+    assert policy.look_reports  # the daemon says it will report looks
+    d.store = Store(tmp_path / "s.sqlite")
+    try:
+        v = d.vehicles[1]
+        v.agent = _Agent((50.0, 100.0))
+        v.scan_done, v.phase = True, "hovering (scan done)"
+        asyncio.run(d._step(100.0, {7}))
+        v.ignore_seq_until_wall = 0.0
+        look = v.look_xy_m[0]
+        d._report_looks(110.0)
+        assert policy.flown == []  # on its way
+        v.agent.xy = (float(look[0]) + 3.0, float(look[1]))  # within the waypoint tolerance
+        d._report_looks(120.0)
+        d._report_looks(121.0)  # reported once
+        assert policy.flown == [(7, 120.0)]
+        v.agent.xy = (0.0, 0.0)
+        v.agent.tel.mission_seq = v.look_first_seq + 1  # moved on (MISSION_CURRENT past the look)
+        d._report_looks(130.0)
+        assert policy.flown == [(7, 120.0)]
+    finally:
+        d.store.close()
+
+
+def test_a_look_is_reported_from_the_mission_sequence_alone(tmp_path):
+    sc = small_scenario()
+    policy = _ReportingPolicy()
+    d = Daemon(sc, [(1, "udpout:127.0.0.1:26990")], DaemonOptions(store_path=tmp_path / "s.sqlite"), policy=policy)
+    d.store = Store(tmp_path / "s.sqlite")
+    try:
+        v = d.vehicles[1]
+        v.agent = _Agent((50.0, 100.0))
+        v.scan_done, v.phase = True, "hovering (scan done)"
+        asyncio.run(d._step(100.0, {7}))
+        v.ignore_seq_until_wall = 0.0
+        v.agent.tel.mission_seq = v.look_first_seq + 1  # e.g. a MISSION_ITEM_REACHED we did not see
+        d._report_looks(140.0)
+        assert policy.flown == [(7, 140.0)]
+    finally:
+        d.store.close()
