@@ -516,7 +516,7 @@ class SearchPolicy:
             if p.misses >= MAX_MISSES:
                 p.gave_up = f"not heard on {p.misses} looks"
             elif p.looks >= MAX_LOOKS:
-                r95 = float(getattr(p.estimate, "radius95_m", math.nan))
+                r95 = self._radius95(p) if p.estimate is not None else math.nan  # the believed candidate's
                 p.gave_up = f"not located after {p.looks} looks (95 % radius {r95:.1f} m)"
             changed.add(eid)
         return changed
