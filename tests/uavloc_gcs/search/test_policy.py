@@ -152,7 +152,7 @@ def test_replan_reuses_access_radii(small, monkeypatch):
     pending person at the pass time it assumes, and again only for people the plan reaches later
     than assumed; a replan with unchanged estimates starts from the last plan's pass times and
     asks nothing new."""
-    import uavloc_gcs.estimation as estimation
+    from uavloc_gcs import estimation
 
     sc = small.replace(people={"required_accuracy_m": 4.0})
     world = World(sc, seed=3, people=3, motion="static")

@@ -147,7 +147,7 @@ def test_a_fix_on_the_mirror_candidate_is_reported_there_with_its_radius(small_s
 
 @pytest.fixture
 def small_sc_and_fake(monkeypatch):
-    import uavloc_gcs.estimation as estimation
+    from uavloc_gcs import estimation
     from tests.e2e_helpers import small_scenario
     from uavloc_gcs.estimation import Candidate, Estimate
     from uavloc_gcs.observations import SlotBatch
