@@ -151,7 +151,7 @@ class SearchPolicy:
         self._plan: SearchPlan | None = None
         self._awaiting: dict[int, float] = {}  # emitter -> planned access time [s] (re-based on reports)
         self._look_vehicle: dict[int, str] = {}  # emitter -> vehicle planned to look at it
-        self._flown: dict[int, float] = {}  # emitter -> time [s] its look was reported flown
+        self._flown: dict[int, float] = {}  # emitter -> time [s] a look was flown, not judged yet
         # Set by a caller that reports flown looks (``look_flown``, the daemon): a look is then
         # judged from when it was flown, not from its planned time (real flights run late).
         self.look_reports = False
@@ -246,7 +246,8 @@ class SearchPolicy:
         # Estimates shift while a vehicle is passing a person; re-routing it mid-look would only
         # thrash. The look's end (see update) or a fix triggers the replan instead.
         lead_s = 2.0 * self.range_m / self.speed_m_s
-        relevant = {e for e in changed if not (e in self._awaiting and t_s >= self._awaiting[e] - lead_s)}
+        relevant = {e for e in changed if e not in self._flown
+                    and not (e in self._awaiting and t_s >= self._awaiting[e] - lead_s)}
         return bool(relevant & (pending | planned))
 
     # -- planning --------------------------------------------------------------------------
@@ -299,7 +300,7 @@ class SearchPolicy:
         self._plan = self._to_search_plan(t_s, vehicles, result, runtime)
         self._awaiting = {e: ta for task in self._plan.tasks for e, ta in zip(task.target_ids, task.access_times_s)}
         self._look_vehicle = {e: task.vehicle_id for task in self._plan.tasks for e in task.target_ids}
-        self._flown = {}
+        # looks already flown keep their pending judgment (self._flown) across the replan
         return self._plan
 
     def look_flown(self, emitter_id: int, t_s: float) -> None:
@@ -311,13 +312,13 @@ class SearchPolicy:
         eid = int(emitter_id)
         if eid not in self._awaiting or eid in self._flown:
             return
-        planned = self._awaiting[eid]
+        planned = self._awaiting.pop(eid)
         self._flown[eid] = float(t_s)
         delay = float(t_s) - planned
         if delay > 0:
             vid = self._look_vehicle.get(eid)
             for other, ta in self._awaiting.items():
-                if other not in self._flown and self._look_vehicle.get(other) == vid and ta > planned:
+                if self._look_vehicle.get(other) == vid and ta > planned:
                     self._awaiting[other] = ta + delay
 
     # -- internals -------------------------------------------------------------------------
@@ -457,6 +458,7 @@ class SearchPolicy:
             p.fix_radius95_m = r95
             p.fix_candidate = cand
             self._awaiting.pop(p.emitter_id, None)
+            self._flown.pop(p.emitter_id, None)
 
     def _radius95(self, p: _Person) -> float:
         """Calibrated 95 % radius [m] of the candidate we believe. The estimator's ``radius95_m``
@@ -494,16 +496,12 @@ class SearchPolicy:
         LOOK_LATE_S after its (re-based) planned time, otherwise R/V after its planned time."""
         changed = set()
         grace_s = self.range_m / self.speed_m_s
-        for eid, t_access in list(self._awaiting.items()):
-            if eid in self._flown:
-                t_access = self._flown[eid]
-                due = t_access + grace_s
-            else:
-                due = t_access + grace_s + (LOOK_LATE_S if self.look_reports else 0.0)
-            if t_s < due:
-                continue
-            del self._awaiting[eid]
-            self._flown.pop(eid, None)
+        late_s = LOOK_LATE_S if self.look_reports else 0.0
+        due = [(eid, t, self._flown) for eid, t in self._flown.items() if t_s >= t + grace_s]
+        due += [(eid, t, self._awaiting) for eid, t in self._awaiting.items()
+                if t_s >= t + grace_s + late_s and eid not in self._flown]
+        for eid, t_access, book in due:
+            del book[eid]
             p = self._people[eid]
             if p.fix_t_s is not None or p.gave_up:
                 continue

@@ -209,3 +209,24 @@ def test_reported_looks_are_judged_from_when_they_were_flown(small):
     assert policy.people(0.0)[0].looks == 0
     policy.update(t_plan + grace + LOOK_LATE_S + 1.0)
     assert policy.people(0.0)[0].looks == 1
+
+
+def test_a_flown_look_is_still_judged_after_a_replan_and_later_looks_are_re_based(small):
+    from uavloc_gcs.observations import SlotBatch
+
+    policy = SearchPolicy(small, time_limit_s=20.0, max_iter=5)
+    policy.look_reports = True
+    policy.ingest(SlotBatch.from_columns([1.0, 1.025, 1.05, 1.075], [1, 1, 1, 1],
+                                         [[100, 50, 100], [100.5, 50, 100], [900, 700, 100], [900.5, 700, 100]],
+                                         [77, 77, 78, 78], [-80.0, -80.5, -80.0, -80.5], [10] * 4))
+    policy.update(2.0)
+    (task,) = policy.replan(2.0, [VehicleState("1", (0.0, 0.0), (0.0, 0.0), small.usable_energy_j)]).tasks
+    assert len(task.target_ids) == 2
+    first, second = task.target_ids
+    t1, t2 = task.access_times_s
+    policy.look_flown(first, t1 + 50.0)  # 50 s late
+    assert policy._awaiting[second] == pytest.approx(t2 + 50.0)  # the next look waits for it
+    policy.replan(t1 + 51.0, [VehicleState("1", (100.0, 50.0), (0.0, 0.0), small.usable_energy_j)])
+    grace = small.horizontal_range_m / small.fleet.speed_m_s
+    policy.update(t1 + 50.0 + grace + 1.0)
+    assert {p.emitter_id: p.looks for p in policy.people(0.0)}[first] == 1  # judged despite the replan
