@@ -23,7 +23,7 @@ from ..geo import LocalFrame
 CSV_COLUMNS = (
     "emitter_id", "located", "lat_deg", "lon_deg", "east_m", "north_m", "vel_east_m_s",
     "vel_north_m_s", "radius95_m", "annulus_bound_m", "fix_time_s", "ambiguity_resolved",
-    "reason",
+    "reason", "t_ref_s",
 )
 
 
@@ -64,7 +64,7 @@ def people_csv(people: Sequence[PersonResult]) -> str:
         w.writerow([p.emitter_id, int(p.located), _num(p.lat_deg, 7), _num(p.lon_deg, 7),
                     _num(p.east_m, 2), _num(p.north_m, 2), _num(p.vel_east_m_s, 3),
                     _num(p.vel_north_m_s, 3), _num(p.radius95_m, 2), _num(p.annulus_bound_m, 2),
-                    _num(p.fix_time_s, 2), int(p.ambiguity_resolved), p.reason])
+                    _num(p.fix_time_s, 2), int(p.ambiguity_resolved), p.reason, _num(p.t_ref_s, 2)])
     return buf.getvalue()
 
 

@@ -18,7 +18,7 @@ FRAME = LocalFrame(42.625, 13.283)
 
 def _person(eid, e, n, r, located=True, reason=""):
     lat, lon = FRAME.to_wgs84(e, n)
-    return PersonResult(eid, float(lat), float(lon), e, n, 0.5, -0.2, r, 2 * r, 60.0, located, True, reason)
+    return PersonResult(eid, float(lat), float(lon), e, n, 0.5, -0.2, r, 2 * r, 60.0, located, True, reason, 58.5)
 
 
 PEOPLE = [_person(2, 100.0, 50.0, 8.0), _person(1, 300.0, 200.0, 30.0, False, "heard from one leg only"),
@@ -31,6 +31,7 @@ def test_csv_is_sorted_and_complete():
     assert [r["emitter_id"] for r in rows] == ["1", "2", "3"]
     assert rows[1]["located"] == "1" and float(rows[1]["radius95_m"]) == 8.0
     assert rows[2]["lat_deg"] == "" and rows[2]["reason"] == "never heard"
+    assert rows[1]["t_ref_s"] == "58.50" and rows[2]["t_ref_s"] == ""  # the time the position is for
     lat, lon = FRAME.to_wgs84(100.0, 50.0)
     assert abs(float(rows[1]["lat_deg"]) - lat) < 1e-7 and abs(float(rows[1]["lon_deg"]) - lon) < 1e-7
 
