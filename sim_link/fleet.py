@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from uavloc_gcs.dialect import mavlink as mav
+from uavloc_gcs.dialect.signing import verify_signature_first
 from uavloc_gcs.errors import LinkError
 from uavloc_gcs.scenario import Scenario
 
@@ -69,6 +70,7 @@ class _PeerCodecs:
         if key is not None:
             ts = int((time.time() - 1420070400) * 1e5)
             self.rx.signing.secret_key = key
+            verify_signature_first(self.rx)
             self.rx.signing.timestamp = ts
             # as ArduPilot: only RADIO_STATUS may come unsigned (SiK radios cannot sign)
             self.rx.signing.allow_unsigned_callback = lambda _mav, msg_id: msg_id == mav.MAVLINK_MSG_ID_RADIO_STATUS

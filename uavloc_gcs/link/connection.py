@@ -24,6 +24,7 @@ from dataclasses import dataclass
 from typing import Callable, Hashable, Iterable
 
 from ..dialect import mavlink
+from ..dialect.signing import verify_signature_first
 from ..errors import ConfigError, LinkError
 from .tlog import TlogWriter
 from .transport import Transport, open_transport, parse_connection
@@ -149,6 +150,7 @@ class Link:
             parser = mavlink.MAVLink(None, self.mav.srcSystem, self.mav.srcComponent)
             parser.robust_parsing = True
             parser.signing = self.mav.signing  # one replay-protection state for all peers
+            verify_signature_first(parser)
             self._parsers[peer] = parser
         return parser
 

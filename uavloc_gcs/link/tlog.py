@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import BinaryIO, Iterator
 
 from ..dialect import mavlink
+from ..dialect.signing import verify_signature_first
 from ..errors import FileFormatError
 
 log = logging.getLogger(__name__)
@@ -75,6 +76,7 @@ def iter_tlog(path: str | os.PathLike, *, signing_key: bytes | None = None
     codec.robust_parsing = True
     if signing_key is not None:
         codec.signing.secret_key = bytes(signing_key)
+        verify_signature_first(codec)
     pos = 0
     while pos + _STAMP.size + 3 <= len(data):
         (t_us,) = _STAMP.unpack_from(data, pos)
