@@ -33,3 +33,15 @@ def test_file_formats_do_not_import_the_service():
         if {"sim_link", "benchmarks"} & _imports(py):
             offenders.append(str(py.relative_to(ROOT)))
     assert offenders == []
+
+
+def test_only_the_cli_imports_the_cli():
+    offenders = []
+    for py in (ROOT / "uavloc_gcs").rglob("*.py"):
+        rel = py.relative_to(ROOT / "uavloc_gcs")
+        if rel.parts[0] == "cli" or rel.name == "__main__.py":
+            continue
+        text = py.read_text(encoding="utf-8")
+        if "from ..cli" in text or "from .cli" in text or "uavloc_gcs.cli" in text:
+            offenders.append(str(rel))
+    assert offenders == []

@@ -154,7 +154,7 @@ def write_results(out_dir: str | Path, people: Sequence[PersonResult], *, frame:
                   required_accuracy_m: float, truth_xy_m: Mapping[int, Sequence[float]] | None = None,
                   name: str = "uavloc") -> list[Path]:
     """Write people.csv, people.geojson, people.kml, result.png and results.txt into ``out_dir``."""
-    from ..cli._output import atomic_write_text  # noqa: PLC0415  (tiny helper, no CLI state)
+    from ..atomicfile import atomic_write_text
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
