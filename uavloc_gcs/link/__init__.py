@@ -7,10 +7,10 @@ named constants next to the MAVLink devguide's values.
 """
 
 from .autopilots import ARDUPILOT, PX4, Flavour, flavour_for, flavour_named
-from . import command
 from .command import (arm, command_long, disarm, return_to_launch, set_current_item, set_message_interval,
                       set_mode, start_mission, takeoff)
 from .connection import Link, LinkStats, Subscription, open_link, parse_signing_key
+from .telemetry import StatusText, VehicleState, VehicleTracker
 from .mission_clear import clear_mission
 from .mission_download import download_mission
 from .mission_upload import UploadResult, upload_mission
@@ -24,8 +24,5 @@ __all__ = [
     "Link", "LinkStats", "Subscription", "open_link", "parse_signing_key",
     "clear_mission", "download_mission", "UploadResult", "upload_mission",
     "TlogWriter", "iter_tlog", "parse_connection",
+    "StatusText", "VehicleState", "VehicleTracker",
 ]
-
-from .telemetry import StatusText, VehicleState, VehicleTracker  # noqa: E402
-
-__all__ += ["StatusText", "VehicleState", "VehicleTracker"]
