@@ -105,4 +105,6 @@ def run(args: argparse.Namespace) -> int:
     print(result.table, end="")
     print(result.outcome.statement)
     print(f"results in {out}/: " + ", ".join(p.name for p in result.files) + ", search.sqlite, uav*.tlog")
-    return 0 if result.outcome.all_located else 1
+    # The demonstration ran to its end; who was (not) located is in the table and the statement.
+    # (`uavloc daemon` exits 1 when someone is not located, for scripts that act on it.)
+    return 0
