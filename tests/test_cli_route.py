@@ -66,3 +66,15 @@ def test_unreachable_target_exit_2(tmp_path):
     r = _run(str(inst))
     assert r.returncode == 2
     assert "target p1" in r.stderr and "out of reach" in r.stderr
+
+
+def test_the_shipped_example_instance_solves():
+    from pathlib import Path
+
+    example = Path(__file__).resolve().parents[1] / "examples" / "route_paper.json"
+    proc = subprocess.run([sys.executable, "-m", "uavloc_gcs", "route", str(example), "--solver", "epso",
+                           "--time-limit", "0.3", "--seed", "1"], capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 0, proc.stderr
+    out = json.loads(proc.stdout)
+    assert out["makespan_s"] >= out["lower_bound_s"] > 0
+    assert sorted(t for r in out["routes"] for t in r["targets"]) == sorted(f"p{i}" for i in range(1, 13))
