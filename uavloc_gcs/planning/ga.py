@@ -8,7 +8,6 @@ sizes on part 2; the best ``elite`` individuals survive unchanged.
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass
 from typing import Callable
 
@@ -16,6 +15,7 @@ import numpy as np
 
 from .fitness import Evaluator
 from .localsearch import LocalSearch
+from .stopping import limit_reached
 
 
 @dataclass
@@ -60,13 +60,7 @@ def genetic(ev: Evaluator, *, rng: np.random.Generator, deadline: float, max_ite
     f = ev.evaluate(perm, sizes).fitness
     ls = LocalSearch(ev) if local_search else None
     it = 0
-    message = "time limit reached"
-    while True:
-        if max_iter is not None and it >= max_iter:
-            message = "iteration limit reached"
-            break
-        if time.perf_counter() >= deadline:
-            break
+    while (message := limit_reached(it, max_iter, deadline)) is None:
         it += 1
         elite = np.argsort(f)[:opts.elite]
         new_perm = [perm[e].copy() for e in elite]

@@ -12,7 +12,6 @@ standard update ``v <- w v + c1 r1 (pbest - x) + c2 r2 (gbest - x)`` with veloci
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass
 from typing import Callable
 
@@ -20,6 +19,7 @@ import numpy as np
 
 from .fitness import Evaluator
 from .localsearch import LocalSearch
+from .stopping import limit_reached
 
 
 def adaptive_inertia(f: np.ndarray, w_min: float = 0.4, w_max: float = 0.9) -> np.ndarray:
@@ -93,13 +93,7 @@ def particle_swarm(ev: Evaluator, *, adaptive: bool, rng: np.random.Generator, d
     ls = LocalSearch(ev) if local_search else None
     ls_done = np.zeros(P, dtype=bool)
     it = 0
-    message = "time limit reached"
-    while True:
-        if max_iter is not None and it >= max_iter:
-            message = "iteration limit reached"
-            break
-        if time.perf_counter() >= deadline:
-            break
+    while (message := limit_reached(it, max_iter, deadline)) is None:
         it += 1
         g = int(np.argmin(pbest_f))
         w = adaptive_inertia(f, opts.w_min, opts.w_max) if adaptive else np.full(P, opts.w_fixed)
