@@ -20,18 +20,15 @@ from typing import Any
 
 from uavloc_gcs.errors import FileFormatError
 
+from ._common import read_text
+
 __all__ = ["read_area_polygon", "loads_area_polygon"]
 
 
 def read_area_polygon(path: str | Path) -> list[list[float]]:
     """Read the area polygon ``[[lat_deg, lon_deg], ...]`` from a GeoJSON or ``.plan`` file."""
     p = Path(path)
-    try:
-        text = p.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise FileFormatError("file not found", path=str(p)) from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise FileFormatError(f"cannot read file ({exc})", path=str(p)) from None
+    text = read_text(p)
     return loads_area_polygon(text, path=str(p))
 
 

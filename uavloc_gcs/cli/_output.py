@@ -9,7 +9,6 @@ import tempfile
 from pathlib import Path
 from typing import Iterator
 
-from ..atomicfile import atomic_write_text  # noqa: F401  (re-exported for commands)
 from ..errors import ConfigError
 
 

@@ -31,7 +31,7 @@ def run(args: argparse.Namespace) -> int:
     from ..errors import FileFormatError
     from ..planning import solve
     from ..planning.jsonio import dumps_result, loads_problem
-    from ._output import atomic_write_text
+    from ..atomicfile import atomic_write_text
 
     try:
         text = Path(args.instance).read_text(encoding="utf-8")
