@@ -35,6 +35,7 @@ from uavloc_gcs.mission import (
     FRAME_GLOBAL_TERRAIN_ALT,
     FRAME_GLOBAL_TERRAIN_ALT_INT,
     MAV_TYPE_QUADROTOR,
+    POSITIONAL_COMMANDS,
     MissionItem,
     MissionPlan,
 )
@@ -54,6 +55,7 @@ _ALT_MODE = {
     FRAME_GLOBAL_RELATIVE_ALT: 1, FRAME_GLOBAL_RELATIVE_ALT_INT: 1,
     FRAME_GLOBAL_TERRAIN_ALT: 4, FRAME_GLOBAL_TERRAIN_ALT_INT: 4,
 }
+_ALT_MODE_CALC_ABOVE_TERRAIN = 3  # frame 0 with the AMSL altitude QGC computed from terrain data
 
 
 # ---------------------------------------------------------------------------------------------
@@ -79,7 +81,11 @@ def dumps(plan: MissionPlan) -> str:
     doc = {
         "fileType": "Plan",
         "geoFence": {
-            "circles": [],
+            "circles": [
+                {"circle": {"center": [json_number(lat), json_number(lon)], "radius": json_number(r)},
+                 "inclusion": bool(inc), "version": 1}
+                for inc, (lat, lon), r in plan.geofence_circles
+            ],
             "polygons": [
                 {"inclusion": bool(inc), "polygon": [[json_number(a), json_number(b)] for a, b in ring], "version": 1}
                 for inc, ring in plan.geofence_polygons
@@ -139,6 +145,11 @@ def loads(text: str, *, path: str = "<string>") -> MissionPlan:
         raise FileFormatError(f"not valid JSON ({exc.msg}, column {exc.colno})", path=path, line=exc.lineno) from None
     if not isinstance(doc, dict):
         raise FileFormatError("expected a JSON object at the top level", path=path)
+    if doc.get("fileType") == "Mission" or ("fileType" not in doc and "items" in doc):
+        raise FileFormatError(
+            "this is a legacy QGroundControl .mission file (mission only, before .plan files existed), which "
+            "uavloc does not read; open it in QGroundControl and save it again, which writes a .plan", path=path,
+            field="fileType")
     _expect(doc.get("fileType") == "Plan", f"must be \"Plan\", got {doc.get('fileType')!r}", path, "fileType")
     _expect(doc.get("version") == 1, f"must be 1, got {doc.get('version')!r}", path, "version")
     _expect(isinstance(doc.get("groundStation"), str), "missing or not a string", path, "groundStation")
@@ -153,6 +164,8 @@ def loads(text: str, *, path: str = "<string>") -> MissionPlan:
     _expect(isinstance(home, list) and len(home) == 3, "must be [lat, lon, alt] (3 entries, null allowed)",
             path, "mission.plannedHomePosition")
     home_v = [_num(v, path, "mission.plannedHomePosition", None) for v in home]
+    if home_v[0] == 0.0 and home_v[1] == 0.0:
+        home_v = [math.nan] * 3  # [0, 0, 0]: QGroundControl's "no home yet", not a place
     raw_items = mission.get("items")
     _expect(isinstance(raw_items, list), "missing or not a list", path, "mission.items")
     flat: list[tuple[int, dict]] = []  # (1-based item number in the file, SimpleItem json)
@@ -175,6 +188,7 @@ def loads(text: str, *, path: str = "<string>") -> MissionPlan:
         hover_speed_m_s=_opt_speed(mission, "hoverSpeed", path),
         geofence_polygons=_geofence(doc.get("geoFence"), path),
         rally_points=_rally(doc.get("rallyPoints"), path),
+        geofence_circles=_circles(doc.get("geoFence"), path),
     )
 
 
@@ -203,12 +217,33 @@ def _opt_speed(mission: dict, key: str, path: str) -> float | None:
 def _complex_items(raw: dict, path: str, k: int) -> list[dict]:
     kind = raw.get("complexItemType")
     transect = raw.get("TransectStyleComplexItem")
-    if kind in ("survey", "CorridorScan") and isinstance(transect, dict) and isinstance(transect.get("Items"), list):
-        return transect["Items"]
+    if kind in ("survey", "CorridorScan"):
+        if isinstance(transect, dict) and isinstance(transect.get("Items"), list):
+            return transect["Items"]
+        raise FileFormatError(
+            f"this {kind} has no pre-expanded waypoints (TransectStyleComplexItem.Items, which QGroundControl "
+            "writes since 3.4); open the plan in a current QGroundControl and save it again",
+            path=path, item=k, field="TransectStyleComplexItem")
     raise FileFormatError(
-        f"complex item {kind!r} is not supported (only survey and CorridorScan with expanded Items); "
-        "convert it to simple waypoints in QGroundControl", path=path, item=k, field="complexItemType",
+        f"complex item {kind!r} is not supported (uavloc reads survey and CorridorScan items); convert it to "
+        "simple waypoints in QGroundControl", path=path, item=k, field="complexItemType",
     )
+
+
+def _item_params(raw: dict, path: str, k: int) -> list:
+    """The 7 params of a SimpleItem, converting the older forms QGroundControl still loads:
+    ``params`` of 4 plus ``coordinate`` [lat, lon, alt], and ``param1``..``param4`` keys."""
+    params = raw.get("params")
+    if params is None and all(f"param{i}" in raw for i in range(1, 5)):
+        params = [raw[f"param{i}"] for i in range(1, 5)]
+    if isinstance(params, list) and len(params) == 4 and "coordinate" in raw:
+        coord = raw["coordinate"]
+        _expect(isinstance(coord, list) and len(coord) == 3, "must be [lat, lon, alt] (3 entries, null allowed)",
+                path, "coordinate", item=k)
+        return params + coord
+    _expect(isinstance(params, list) and len(params) == 7, "must be a list of exactly 7 numbers or nulls",
+            path, "params", item=k)
+    return params
 
 
 def _simple_item(raw: dict, path: str, k: int) -> MissionItem:
@@ -218,22 +253,29 @@ def _simple_item(raw: dict, path: str, k: int) -> MissionItem:
                 path, key, item=k)
     ac = raw.get("autoContinue")
     _expect(isinstance(ac, bool), f"must be true or false, got {ac!r}", path, "autoContinue", item=k)
-    params = raw.get("params")
-    _expect(isinstance(params, list) and len(params) == 7, "must be a list of exactly 7 numbers or nulls",
-            path, "params", item=k)
+    params = _item_params(raw, path, k)
     p = [_num(v, path, f"params[{i}]", k) for i, v in enumerate(params)]
-    frame = raw["frame"]
+    frame, command = raw["frame"], raw["command"]
     if frame in _ALT_MODE:
-        names = ("latitude", "longitude", "altitude")
-        for i, name in zip((4, 5, 6), names):
-            _expect(math.isfinite(p[i]), f"{name} must be a finite number, got {params[i]!r}", path,
-                    f"params[{i}]", item=k)
-        _expect(-90.0 <= p[4] <= 90.0, f"latitude {p[4]} is outside -90..90 degrees", path, "params[4]", item=k)
-        _expect(-180.0 <= p[5] <= 180.0, f"longitude {p[5]} is outside -180..180 degrees", path, "params[5]",
-                item=k)
-    for i in range(4):
+        # null lat/lon (both) is "where the vehicle is"; a half-set position is a mistake.
+        _expect(math.isnan(p[4]) == math.isnan(p[5]), "latitude and longitude must both be numbers or both null",
+                path, "params[4]", item=k)
+        if not math.isnan(p[4]):
+            _expect(-90.0 <= p[4] <= 90.0, f"latitude {p[4]} is outside -90..90 degrees", path, "params[4]", item=k)
+            _expect(-180.0 <= p[5] <= 180.0, f"longitude {p[5]} is outside -180..180 degrees", path, "params[5]",
+                    item=k)
+        if command in POSITIONAL_COMMANDS and not math.isfinite(p[6]):
+            if raw.get("AltitudeMode") == _ALT_MODE_CALC_ABOVE_TERRAIN:
+                raise FileFormatError(
+                    "the altitude is QGroundControl's 'calculated above terrain' and was never resolved to an "
+                    "AMSL altitude (no terrain data when the plan was saved); open the plan in QGroundControl "
+                    "with terrain data available and save it again, or use relative altitudes",
+                    path=path, item=k, field="params[6]")
+            raise FileFormatError(f"altitude must be a finite number, got {params[6]!r}", path=path, item=k,
+                                  field="params[6]")
+    for i in range(7):
         _expect(not math.isinf(p[i]), "must be finite", path, f"params[{i}]", item=k)
-    return MissionItem(raw["command"], frame, (p[0], p[1], p[2], p[3]), p[4], p[5], p[6], ac)
+    return MissionItem(command, frame, (p[0], p[1], p[2], p[3]), p[4], p[5], p[6], ac)
 
 
 def _resolve_jumps(items: list[MissionItem], jump_ids: list, numbers: list[int], path: str) -> list[MissionItem]:
@@ -260,10 +302,6 @@ def _geofence(fence: Any, path: str) -> tuple:
     _expect(isinstance(fence, dict), "missing or not an object (QGroundControl requires it)", path, "geoFence")
     polys = fence.get("polygons", [])
     _expect(isinstance(polys, list), "must be a list", path, "geoFence.polygons")
-    circles = fence.get("circles", [])
-    _expect(isinstance(circles, list), "must be a list", path, "geoFence.circles")
-    if circles:
-        log.warning("%s: %d geofence circle(s) ignored (only polygons are supported)", path, len(circles))
     out = []
     for i, entry in enumerate(polys):
         field = f"geoFence.polygons[{i}]"
@@ -282,6 +320,30 @@ def _geofence(fence: Any, path: str) -> tuple:
                     path, f"{field}.polygon")
             pts.append((lat, lon))
         out.append((inc, tuple(pts)))
+    return tuple(out)
+
+
+def _circles(fence: dict, path: str) -> tuple:
+    """``geoFence.circles``: ``{"circle": {"center": [lat, lon], "radius": m}, "inclusion": bool}``."""
+    circles = fence.get("circles", [])
+    _expect(isinstance(circles, list), "must be a list", path, "geoFence.circles")
+    out = []
+    for i, entry in enumerate(circles):
+        field = f"geoFence.circles[{i}]"
+        _expect(isinstance(entry, dict) and isinstance(entry.get("circle"), dict),
+                'must be {"circle": {"center": [lat, lon], "radius": m}, "inclusion": true|false}', path, field)
+        inc = entry.get("inclusion", True)
+        _expect(isinstance(inc, bool), "must be true or false", path, f"{field}.inclusion")
+        centre, radius = entry["circle"].get("center"), entry["circle"].get("radius")
+        _expect(isinstance(centre, list) and len(centre) == 2, "must be [lat, lon]", path, f"{field}.circle.center")
+        lat = _num(centre[0], path, f"{field}.circle.center", None, allow_null=False)
+        lon = _num(centre[1], path, f"{field}.circle.center", None, allow_null=False)
+        _expect(-90 <= lat <= 90 and -180 <= lon <= 180, f"({lat}, {lon}) is not a valid lat/lon", path,
+                f"{field}.circle.center")
+        r = _num(radius, path, f"{field}.circle.radius", None, allow_null=False)
+        _expect(r > 0 and math.isfinite(r), f"must be a positive number of metres, got {radius!r}", path,
+                f"{field}.circle.radius")
+        out.append((inc, (lat, lon), r))
     return tuple(out)
 
 

@@ -57,6 +57,13 @@ MISSION_TYPE_MISSION = 0
 
 # Commands whose x/y/z are a position (encoded as degE7 lat/lon).
 POSITIONAL_COMMANDS = frozenset({NAV_WAYPOINT, NAV_LOITER_TIME, NAV_LAND, NAV_TAKEOFF, 17, 18, 31, 82})
+# Commands the vehicle flies to (a point of the route): waypoints, loiters, land, spline and VTOL
+# land, payload place. Takeoff climbs where the vehicle is (at home).
+ROUTE_COMMANDS = frozenset({NAV_WAYPOINT, 17, 18, NAV_LOITER_TIME, NAV_LAND, 31, 82, 85, 94})
+TAKEOFF_COMMANDS = frozenset({NAV_TAKEOFF, 84})
+# Geofence vertices/circles/return point and rally points: their own mission types, never a mission.
+FENCE_COMMANDS = frozenset({5000, 5001, 5002, 5003, 5004})
+RALLY_COMMANDS = frozenset({5100})
 
 # MAV_AUTOPILOT values used in .plan files
 AUTOPILOT_ARDUPILOTMEGA = 3
@@ -83,6 +90,13 @@ class MissionItem:
     @property
     def is_positional(self) -> bool:
         return self.frame in GLOBAL_FRAMES
+
+    @property
+    def has_position(self) -> bool:
+        """Whether lat/lon is a real place: a global frame, finite, and not the 0, 0 placeholder
+        Mission Planner and ArduPilot write for "here" (takeoff, DO_* and RTL items)."""
+        return (self.frame in GLOBAL_FRAMES and math.isfinite(self.lat_deg) and math.isfinite(self.lon_deg)
+                and not (self.lat_deg == 0.0 and self.lon_deg == 0.0))
 
     def same_as(self, other: "MissionItem", *, latlon_tol_deg: float = 1.5e-7, tol: float = 1e-4) -> bool:
         """Equal to the precision of the wire/file encodings (degE7, float32 params)."""
@@ -113,6 +127,7 @@ class MissionPlan:
     hover_speed_m_s: float | None = None
     geofence_polygons: tuple = ()  # tuple of (inclusion: bool, ((lat, lon), ...))
     rally_points: tuple = ()  # tuple of (lat, lon, alt_rel_m)
+    geofence_circles: tuple = ()  # tuple of (inclusion: bool, (lat, lon), radius_m)
 
     def waypoints(self) -> list[MissionItem]:
         return [it for it in self.items if it.command == NAV_WAYPOINT]
@@ -179,7 +194,12 @@ def e7_to_deg(value: int) -> float:
 
 
 def to_wire(plan: MissionPlan, autopilot: Autopilot | None = None) -> list[WireItem]:
-    """Encode ``plan`` as the MISSION_ITEM_INT list to upload to ``autopilot``."""
+    """Encode ``plan`` as the MISSION_ITEM_INT list to upload to ``autopilot``.
+
+    A DO_JUMP's param1 is the target's 1-based item number in the model (= its ArduPilot seq,
+    home being seq 0); for PX4, which has no home item, it is sent one lower, as QGroundControl's
+    plan manager does when it drops home.
+    """
     ap = autopilot or plan.autopilot
     out: list[WireItem] = []
     if ap == "ardupilot":
@@ -194,37 +214,66 @@ def to_wire(plan: MissionPlan, autopilot: Autopilot | None = None) -> list[WireI
         raise MissionEncodingError(f"unknown autopilot {ap!r} (expected 'ardupilot' or 'px4')")
     for i, it in enumerate(plan.items):
         seq = len(out)
-        out.append(_item_to_wire(it, seq, ap, index=i))
+        out.append(_item_to_wire(it, seq, ap, index=i, n_items=len(plan.items)))
     if out:
         first = out[0]
         out[0] = WireItem(**{**first.__dict__, "current": 1})
     return out
 
 
-def _item_to_wire(it: MissionItem, seq: int, ap: Autopilot, *, index: int) -> WireItem:
+def _item_to_wire(it: MissionItem, seq: int, ap: Autopilot, *, index: int, n_items: int) -> WireItem:
     for k, p in enumerate(it.params, start=1):
         if math.isinf(p):
             raise MissionEncodingError(f"item {index + 1}: param{k} is infinite")
+    p = it.params
+    if it.command == DO_JUMP:
+        target = float(p[0])
+        if not (math.isfinite(target) and target.is_integer() and 1 <= target <= n_items):
+            raise MissionEncodingError(f"item {index + 1}: DO_JUMP target {target:g} is not an item of the mission "
+                                       f"(items are 1..{n_items})")
+        if ap == "px4":
+            p = (target - 1.0, *p[1:])
     # Mission Planner files give every item the plan's altitude frame (RTL and DO_CHANGE_SPEED with
     # frame 3); PX4 rejects those commands unless they use MAV_FRAME_MISSION, so they are frameless.
     if it.is_positional and not (ap == "px4" and it.command in FRAMELESS_COMMANDS):
-        if not (-90.0 <= it.lat_deg <= 90.0) or not (-180.0 <= it.lon_deg <= 180.0):
-            raise MissionEncodingError(
-                f"item {index + 1}: position ({it.lat_deg}, {it.lon_deg}) is not a valid lat/lon"
-            )
+        if math.isnan(it.lat_deg) or math.isnan(it.lon_deg):
+            if ap == "px4":
+                raise MissionEncodingError(
+                    f"item {index + 1}: the position is unset (null); PX4 needs a latitude and longitude here")
+            lat, lon = 0.0, 0.0  # ArduPilot: 0, 0 means "where the vehicle is"
+        else:
+            lat, lon = it.lat_deg, it.lon_deg
+        if not (-90.0 <= lat <= 90.0) or not (-180.0 <= lon <= 180.0):
+            raise MissionEncodingError(f"item {index + 1}: position ({lat}, {lon}) is not a valid lat/lon")
         if not math.isfinite(it.alt_m):
             raise MissionEncodingError(f"item {index + 1}: altitude {it.alt_m} is not finite")
-        x, y, z = deg_to_e7(it.lat_deg), deg_to_e7(it.lon_deg), float(it.alt_m)
+        x, y, z = deg_to_e7(lat), deg_to_e7(lon), float(it.alt_m)
         frame = it.frame
+    elif it.is_positional:
+        # A position-framed item sent frameless (PX4): its x/y/z were a position, not parameters.
+        frame, x, y, z = FRAME_MISSION, 0, 0, 0.0
     else:
         frame = FRAME_MISSION if ap == "px4" or it.frame == FRAME_MISSION else it.frame
-        x, y, z = int(round(it.lat_deg)), int(round(it.lon_deg)), float(it.alt_m)
-    p = it.params
+        # MISSION_ITEM_INT x/y are integers: an unset (NaN, QGC's null) parameter goes as 0, as MAVSDK
+        # sends it and as both autopilots store an unused field; an unset z likewise.
+        x, y = (_int_param(v, index, k) for k, v in ((5, it.lat_deg), (6, it.lon_deg)))
+        z = 0.0 if math.isnan(it.alt_m) else float(it.alt_m)
+        if math.isinf(z):
+            raise MissionEncodingError(f"item {index + 1}: param7 is infinite")
     return WireItem(seq, frame, it.command, 0, int(bool(it.autocontinue)), p[0], p[1], p[2], p[3], x, y, z)
 
 
+def _int_param(value: float, index: int, k: int) -> int:
+    if math.isnan(value):
+        return 0
+    if math.isinf(value) or not -2**31 <= round(value) < 2**31:
+        raise MissionEncodingError(f"item {index + 1}: param{k} {value} does not fit MISSION_ITEM_INT's 32-bit field")
+    return int(round(value))
+
+
 def from_wire(items: Sequence[WireItem], autopilot: Autopilot) -> MissionPlan:
-    """Decode a downloaded MISSION_ITEM_INT list back into a :class:`MissionPlan`."""
+    """Decode a downloaded MISSION_ITEM_INT list back into a :class:`MissionPlan` (a PX4
+    DO_JUMP target is made 1-based again, as in files)."""
     items = list(items)
     home = (math.nan, math.nan, math.nan)
     if autopilot == "ardupilot" and items:
@@ -238,11 +287,12 @@ def from_wire(items: Sequence[WireItem], autopilot: Autopilot) -> MissionPlan:
             lat, lon = e7_to_deg(w.x), e7_to_deg(w.y)
         else:
             lat, lon = float(w.x), float(w.y)
+        p1 = w.param1 + 1.0 if autopilot == "px4" and w.command == DO_JUMP else w.param1
         out.append(
             MissionItem(
                 command=w.command,
                 frame=w.frame,
-                params=(w.param1, w.param2, w.param3, w.param4),
+                params=(p1, w.param2, w.param3, w.param4),
                 lat_deg=lat,
                 lon_deg=lon,
                 alt_m=float(w.z),

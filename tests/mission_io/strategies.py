@@ -24,9 +24,10 @@ non_positional = st.builds(
     command=st.sampled_from([M.DO_CHANGE_SPEED, M.NAV_RETURN_TO_LAUNCH, 183, 203]),
     frame=st.just(M.FRAME_MISSION),
     params=st.tuples(param, param, param, param),
-    lat_deg=finite, lon_deg=finite, alt_m=finite, autocontinue=st.booleans(),
+    lat_deg=param, lon_deg=param, alt_m=param, autocontinue=st.booleans(),
 )
 items = st.lists(st.one_of(positional, non_positional), max_size=12).map(tuple)
+radius = st.floats(min_value=0.5, max_value=1e5)
 ring = st.lists(st.tuples(lat, lon), min_size=3, max_size=6).map(tuple)
 
 
@@ -45,6 +46,8 @@ def plans(draw, *, home_alt_finite=False, extras=True):
         hover_speed_m_s=draw(speed) if extras else None,
         geofence_polygons=draw(st.lists(st.tuples(st.booleans(), ring), max_size=2).map(tuple)) if extras else (),
         rally_points=draw(st.lists(st.tuples(lat, lon, alt), max_size=3).map(tuple)) if extras else (),
+        geofence_circles=draw(st.lists(st.tuples(st.booleans(), st.tuples(lat, lon), radius), max_size=2)
+                              .map(tuple)) if extras else (),
     )
 
 

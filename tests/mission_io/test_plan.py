@@ -109,7 +109,8 @@ ITEM = ("mission", "items", 2)
 @pytest.mark.parametrize(
     "edit, item, field, fragment",
     [
-        (_set(("fileType",), "Mission"), None, "fileType", "must be \"Plan\""),
+        (_set(("fileType",), "Mission"), None, "fileType", "legacy QGroundControl .mission file"),
+        (_set(("fileType",), "GeoFence"), None, "fileType", "must be \"Plan\""),
         (_set(("version",), 2), None, "version", "must be 1"),
         (_set(("groundStation",), _DEL), None, "groundStation", "missing"),
         (_set(("mission",), []), None, "mission", "not an object"),
@@ -173,11 +174,15 @@ def test_unreadable_paths(tmp_path, make):
         P.read(make(tmp_path))
 
 
-def test_geofence_circles_are_warned_about(caplog):
+def test_geofence_circles_are_kept_through_a_round_trip():
     doc = _doc()
-    doc["geoFence"]["circles"] = [{"circle": {"center": [47, 8], "radius": 100}, "inclusion": True, "version": 1}]
-    P.loads(json.dumps(doc), path="c.plan")
-    assert "circle" in caplog.text
+    doc["geoFence"]["circles"] = [{"circle": {"center": [47, 8], "radius": 100}, "inclusion": True, "version": 1},
+                                  {"circle": {"center": [47.5, 8.25], "radius": 12.5}, "inclusion": False,
+                                   "version": 1}]
+    plan = P.loads(json.dumps(doc), path="c.plan")
+    assert plan.geofence_circles == ((True, (47.0, 8.0), 100.0), (False, (47.5, 8.25), 12.5))
+    again = json.loads(P.dumps(plan))["geoFence"]["circles"]
+    assert again == doc["geoFence"]["circles"]
 
 
 def test_nan_home_altitude_is_null_not_nan():

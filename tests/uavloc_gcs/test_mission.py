@@ -107,7 +107,7 @@ fparam = st.one_of(st.floats(-1e6, 1e6, allow_nan=False, width=32), st.just(math
 positional = st.builds(M.MissionItem, command=st.sampled_from([16, 22, 21, 19]),
                        frame=st.sampled_from([0, 3, 10]), params=st.tuples(fparam, fparam, fparam, fparam),
                        lat_deg=lat, lon_deg=lon, alt_m=st.floats(-100, 5000, width=32), autocontinue=st.booleans())
-command = st.builds(M.MissionItem, command=st.sampled_from([178, 20, 177]), frame=st.just(2),
+command = st.builds(M.MissionItem, command=st.sampled_from([178, 20, 183]), frame=st.just(2),
                     params=st.tuples(fparam, fparam, fparam, fparam), autocontinue=st.booleans())
 
 
