@@ -136,9 +136,8 @@ def _looks_like_home(row: list) -> bool:
     return row[3] in (0, NAV_WAYPOINT) and (row[2] == FRAME_GLOBAL or row[1] == 1)
 
 
-_FENCE_NAMES = {5000: "fence return point", 5001: "fence polygon vertex (inclusion)",
-                5002: "fence polygon vertex (exclusion)", 5003: "fence circle (inclusion)",
-                5004: "fence circle (exclusion)", 5100: "rally point"}
+_FENCE_NAMES = {5000: "fence return point", 5001: "inclusion polygon vertex", 5002: "exclusion polygon vertex",
+                5003: "inclusion circle", 5004: "exclusion circle", 5100: "rally point"}
 
 
 def _refuse_fence_and_rally(rows: list, path: str) -> None:
@@ -150,10 +149,10 @@ def _refuse_fence_and_rally(rows: list, path: str) -> None:
             and not (i == 0 and _looks_like_home(rows[0][1]))]
     if not rest:
         what = "rally-point" if all(k in RALLY_COMMANDS for k in special) else "geofence"
+        names = ", ".join(sorted({_FENCE_NAMES[k] for k in special}))
         raise FileFormatError(
-            f"this is a {what} file ({len(special)} {', '.join(sorted({_FENCE_NAMES[k] for k in special}))} "
-            f"item(s)), not a mission; fences and rally points travel in a .plan file's geoFence/rallyPoints",
-            path=path)
+            f"this is a {what} file, not a mission: {len(special)} item(s) of kind {names} (a .plan carries "
+            "fences and rally points next to its mission)", path=path)
     lineno, row = next((ln, r) for ln, r in rows if r[3] in FENCE_COMMANDS or r[3] in RALLY_COMMANDS)
     raise FileFormatError(f"command {row[3]} ({_FENCE_NAMES[row[3]]}) belongs to a geofence or rally list and "
                           "cannot be part of a mission", path=path, line=lineno, field="command")

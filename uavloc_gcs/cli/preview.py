@@ -20,16 +20,9 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def load_mission(path: str | Path):
     """Read a mission file, choosing the format by suffix or, failing that, by content."""
-    from mission_io import plan as plan_file
-    from mission_io import waypoints as wpl_file
-    from mission_io._common import read_text
+    from mission_io import mission_file
 
-    p = Path(path)
-    text = read_text(p)
-    suffix = p.suffix.lower()
-    if suffix == ".plan" or (suffix not in (".waypoints", ".txt") and text.lstrip().startswith("{")):
-        return plan_file.loads(text, path=str(p)), "QGroundControl plan"
-    return wpl_file.loads(text, path=str(p)), "QGC WPL 110 waypoints"
+    return mission_file.read(path)
 
 
 def _names(enum: str) -> dict[int, str]:
@@ -43,10 +36,12 @@ def _names(enum: str) -> dict[int, str]:
 def run(args: argparse.Namespace) -> int:
     import numpy as np
 
+    from mission_io.mission_file import PLAN
+
     from ..energy import path_length_m
     from ..errors import ConfigError
-    from ..geo import LocalFrame
-    from ..mission import GLOBAL_FRAMES, NAV_RETURN_TO_LAUNCH, NAV_TAKEOFF, NAV_WAYPOINT
+    from ..mission import NAV_WAYPOINT
+    from ..render.mission_view import circle_ring, mission_view
     from ..render.terminal import Layer, char_map
 
     if args.width < 20:
@@ -54,66 +49,72 @@ def run(args: argparse.Namespace) -> int:
     if args.png and Path(args.png).suffix.lower() not in (".png", ".svg"):
         raise ConfigError(f"--png {args.png}: the picture must end in .png or .svg")
     mission, kind = load_mission(args.file)
-    positional = [it for it in mission.items if it.frame in GLOBAL_FRAMES]
-    has_home = not (math.isnan(mission.home_lat_deg) or math.isnan(mission.home_lon_deg))
-    if has_home:
-        origin = (mission.home_lat_deg, mission.home_lon_deg)
-    elif positional:
-        origin = (positional[0].lat_deg, positional[0].lon_deg)
-    else:
-        origin = None
+    view = mission_view(mission)
     # WPL 110 does not record the autopilot; a .plan does (mission.firmwareType).
-    ap = ("ArduPilot" if mission.autopilot == "ardupilot" else "PX4") if kind.endswith("plan") \
-        else "autopilot not recorded"
+    ap = ("ArduPilot" if mission.autopilot == "ardupilot" else "PX4") if kind == PLAN else "autopilot not recorded"
     n_wp = sum(1 for it in mission.items if it.command == NAV_WAYPOINT)
     holds = sum(1 for it in mission.items if it.command == NAV_WAYPOINT and it.params[0] > 0)
     hold_text = "" if n_wp == 0 else (" (all pass-through)" if holds == 0 else f" ({holds} with a hold)")
     print(f"{args.file}: {kind}, {ap}, {len(mission.items)} item(s), {n_wp} waypoint(s){hold_text}")
-    if has_home:
+    if view.has_home:
         alt = "unknown AMSL altitude" if math.isnan(mission.home_alt_m) else f"{mission.home_alt_m:g} m AMSL"
         print(f"home {mission.home_lat_deg:.7f}, {mission.home_lon_deg:.7f} ({alt})")
-
-    xy = np.zeros((0, 2))
-    fence_xy = None
-    if origin is not None:
-        frame = LocalFrame(*origin)
-        xy = frame.to_local_xy(np.array([[it.lat_deg, it.lon_deg] for it in positional]).reshape(-1, 2))
-        route = xy
-        if has_home:
-            route = np.vstack([[0.0, 0.0], xy])
-            if any(it.command == NAV_RETURN_TO_LAUNCH for it in mission.items):
-                route = np.vstack([route, [0.0, 0.0]])
-        speed = mission.cruise_speed_m_s
-        length = path_length_m(route)
-        timing = f", about {length / speed / 60:.1f} min at {speed:g} m/s" if speed else ""
-        print(f"route {length / 1000:.2f} km{' from home and back' if has_home else ''}{timing}\n")
-        layers = []
-        for inclusion, ring in mission.geofence_polygons:
-            fence_xy = frame.to_local_xy(np.array(ring)) if inclusion and fence_xy is None else fence_xy
-            layers.append(Layer(frame.to_local_xy(np.array(ring)), "." if inclusion else "x", "ring",
-                                name="geofence" if inclusion else "exclusion fence"))
-        layers.append(Layer(route, "*", "line", name="route"))
-        marks = [("T" if it.command == NAV_TAKEOFF else "o") for it in positional]
-        layers.append(Layer(xy, "o", "points", labels=tuple(marks), name="waypoint"))
-        if has_home:
-            layers.append(Layer(np.zeros((1, 2)), "H", "points", name="home"))
-        if len(xy):
-            print(char_map(layers, width=args.width))
-        else:
-            print("(no positional items to draw)")
     else:
-        print("(no positional items to draw)")
+        print("home not in the file (the vehicle's own home is used)")
+    if view.placeholders:
+        print(f"{view.placeholders} item(s) with lat/lon 0, 0 (\"here\", not a place) are not drawn")
+    extras = _extras_text(mission)
+    if extras:
+        print(extras)
+
+    if len(view.route_xy) >= 2:
+        speed = mission.cruise_speed_m_s
+        length = path_length_m(view.route_xy)
+        timing = f", about {length / speed / 60:.1f} min at {speed:g} m/s" if speed else ""
+        print(f"route {length / 1000:.2f} km{' from home' if view.has_home else ''}{timing}")
+    print()
+    layers = []
+    for inclusion, ring in view.fences:
+        layers.append(Layer(ring, "." if inclusion else "x", "ring",
+                            name="geofence" if inclusion else "exclusion fence"))
+    for inclusion, centre, radius in view.circles:
+        layers.append(Layer(circle_ring(centre, radius), "." if inclusion else "x", "ring",
+                            name="geofence circle" if inclusion else "exclusion circle"))
+    if len(view.route_xy) >= 2:
+        layers.append(Layer(view.route_xy, "*", "line", name="route"))
+    if len(view.rally_xy):
+        layers.append(Layer(view.rally_xy, "R", "points", name="rally point"))
+    if len(view.points_xy):
+        layers.append(Layer(view.points_xy, "o", "points", labels=view.marks, name="waypoint"))
+    if view.has_home:
+        layers.append(Layer(np.zeros((1, 2)), "H", "points", name="home"))
+    if layers and (len(view.points_xy) or view.fences or view.circles or len(view.rally_xy)):
+        print(char_map(layers, width=args.width))
+    else:
+        print("(no positions to draw)")
     if not args.no_table:
         print()
         print(item_table(mission))
     if args.png:
-        _picture(args, mission, route if origin is not None else xy, fence_xy, origin)
+        _picture(args, view)
         print(f"\nWrote {args.png}")
     return 0
 
 
+def _extras_text(mission) -> str:
+    parts = []
+    inc = sum(1 for i, _ in mission.geofence_polygons if i) + sum(1 for i, _, _ in mission.geofence_circles if i)
+    exc = len(mission.geofence_polygons) + len(mission.geofence_circles) - inc
+    if inc or exc:
+        parts.append(f"geofence: {inc} inclusion, {exc} exclusion zone(s)")
+    if mission.rally_points:
+        parts.append(f"{len(mission.rally_points)} rally point(s)")
+    return "; ".join(parts)
+
+
 def item_table(mission) -> str:
-    """One row per item: number (home = 0), command, frame, position, hold, speed/params."""
+    """One row per item: number (home = 0), command, frame, position, hold, speed/params. Items
+    without a real position (the 0, 0 placeholder, null, or a non-global frame) show none."""
     from ..mission import DO_CHANGE_SPEED, GLOBAL_FRAMES, NAV_WAYPOINT
     from ..render.terminal import format_table
 
@@ -123,24 +124,28 @@ def item_table(mission) -> str:
         rows.append([0, "home", "", f"{mission.home_lat_deg:.7f}", f"{mission.home_lon_deg:.7f}",
                      "" if math.isnan(mission.home_alt_m) else f"{mission.home_alt_m:g}", ""])
     for k, it in enumerate(mission.items, start=1):
-        pos = it.frame in GLOBAL_FRAMES
+        placed = it.has_position
         if it.command == NAV_WAYPOINT:
             note = f"hold {it.params[0]:g} s" + (" (pass-through)" if it.params[0] == 0 else "")
         elif it.command == DO_CHANGE_SPEED:
             note = f"speed {it.params[1]:g} m/s"
         else:
             note = " ".join(f"{p:g}" for p in it.params if not math.isnan(p) and p != 0)
-        rows.append([k, cmds.get(it.command, str(it.command)), frames.get(it.frame, str(it.frame)),
-                     f"{it.lat_deg:.7f}" if pos else "", f"{it.lon_deg:.7f}" if pos else "",
-                     f"{it.alt_m:g}" if pos else "", note])
+        lat, lon = (f"{it.lat_deg:.7f}", f"{it.lon_deg:.7f}") if placed else \
+            (("here", "") if it.frame in GLOBAL_FRAMES and it.lat_deg == 0.0 and it.lon_deg == 0.0 else ("", ""))
+        alt = f"{it.alt_m:g}" if it.frame in GLOBAL_FRAMES and math.isfinite(it.alt_m) else ""
+        rows.append([k, cmds.get(it.command, str(it.command)), frames.get(it.frame, str(it.frame)), lat, lon, alt,
+                     note])
     return format_table(["#", "command", "frame", "lat", "lon", "alt m", "notes"], rows)
 
 
-def _picture(args, mission, route_xy, fence_xy, origin) -> None:
+def _picture(args, view) -> None:
     from ..render.maps import origin_caption, save_figure
     from ..render.scan_plot import mission_figure
 
-    sub = origin_caption(*origin) if origin else None
-    fig = mission_figure([route_xy], [Path(args.file).name], title=f"Mission {Path(args.file).name}",
-                         subtitle=sub, fence_xy=fence_xy)
+    sub = origin_caption(*view.origin) if view.origin else None
+    fig = mission_figure([view.route_xy if len(view.route_xy) >= 2 else view.points_xy], [Path(args.file).name],
+                         title=f"Mission {Path(args.file).name}", subtitle=sub,
+                         fences=view.fences, circles=view.circles, rally_xy=view.rally_xy,
+                         home=view.has_home, points_xy=view.points_xy, marks=view.marks)
     save_figure(fig, args.png)

@@ -84,18 +84,10 @@ def encoding_for(flavour) -> str:
 
 
 def read_mission(path: str, autopilot: str | None):
-    """Read a .plan or .waypoints file into a MissionPlan."""
-    from mission_io import plan as plan_file
-    from mission_io import waypoints as waypoints_file
+    """Read a .plan or .waypoints file into a MissionPlan (the same reader as ``uavloc preview``)."""
+    from mission_io import mission_file
 
-    from ..errors import ConfigError
-
-    suffix = Path(path).suffix.lower()
-    if suffix == ".plan":
-        return plan_file.read(path)
-    if suffix in (".waypoints", ".txt"):
-        return waypoints_file.read(path, autopilot=autopilot or "ardupilot")
-    raise ConfigError(f"{path}: mission file must end in .plan or .waypoints", key="file")
+    return mission_file.read(path, autopilot=autopilot)[0]
 
 
 def run(args: argparse.Namespace) -> int:
@@ -105,14 +97,18 @@ def run(args: argparse.Namespace) -> int:
 
 
 async def _upload(args: argparse.Namespace) -> int:
+    from ..errors import FileFormatError
     from ..link import upload_mission
-    from ..mission import to_wire
+    from ..mission import MissionEncodingError, to_wire
 
     read_mission(args.file, None if args.autopilot == "auto" else args.autopilot)  # bad file: fail before connecting
     link, system, component, flavour = await connect(args)
     async with link:
         plan = read_mission(args.file, encoding_for(flavour))
-        items = to_wire(plan, encoding_for(flavour))
+        try:
+            items = to_wire(plan, encoding_for(flavour))
+        except MissionEncodingError as err:  # the file asks for something this autopilot cannot take
+            raise FileFormatError(f"cannot be sent to {flavour.label}: {err}", path=args.file) from None
         started = time.monotonic()
         result = await upload_mission(link, system, component, items, verify=not args.no_verify,
                                       autopilot=flavour, progress=Progress())

@@ -7,6 +7,8 @@ from matplotlib.figure import Figure
 
 from . import maps
 
+EXCLUSION_COLOR = "#d62728"
+
 
 def scan_figure(scenario, plan, *, title: str | None = None) -> Figure:
     """Figure of a :class:`uavloc_gcs.scan.ScanPlan` for ``scenario`` (local metres)."""
@@ -41,20 +43,51 @@ def scan_figure(scenario, plan, *, title: str | None = None) -> Figure:
 
 
 def mission_figure(xy_by_vehicle: list[np.ndarray], labels: list[str], *, title: str,
-                   subtitle: str | None = None, fence_xy: np.ndarray | None = None) -> Figure:
-    """Figure of mission routes already converted to local metres (used by ``uavloc preview``)."""
-    pts = [np.zeros((1, 2))] + [np.asarray(xy).reshape(-1, 2) for xy in xy_by_vehicle]
-    if fence_xy is not None:
-        pts.append(np.asarray(fence_xy).reshape(-1, 2))
-    fig, ax = maps.new_map(title, subtitle=subtitle, extent_m=tuple(np.ptp(np.vstack(pts), axis=0)))
-    if fence_xy is not None and len(fence_xy) >= 3:
-        maps.draw_area(ax, fence_xy, label="geofence (inclusion)")
+                   subtitle: str | None = None, fence_xy: np.ndarray | None = None, fences=(), circles=(),
+                   rally_xy: np.ndarray | None = None, home: bool = True, points_xy: np.ndarray | None = None,
+                   marks: tuple = ()) -> Figure:
+    """Figure of mission routes already converted to local metres (used by ``uavloc preview``).
+
+    ``fences`` is a list of (inclusion, ring), ``circles`` of (inclusion, (x, y), radius_m);
+    exclusion zones are drawn red. ``home`` False leaves out the home marker (home unknown).
+    ``points_xy`` with ``marks`` ('T' takeoff, 'L' land, 'o') adds the mission's places.
+    """
+    fences = list(fences) + ([(True, fence_xy)] if fence_xy is not None else [])
+    pts = ([np.zeros((1, 2))] if home else []) + [np.asarray(xy).reshape(-1, 2) for xy in xy_by_vehicle]
+    pts += [np.asarray(ring).reshape(-1, 2) for _, ring in fences]
+    pts += [np.array([[x - r, y - r], [x + r, y + r]]) for _, (x, y), r in circles]
+    if rally_xy is not None:
+        pts.append(np.asarray(rally_xy).reshape(-1, 2))
+    allp = np.vstack([p for p in pts if len(p)] or [np.zeros((1, 2))])
+    fig, ax = maps.new_map(title, subtitle=subtitle, extent_m=tuple(np.ptp(allp, axis=0)))
+    seen: set = set()
+    for inclusion, ring in fences:
+        if len(ring) >= 3:
+            label = "geofence (inclusion)" if inclusion else "exclusion zone"
+            maps.draw_area(ax, ring, label=None if label in seen else label,
+                           color=maps.AREA_COLOR if inclusion else EXCLUSION_COLOR)
+            seen.add(label)
+    for inclusion, centre, radius in circles:
+        label = "geofence circle" if inclusion else "exclusion circle"
+        maps.draw_circles(ax, np.array([centre]), radius, label=None if label in seen else label,
+                          color=maps.AREA_COLOR if inclusion else EXCLUSION_COLOR, alpha=0.06, zorder=1.5)
+        seen.add(label)
     colors = maps.vehicle_colors(len(xy_by_vehicle))
     maps.draw_polylines(ax, xy_by_vehicle, labels=labels, colors=colors, markers=True)
-    for xy, col in zip(xy_by_vehicle, colors):
-        if len(xy):
-            maps.draw_points(ax, xy[:1], color=col, marker="s", size=40)
-    maps.draw_launch(ax)
+    if points_xy is not None and len(points_xy):
+        for mark, name, marker in (("T", "takeoff", "^"), ("L", "land", "v")):
+            sel = np.array([m == mark for m in marks], dtype=bool)
+            if sel.any():
+                maps.draw_points(ax, np.asarray(points_xy)[sel], label=name, color="#444444", marker=marker,
+                                 size=50)
+    elif xy_by_vehicle:
+        for xy, col in zip(xy_by_vehicle, colors):
+            if len(xy):
+                maps.draw_points(ax, xy[:1], color=col, marker="s", size=40)
+    if rally_xy is not None and len(rally_xy):
+        maps.draw_points(ax, rally_xy, label="rally point", color="#2ca02c", marker="P", size=60)
+    if home:
+        maps.draw_launch(ax)
     maps.add_scale_bar(ax)
     maps.add_north_arrow(ax)
     maps.add_legend(ax)
