@@ -91,7 +91,7 @@ def run(args: argparse.Namespace) -> int:
     if layers and (len(view.points_xy) or view.fences or view.circles or len(view.rally_xy)):
         print(char_map(layers, width=args.width))
     else:
-        print("(no positions to draw)")
+        print("(no positional items to draw)")
     if not args.no_table:
         print()
         print(item_table(mission))
