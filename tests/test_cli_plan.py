@@ -218,3 +218,52 @@ def test_preview_of_a_mission_without_positions(tmp_path, uavloc_inproc):
     f.write_text("QGC WPL 110\n0\t1\t0\t16\t0\t0\t0\t0\t0\t0\t0\t1\n1\t0\t2\t20\t0\t0\t0\t0\t0\t0\t0\t1\n")
     res = uavloc_inproc("preview", f)
     assert res.returncode == 0 and "no positional items" in res.stdout and "NAV_RETURN_TO_LAUNCH" in res.stdout
+
+
+FILES = ROOT / "tests" / "data" / "files"
+
+
+def _picture(out):
+    return [line for line in out.splitlines() if line.startswith("|") and line.endswith("|")]
+
+
+def test_preview_does_not_draw_mission_planner_placeholders(uavloc_inproc, tmp_path):
+    res = uavloc_inproc("preview", FILES / "mp_placeholders.waypoints", "--png", tmp_path / "p.png")
+    assert res.returncode == 0, res.stderr
+    out = res.stdout
+    assert "4 item(s) with lat/lon 0, 0" in out
+    km = float(re.search(r"route ([0-9.]+) km", out).group(1))
+    assert 0.2 < km < 1.0  # home, three waypoints, RTL: ~400 m, not thousands of km to Null Island
+    pic = _picture(out)
+    assert sum(line.count("o") for line in pic) == 3 and sum(line.count("H") for line in pic) == 1
+    assert "here" in out and (tmp_path / "p.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_preview_of_a_zero_home_draws_no_home(uavloc_inproc):
+    res = uavloc_inproc("preview", FILES / "zero_home.plan")
+    assert res.returncode == 0
+    assert "home not in the file" in res.stdout and not any("H" in line for line in _picture(res.stdout))
+    km = float(re.search(r"route ([0-9.]+) km", res.stdout).group(1))
+    assert km < 0.2
+
+
+def test_preview_draws_fences_circles_and_rally_points(uavloc_inproc, tmp_path):
+    res = uavloc_inproc("preview", FILES / "fences_rally.plan", "--png", tmp_path / "f.svg")
+    assert res.returncode == 0, res.stderr
+    out = res.stdout
+    assert "geofence: 2 inclusion, 2 exclusion zone(s); 2 rally point(s)" in out
+    pic = "".join(_picture(out))
+    assert pic.count("R") == 2 and "x" in pic and "." in pic
+    svg = (tmp_path / "f.svg").read_text()
+    assert "exclusion zone" in svg and "exclusion circle" in svg and "rally point" in svg
+
+
+def test_preview_of_a_qgc4_survey_and_of_files_that_are_not_missions(uavloc_inproc):
+    res = uavloc_inproc("preview", FILES / "survey_qgc4.plan")
+    assert res.returncode == 0 and "DO_SET_CAM_TRIGG_DIST" in res.stdout
+    for name, fragment in [("fence_circle.waypoints", "geofence file, not a mission"),
+                           ("rally.waypoints", "rally-point file, not a mission"),
+                           ("legacy.mission", "legacy QGroundControl .mission"),
+                           ("above_terrain_unresolved.plan", "calculated above terrain")]:
+        err = _one_sentence_error(uavloc_inproc("preview", FILES / name))
+        assert name in err and fragment in err

@@ -103,3 +103,40 @@ def test_signed_fleet_needs_the_key(tmp_path):
         assert len(f.vehicle(1).mission_items) == len(_mission("px4", 4).items)
     finally:
         f.stop()
+
+
+FILES = ROOT / "tests" / "data" / "files"
+
+
+def test_qgc4_survey_with_null_coordinates_uploads_and_verifies(fleet):
+    autopilot, f = fleet
+    (_, conn), = f.endpoints
+    up = uavloc("upload", str(FILES / "survey_qgc4.plan"), "--to", conn)
+    assert up.returncode == 0, up.stderr
+    assert "Uploaded 11 mission items" in up.stdout and "verified" in up.stdout and "Traceback" not in up.stderr
+    stored = f.vehicle(1).mission_items
+    cams = [w for w in stored if w.command == 206]
+    assert len(cams) == 4 and all((w.x, w.y) == (0, 0) for w in cams)
+
+
+def test_do_jump_reaches_the_vehicle_with_its_autopilot_numbering(fleet):
+    autopilot, f = fleet
+    (_, conn), = f.endpoints
+    up = uavloc("upload", str(FILES / "do_jump_px4.plan"), "--to", conn)
+    assert up.returncode == 0, up.stderr
+    stored = f.vehicle(1).mission_items
+    jump = next(w for w in stored if w.command == 177)
+    target = stored[int(jump.param1)]
+    assert (target.command, target.x) == (16, 473985000)  # the first waypoint on either autopilot
+
+
+@pytest.mark.parametrize("name", ["fence_circle.waypoints", "rally.waypoints"])
+def test_fence_and_rally_files_are_refused_before_touching_the_vehicle(fleet, name):
+    autopilot, f = fleet
+    (_, conn), = f.endpoints
+    before = list(f.vehicle(1).mission_items)
+    r = uavloc("upload", str(FILES / name), "--to", conn)
+    assert r.returncode == 2
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and "not a mission" in lines[0] and name in lines[0]
+    assert f.vehicle(1).mission_items == before
