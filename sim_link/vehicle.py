@@ -243,6 +243,8 @@ class FakeVehicle(TelemetryMixin):
         if mission_type != 0:
             return
         n = len(self.mission.stores[0])
+        if self.flavour.name == "px4":
+            self.executor.jumps_done.clear()  # PX4 stores every uploaded DO_JUMP with its count at 0
         if self.flavour.name == "px4" and not self.mission.busy():
             self.executor.reset()  # PX4 starts a new plan from its first item
         elif self.executor.current >= n:

@@ -42,3 +42,24 @@ def test_a_plan_file_jump_lands_on_the_named_waypoint(autopilot):
     reached = [r.msg.seq for _, r in msgs if r.msg.get_type() == "MISSION_ITEM_REACHED"]
     waypoints = [s for s in reached if s in (seq_a, seq_b)]
     assert waypoints == [seq_a, seq_b, seq_a, seq_b], reached  # A, B, then the jump back to A (once)
+
+
+def test_px4_restarts_jump_counts_with_every_upload():
+    """PX4 (``parse_mavlink_mission_item``) stores each uploaded DO_JUMP with its count at 0, so the
+    same mission uploaded again jumps again."""
+    from uavloc_gcs.dialect import mavlink as mav
+
+    from .test_vehicle_flight import GCS
+
+    sc = PAPER.replace(fleet={"autopilot": "px4"})
+    wire = M.to_wire(plan_file.loads(_plan_text(sc)), "px4")
+    v = _vehicle(sc)
+    _fly(v, wire, t_end_s=300.0)
+    assert v.executor.jumps_done  # the jump was used up
+    srv = v.mission
+    srv.handle(mav.MAVLink_mission_count_message(1, 1, len(wire), 0), GCS, v.t_s)
+    for w in wire:
+        srv.handle(mav.MAVLink_mission_item_int_message(1, 1, w.seq, w.frame, w.command, w.current, w.autocontinue,
+                                                        w.param1, w.param2, w.param3, w.param4, w.x, w.y, w.z, 0),
+                   GCS, v.t_s)
+    assert len(v.mission_items) == len(wire) and not v.executor.jumps_done
