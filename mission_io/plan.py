@@ -10,15 +10,16 @@ NaN is written as ``null``. Keys are sorted and indented like QGroundControl's o
 floats are written with full (round-trip) precision, so output is deterministic and lossless.
 
 Reading accepts the same plus QGC survey/corridor ``ComplexItem``s (their pre-expanded
-``TransectStyleComplexItem.Items``). A ``DO_JUMP``'s param1 refers to a ``doJumpId`` in the file
-and is converted to the target's 1-based item position (= the ArduPilot seq) in the model.
+``TransectStyleComplexItem.Items``), the older item forms QGroundControl converts (4 ``params`` +
+``coordinate``; ``param1``..``param4`` keys), null positions, and geofence circles. A legacy
+``.mission`` file and unresolved above-terrain altitudes are refused with what to do. A
+``DO_JUMP``'s param1 refers to a ``doJumpId`` in the file and is converted to the target's 1-based item position (= the ArduPilot seq) in the model.
 Errors name the file, the item (1-based position in ``mission.items``) and the field.
 """
 
 from __future__ import annotations
 
 import json
-import logging
 import math
 from pathlib import Path
 from typing import Any
@@ -42,7 +43,6 @@ from uavloc_gcs.mission import (
 
 from ._common import json_number, read_text, write_text
 
-log = logging.getLogger(__name__)
 
 __all__ = ["loads", "dumps", "read", "write"]
 

@@ -6,7 +6,7 @@ Format (MAVLink devguide ``file_formats``): first line ``QGC WPL 110``, then one
     INDEX  CURRENT  FRAME  COMMAND  PARAM1  PARAM2  PARAM3  PARAM4  LAT/X  LON/Y  ALT/Z  AUTOCONTINUE
 
 Line 0 is the planned home (written like Mission Planner: ``0 1 0 16 0 0 0 0 lat lon alt 1``),
-items follow from index 1. Numbers are written with full precision (shortest exact decimal, no
+items follow from index 1 (reading is more lenient: see :func:`loads`). Numbers are written with full precision (shortest exact decimal, no
 exponent; ``nan`` for NaN, e.g. "keep yaw"), not ``%f``. The format has no field for the
 autopilot, the speeds or geofences, and cannot say "home altitude unknown": a NaN home altitude
 is written as 0 and an all-zero home reads back as "no home" (NaN), the placeholder ArduPilot
