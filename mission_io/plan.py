@@ -13,7 +13,8 @@ Reading accepts the same plus QGC survey/corridor ``ComplexItem``s (their pre-ex
 ``TransectStyleComplexItem.Items``), the older item forms QGroundControl converts (4 ``params`` +
 ``coordinate``; ``param1``..``param4`` keys), null positions, and geofence circles. A legacy
 ``.mission`` file and unresolved above-terrain altitudes are refused with what to do. A
-``DO_JUMP``'s param1 refers to a ``doJumpId`` in the file and is converted to the target's 1-based item position (= the ArduPilot seq) in the model.
+``DO_JUMP``'s param1 refers to a ``doJumpId`` in the file and is converted to the target's
+1-based item position (= the ArduPilot seq) in the model.
 Errors name the file, the item (1-based position in ``mission.items``) and the field.
 """
 
