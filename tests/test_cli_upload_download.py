@@ -140,3 +140,18 @@ def test_fence_and_rally_files_are_refused_before_touching_the_vehicle(fleet, na
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and "not a mission" in lines[0] and name in lines[0]
     assert f.vehicle(1).mission_items == before
+
+
+def test_mission_planner_file_uploads_to_either_autopilot(fleet):
+    autopilot, f = fleet
+    (_, conn), = f.endpoints
+    up = uavloc("upload", str(FILES / "mp_placeholders.waypoints"), "--to", conn)
+    assert up.returncode == 0, up.stderr
+    stored = f.vehicle(1).mission_items
+    takeoff = next(w for w in stored if w.command == 22)
+    # ArduPilot keeps 0, 0 ("here"); PX4 gets the planned home, where the vehicle takes off
+    assert (takeoff.x, takeoff.y) == ((0, 0) if autopilot == "ardupilot" else (473977420, 85455940))
+    if autopilot == "px4":
+        assert all(w.frame == 2 for w in stored if w.command in (178, 206, 20))
+        r = uavloc("upload", str(FILES / "line0_takeoff.waypoints"), "--to", conn)  # LAND at 0, 0; no home
+        assert r.returncode == 2 and "PX4 would fly to 0 N 0 E" in r.stderr and len(r.stderr.strip().splitlines()) == 1

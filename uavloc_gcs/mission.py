@@ -51,6 +51,11 @@ GLOBAL_FRAMES = frozenset(
 
 # Commands without a position: PX4 accepts them only with MAV_FRAME_MISSION.
 FRAMELESS_COMMANDS = frozenset({NAV_RETURN_TO_LAUNCH, DO_JUMP, DO_CHANGE_SPEED, DO_SET_MISSION_CURRENT})
+# Commands whose params 5-7 are a location (common.xml ``hasLocation``); every other command is
+# frameless to PX4, whatever frame a Mission Planner file gives it (DO_* items in frame 3).
+LOCATION_COMMANDS = frozenset({16, 17, 18, 19, 21, 22, 23, 24, 25, 31, 34, 35, 36, 80, 81, 82, 84, 85, 94, 179, 188,
+                               189, 192, 195, 201, 252, 4001, 4501, 5000, 5001, 5002, 5003, 5004, 5100, 30001,
+                               31000, 31001, 31002, 31003, 31004, 31005, 31006, 31007, 31008, 31009, 43003})
 
 # MAV_MISSION_TYPE
 MISSION_TYPE_MISSION = 0
@@ -214,14 +219,16 @@ def to_wire(plan: MissionPlan, autopilot: Autopilot | None = None) -> list[WireI
         raise MissionEncodingError(f"unknown autopilot {ap!r} (expected 'ardupilot' or 'px4')")
     for i, it in enumerate(plan.items):
         seq = len(out)
-        out.append(_item_to_wire(it, seq, ap, index=i, n_items=len(plan.items)))
+        out.append(_item_to_wire(it, seq, ap, index=i, n_items=len(plan.items),
+                                 home=(plan.home_lat_deg, plan.home_lon_deg)))
     if out:
         first = out[0]
         out[0] = WireItem(**{**first.__dict__, "current": 1})
     return out
 
 
-def _item_to_wire(it: MissionItem, seq: int, ap: Autopilot, *, index: int, n_items: int) -> WireItem:
+def _item_to_wire(it: MissionItem, seq: int, ap: Autopilot, *, index: int, n_items: int,
+                  home: tuple[float, float]) -> WireItem:
     for k, p in enumerate(it.params, start=1):
         if math.isinf(p):
             raise MissionEncodingError(f"item {index + 1}: param{k} is infinite")
@@ -235,7 +242,8 @@ def _item_to_wire(it: MissionItem, seq: int, ap: Autopilot, *, index: int, n_ite
             p = (target - 1.0, *p[1:])
     # Mission Planner files give every item the plan's altitude frame (RTL and DO_CHANGE_SPEED with
     # frame 3); PX4 rejects those commands unless they use MAV_FRAME_MISSION, so they are frameless.
-    if it.is_positional and not (ap == "px4" and it.command in FRAMELESS_COMMANDS):
+    if it.is_positional and not (ap == "px4" and (it.command in FRAMELESS_COMMANDS
+                                                  or it.command not in LOCATION_COMMANDS)):
         if math.isnan(it.lat_deg) or math.isnan(it.lon_deg):
             if ap == "px4":
                 raise MissionEncodingError(
@@ -243,6 +251,15 @@ def _item_to_wire(it: MissionItem, seq: int, ap: Autopilot, *, index: int, n_ite
             lat, lon = 0.0, 0.0  # ArduPilot: 0, 0 means "where the vehicle is"
         else:
             lat, lon = it.lat_deg, it.lon_deg
+        if ap == "px4" and deg_to_e7(lat) == 0 and deg_to_e7(lon) == 0:
+            # Mission Planner's 0, 0 "here": ArduPilot's convention, a real place to PX4. A takeoff
+            # climbs at home (QGroundControl puts it there); anything else needs a position.
+            if it.command in TAKEOFF_COMMANDS and not any(math.isnan(v) or v == 0.0 for v in home):
+                lat, lon = home
+            else:
+                raise MissionEncodingError(
+                    f"item {index + 1}: lat/lon 0, 0 means \"here\" to ArduPilot, but PX4 would fly to 0 N 0 E; "
+                    "give the item a position or upload to an ArduPilot vehicle")
         if not (-90.0 <= lat <= 90.0) or not (-180.0 <= lon <= 180.0):
             raise MissionEncodingError(f"item {index + 1}: position ({lat}, {lon}) is not a valid lat/lon")
         if not math.isfinite(it.alt_m):

@@ -181,3 +181,22 @@ def test_not_a_mission_file_at_all(tmp_path):
     f.write_text("<kml/>")
     with pytest.raises(FileFormatError, match="is not a mission file"):
         mission_file.read(f)
+
+
+def test_mission_planner_placeholders_for_px4_takeoff_at_home_and_refuse_other_places():
+    m = read("mp_placeholders.waypoints")
+    with pytest.raises(M.MissionEncodingError, match="item 1: lat/lon 0, 0 means \"here\" to ArduPilot"):
+        M.to_wire(M.MissionPlan(m.items[:1] + (M.MissionItem(M.NAV_LAND, 3),), autopilot="px4"))
+    wire = M.to_wire(m, "px4")  # takeoff (0, 0) goes at the planned home; DO_* and RTL are frameless
+    assert (wire[0].command, wire[0].x, wire[0].y) == (M.NAV_TAKEOFF, 473977420, 85455940)
+    assert all(w.frame == M.FRAME_MISSION and (w.x, w.y) == (0, 0) for w in wire if w.command in (178, 20))
+    land = M.MissionPlan((M.MissionItem(M.NAV_LAND, 3),), 47.0, 8.0, 400.0)
+    with pytest.raises(M.MissionEncodingError, match="PX4 would fly to 0 N 0 E"):
+        M.to_wire(land, "px4")
+    assert (M.to_wire(land, "ardupilot")[1].x, M.to_wire(land, "ardupilot")[1].y) == (0, 0)
+
+
+def test_location_commands_are_the_dialects_has_location_commands():
+    from uavloc_gcs.dialect import mavlink
+
+    assert M.LOCATION_COMMANDS == {k for k, e in mavlink.enums["MAV_CMD"].items() if e.has_location}

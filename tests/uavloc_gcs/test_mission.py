@@ -3,7 +3,7 @@
 import math
 
 import pytest
-from hypothesis import given, settings
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from uavloc_gcs import mission as M
@@ -114,6 +114,9 @@ command = st.builds(M.MissionItem, command=st.sampled_from([178, 20, 183]), fram
 @settings(max_examples=200, deadline=None)
 @given(st.lists(st.one_of(positional, command), max_size=10), st.sampled_from(["ardupilot", "px4"]), lat, lon)
 def test_wire_round_trip(items, autopilot, hlat, hlon):
+    # 0, 0 is ArduPilot's "here"; PX4 refuses it (tests/mission_io/test_real_tool_files.py)
+    assume(autopilot == "ardupilot" or not any(M.deg_to_e7(it.lat_deg) == 0 == M.deg_to_e7(it.lon_deg)
+                                               for it in items))
     plan = M.MissionPlan(tuple(items), hlat, hlon, 12.5, autopilot=autopilot)
     wire = M.to_wire(plan)
     assert [w.seq for w in wire] == list(range(len(wire)))
