@@ -150,6 +150,8 @@ class LinkSpec:
     ``"/dev/ttyUSB0:57600"``. ``signing_key_hex`` is the fleet's 32-byte MAVLink 2 signing key as
     64 hex digits (empty = no signing). ``start = "operator"`` uploads the scan and waits for the
     operator to start each vehicle by hand. A vehicle silent for ``lost_timeout_s`` is lost.
+    ``on_stop`` is what the airborne vehicles do when the daemon is stopped (Ctrl-C, SIGTERM):
+    ``"rtl"`` commands them home, ``"continue"`` lets them finish their missions (which end in RTL).
     """
 
     connections: list | None = None
@@ -158,6 +160,7 @@ class LinkSpec:
     start: Literal["auto", "operator"] = "auto"
     lost_timeout_s: float = 5.0
     source_system: int = 255
+    on_stop: Literal["rtl", "continue"] = "rtl"
 
 
 @dataclass(frozen=True)

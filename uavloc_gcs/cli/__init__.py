@@ -15,7 +15,7 @@ import logging
 import os
 import sys
 
-from ..errors import ConfigError, FileFormatError, InfeasibleError, LinkError, UavlocError
+from ..errors import ConfigError, FileFormatError, InfeasibleError, Interrupted, LinkError, UavlocError
 
 # Command modules, in the order ``uavloc --help`` lists them.
 COMMANDS = [
@@ -70,6 +70,9 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_BAD_INPUT
     try:
         return int(args.func(args) or 0)
+    except Interrupted as err:
+        print(f"uavloc {args.command}: {err}", file=sys.stderr)
+        return 128 + err.signal
     except UavlocError as err:
         print(f"uavloc {args.command}: error: {err}", file=sys.stderr)
         return exit_code_for(err)

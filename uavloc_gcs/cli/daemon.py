@@ -40,7 +40,8 @@ def options_from(args, scenario, out: Path):
         store_path=out / "search.sqlite", start=getattr(args, "start", None) or scenario.link.start,
         signing_key=key, tlog_dir=tlog_dir, lost_timeout_s=scenario.link.lost_timeout_s,
         connect_timeout_s=args.connect_timeout, planner_time_limit_s=getattr(args, "planner_time_limit", None),
-        source_system=scenario.link.source_system, resume=not getattr(args, "fresh", False))
+        source_system=scenario.link.source_system, resume=not getattr(args, "fresh", False),
+        on_stop=scenario.link.on_stop)
 
 
 def run(args: argparse.Namespace) -> int:
