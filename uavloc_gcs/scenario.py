@@ -150,6 +150,8 @@ class LinkSpec:
     ``"/dev/ttyUSB0:57600"``. ``signing_key_hex`` is the fleet's 32-byte MAVLink 2 signing key as
     64 hex digits (empty = no signing). ``start = "operator"`` uploads the scan and waits for the
     operator to start each vehicle by hand. A vehicle silent for ``lost_timeout_s`` is lost.
+    ``source_system`` is the daemon's own MAVLink system id: 245 by default, not 255, so that a
+    QGroundControl (255) on the same vehicles is a different ground station to the autopilot.
     """
 
     connections: list | None = None
@@ -157,7 +159,7 @@ class LinkSpec:
     tlog_path: str = ""
     start: Literal["auto", "operator"] = "auto"
     lost_timeout_s: float = 5.0
-    source_system: int = 255
+    source_system: int = 245  # QGroundControl is 255; see docs/readme/daemon.md
 
 
 @dataclass(frozen=True)
