@@ -63,7 +63,7 @@ class DaemonOptions:
     connect_timeout_s: float = 15.0
     planner_time_limit_s: float | None = None  # None: the scenario's, capped to ~2 s of mission time
     tick_s: float = 0.05
-    source_system: int = 255
+    source_system: int = 245  # not QGroundControl's 255 (operators keep QGC open beside us)
     max_mission_s: float = 4 * 3600.0
     resume: bool = True
     on_stop: str = "rtl"  # when the daemon is stopped (Ctrl-C, SIGTERM): "rtl" sends the airborne home

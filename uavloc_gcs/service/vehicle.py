@@ -15,6 +15,7 @@ import time
 from dataclasses import dataclass
 from typing import Callable, Sequence
 
+from ..dialect import mavlink
 from ..dialect.rssi import decode_rssi_batch
 from ..link import (arm, download_mission, flavour_named, return_to_launch, set_current_item, set_mode,
                     start_mission, upload_mission)
@@ -47,6 +48,7 @@ class Telemetry:
     mission_state: int | None = None
     unix_s: float | None = None  # the vehicle's clock (SYSTEM_TIME), simulated time under speed-up
     unix_wall_s: float | None = None  # daemon wall clock when unix_s arrived
+    mission_ours: bool = True  # MISSION_CURRENT describes the mission we uploaded last (see VehicleAgent)
     wall_s: float = -math.inf
     messages: int = 0
 
@@ -73,10 +75,25 @@ class VehicleAgent:
         self._wall = wall
         self._pending_rssi: list = []  # raw messages that arrived before the epoch was known
         self.rssi_messages = 0
+        self.upload_opaque_id = 0  # the plan id of our last upload's MISSION_ACK (0: not given)
+        self._acked_wall_s: float | None = None  # when our last upload was acknowledged
         self._sub = link.subscribe(None, source_system=vehicle, callback=self._on_message)
+        self._rssi_subs: list = []
 
     def close(self) -> None:
         self._sub.close()
+        for sub in self._rssi_subs:
+            sub.close()
+
+    def attach_rssi(self, link) -> None:
+        """Also take this vehicle's RSSI from ``link``, a connection beside the autopilot (a router
+        on the companion, a second radio; ``[link] rssi_connections``)."""
+        self._rssi_subs.append(link.subscribe("UAVLOC_RSSI_BATCH", source_system=self.vehicle,
+                                              callback=self._on_rssi_beside))
+
+    def _on_rssi_beside(self, msg) -> None:
+        self.rssi_messages += 1
+        self._rssi(msg)
 
     # -- receive path ---------------------------------------------------------------------------
     def _on_message(self, msg) -> None:
@@ -107,6 +124,8 @@ class VehicleAgent:
             total = getattr(msg, "total", 0)
             t.mission_total = int(total) if total not in (0, 65535) else None
             t.mission_state = getattr(msg, "mission_state", None)
+            if not t.mission_ours:
+                t.mission_ours = self._new_mission_started(t.mission_state, t.wall_s)
         elif kind == "SYSTEM_TIME":
             if msg.time_unix_usec > 0:
                 t.unix_s = msg.time_unix_usec / 1e6
@@ -130,6 +149,23 @@ class VehicleAgent:
         if len(batch) and self._on_slots is not None:
             self._on_slots(batch)
 
+    def _new_mission_started(self, state: int | None, wall_s: float) -> bool:
+        """Whether a MISSION_CURRENT received after our upload was acknowledged describes our mission.
+
+        A PX4 that has flown a mission since boot keeps reporting mission_state COMPLETE (and that
+        mission's item) until the next mission starts, also after a new upload; taken at face value
+        that ended a scan the moment it began. This dialect's MISSION_CURRENT carries no mission id
+        to compare with the ACK's opaque id, so the judgment is "a new mission started": a state
+        other than COMPLETE (not started, active, paused) reported after the ACK; from a vehicle
+        that does not report states (UNKNOWN), any report a second after the ACK.
+        """
+        if self._acked_wall_s is None or wall_s < self._acked_wall_s:
+            return False
+        if state in (None, mavlink.MISSION_STATE_UNKNOWN):
+            return wall_s >= self._acked_wall_s + 1.0
+        return state in (mavlink.MISSION_STATE_NOT_STARTED, mavlink.MISSION_STATE_ACTIVE,
+                         mavlink.MISSION_STATE_PAUSED)
+
     # -- state ------------------------------------------------------------------------------------
     def silent_for_s(self) -> float:
         return self._wall() - self.tel.wall_s
@@ -151,7 +187,12 @@ class VehicleAgent:
 
     async def upload(self, items: Sequence[WireItem]) -> None:
         """Upload and verify by reading back (MissionTransferError names vehicle, item, result)."""
-        await upload_mission(self.link, self.vehicle, 1, list(items), verify=True, autopilot=self.autopilot)
+        result = await upload_mission(self.link, self.vehicle, 1, list(items), verify=True, autopilot=self.autopilot)
+        # from now on the mission state reported is stale until the vehicle shows it started ours
+        self.upload_opaque_id = getattr(result, "opaque_id", 0) or 0
+        self._acked_wall_s = self._wall()
+        self.tel.mission_ours = False
+        return result
 
     async def download(self) -> list[WireItem]:
         return list(await download_mission(self.link, self.vehicle, 1))
