@@ -337,6 +337,22 @@ class Daemon:
             await asyncio.sleep(0.05)
         if self.epoch_unix_s is None:
             raise LinkError("no vehicle sent SYSTEM_TIME; the search needs the vehicles' clock", operation="connect")
+        await self._check_failsafes()
+
+    async def _check_failsafes(self) -> None:
+        """Warn about every vehicle a lost ground station would leave hovering (service/failsafe.py)."""
+        from .failsafe import read_gcs_loss_warning  # noqa: PLC0415
+
+        heard = [v for v in self.vehicles.values() if not v.lost and v.link is not None]
+        warnings = await asyncio.gather(*(read_gcs_loss_warning(v.link, v.id, self.sc.fleet.autopilot)
+                                          for v in heard), return_exceptions=True)
+        for v, w in zip(heard, warnings):
+            if isinstance(w, LinkError):
+                w = f"vehicle {v.id}: could not read its link-loss failsafe ({w})"
+            elif isinstance(w, BaseException):
+                raise w
+            if w:
+                self._event("failsafe", w, v.id)
 
     async def _prepare_all(self, resumed: dict) -> None:
         """Upload every scan (or re-adopt the missions found after a restart), then start."""
