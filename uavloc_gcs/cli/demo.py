@@ -16,16 +16,10 @@ import sys
 from pathlib import Path
 
 
-def _default_scenario() -> Path:
-    import uavloc_gcs
-
-    return Path(uavloc_gcs.__file__).resolve().parents[1] / "examples" / "paper.toml"
-
-
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("demo", help="paper scenario on fake vehicles + daemon + live view (about a minute)",
                        description=__doc__.replace("``", ""), formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--scenario", metavar="FILE.toml", help="scenario (default: examples/paper.toml)")
+    p.add_argument("--scenario", metavar="FILE.toml", help="scenario TOML, or a shipped one by name: paper, small (default: paper)")
     p.add_argument("--out", default="uavloc-demo", metavar="DIR", help="output directory (default uavloc-demo)")
     p.add_argument("--speedup", type=float, metavar="K", help="simulated seconds per second (default: scenario's)")
     p.add_argument("--autopilot", choices=("ardupilot", "px4"), help="fake vehicle flavour (default: scenario's)")
@@ -40,11 +34,12 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from ..errors import ConfigError
+    from ..examples import scenario_path
     from ..link import parse_signing_key
     from ..scenario import load_scenario
     from ..service.lock import store_lock
 
-    sc = load_scenario(args.scenario or _default_scenario())
+    sc = load_scenario(scenario_path(args.scenario or "paper"))
     sim = {}
     if args.speedup is not None:
         sim["speedup"] = args.speedup
