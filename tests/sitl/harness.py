@@ -17,8 +17,8 @@ then KILL after a grace period, from :meth:`SitlProcess.stop`, a context manager
 Ports on 127.0.0.1:
 * ArduCopter ``-I N`` sends serial0 to the ground station (``udpclient``) on an ephemeral port
   chosen here; the uavloc side listens there (``connection`` = ``udpin:127.0.0.1:PORT``).
-* PX4 instance i listens on 18570+i for its ground station; the uavloc side sends there first
-  (``connection`` = ``udpout:127.0.0.1:18570+i``) and PX4 answers whoever it hears first.
+* PX4 instance i binds 18570+i for its ground-station link and sends to an ephemeral port chosen
+  here (``-o`` in its px4-rc.mavlink); the uavloc side listens there, as for ArduCopter.
 """
 
 from __future__ import annotations
@@ -50,7 +50,6 @@ PX4_INSTANCES = range(0, 8)  # 8-9 are kept for SITLs run by hand; >9 share port
 LOCK_DIR = Path(tempfile.gettempdir()) / "uavloc-sitl-instances"
 STOP_GRACE_S = 5.0
 READY_TIMEOUT_S = 120.0  # wall seconds from start to ready (GPS in use / ready for takeoff)
-PX4_GCS_PORT_BASE = 18570
 
 HOME = (42.625, 13.283, 900.0, 0.0)  # lat, lon, alt AMSL m, heading deg: the project's scenario area
 
@@ -249,23 +248,30 @@ def start_arducopter(*, home=HOME, sysid: int = 1, speedup: float = ARDUPILOT_SP
         raise
 
 
-def start_px4(*, home=HOME, speedup: float = PX4_SPEEDUP, env: dict[str, str] | None = None,
+def start_px4(*, home=HOME, speedup: float = PX4_SPEEDUP, gcs_port: int | None = None,
+              env: dict[str, str] | None = None,
               wait: str = "ready", timeout_s: float = READY_TIMEOUT_S) -> SitlProcess:
     """Start PX4 SIH (quadrotor, as run-px4-sih.sh does) and wait for ``wait``: "ready" (console "Ready for takeoff") or
-    "none". Its system id is 1 + instance. Nothing is sent to it here: PX4 answers the first
-    ground station it hears, which must be the test's link."""
+    "none". Its system id is 1 + instance. Its ground-station link sends to ``gcs_port`` (default:
+    a fresh ephemeral one) where uavloc listens, like QGC on 14550.
+
+    PX4 answers the first ground station it hears on a UDP link, for the rest of its life. With the
+    remote port set to where uavloc listens, every later ``udpin`` on that port is that same peer,
+    so several uavloc commands in a row can talk to one PX4 (``udpout`` to 18570+i works once).
+    """
     folder = px4_dir()
     if folder is None:
         raise SitlError(ENABLE_HINT)
     sitl = _new("px4", PX4_INSTANCES, home, speedup)
     try:
         sitl.sysid = 1 + sitl.instance
-        sitl.connection = f"udpout:127.0.0.1:{PX4_GCS_PORT_BASE + sitl.instance}"
+        port = gcs_port or free_udp_port()
+        sitl.connection = f"udpin:127.0.0.1:{port}"
         lat, lon, alt = home[:3]
         run_env = {"PX4_HOME_LAT": f"{lat:.7f}", "PX4_HOME_LON": f"{lon:.7f}", "PX4_HOME_ALT": f"{alt:g}",
                    "PX4_SIM_SPEED_FACTOR": f"{speedup:g}", **(env or {})}
         run_env.update(PX4_SYS_AUTOSTART="10040", PX4_SIMULATOR="sihsim", PX4_SIM_MODEL="sihsim_quadx",
-                       PATH=f"{_px4_bin(folder, sitl.workdir)}{os.pathsep}{os.environ.get('PATH', '')}")
+                       PATH=f"{_px4_bin(folder, sitl.workdir, port)}{os.pathsep}{os.environ.get('PATH', '')}")
         (sitl.workdir / "px4").mkdir()
         _spawn(sitl, [str(folder / "bin" / "px4"), "-d", "-i", str(sitl.instance), "-w", str(sitl.workdir / "px4"),
                       str(folder / "etc")], run_env)
@@ -277,7 +283,7 @@ def start_px4(*, home=HOME, speedup: float = PX4_SPEEDUP, env: dict[str, str] | 
         raise
 
 
-def _px4_bin(folder: Path, workdir: Path) -> Path:
+def _px4_bin(folder: Path, workdir: Path, gcs_port: int) -> Path:
     """A bin dir of ``px4-<module>`` command links to ``px4``, which PX4's startup shell calls.
 
     run-px4-sih.sh does the same with the build's own bin/, but a copy of a build may have turned
@@ -293,6 +299,13 @@ def _px4_bin(folder: Path, workdir: Path) -> Path:
         elif entry.name.startswith("px4-") and entry.stat().st_size < 64 and not os.access(entry, os.X_OK):
             target = src / entry.read_text().strip()
         (dst / entry.name).symlink_to(target.resolve())
+    # rcS sources px4-rc.mavlink from PATH ("user defined mavlink streams ... can be in PATH"):
+    # the shipped one with the ground-station link's remote port (-o, default 14550) set.
+    shipped = (folder / "etc" / "init.d-posix" / "px4-rc.mavlink").read_text()
+    gcs_line = "mavlink start -x -u $udp_gcs_port_local -r 4000000 -f"
+    if gcs_line not in shipped:
+        raise SitlError(f"PX4's px4-rc.mavlink has no line {gcs_line!r} to give the ground station's port")
+    (dst / "px4-rc.mavlink").write_text(shipped.replace(gcs_line, f"{gcs_line} -o {gcs_port}", 1))
     return dst
 
 
