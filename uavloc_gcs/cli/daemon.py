@@ -32,6 +32,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 def options_from(args, scenario, out: Path):
     from ..link import parse_signing_key
     from ..service.daemon import DaemonOptions
+    from ..service.run import rssi_connections_for
 
     key_hex = args.signing_key if getattr(args, "signing_key", None) else scenario.link.signing_key_hex
     key = parse_signing_key(key_hex) if key_hex else None
@@ -41,6 +42,7 @@ def options_from(args, scenario, out: Path):
         signing_key=key, tlog_dir=tlog_dir, lost_timeout_s=scenario.link.lost_timeout_s,
         connect_timeout_s=args.connect_timeout, planner_time_limit_s=getattr(args, "planner_time_limit", None),
         source_system=scenario.link.source_system, resume=not getattr(args, "fresh", False),
+        rssi_connections=rssi_connections_for(scenario), set_speed_params=scenario.link.set_speed_params,
         on_stop=scenario.link.on_stop)
 
 

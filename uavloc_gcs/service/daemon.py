@@ -36,7 +36,7 @@ from ..observations import SlotBatch
 from ..scenario import Scenario
 from .lifecycle import ExchangeFailed, allowed, persist
 from .liveview import LiveView, PersonStatusView, StatusSnapshot, VehicleStatus
-from .missionstate import ClockRate, final_seq, hold_seq, same_route, same_stored_mission, with_hold_before_rtl
+from .missionstate import ClockRate, final_seq, hold_seq, same_stored_mission, with_hold_before_rtl
 from .outcome import SearchOutcome, estimate_row, final_results, statement_for
 from .store import Store, StoreReader, TelemetryRow
 from .vehicle import VehicleAgent
@@ -69,6 +69,8 @@ class DaemonOptions:
     on_stop: str = "rtl"  # when the daemon is stopped (Ctrl-C, SIGTERM): "rtl" sends the airborne home
     scan_hold_s: float = 120.0  # mission seconds a finished scan holds before its RTL (the next mission
     # is normally uploaded well before; without a daemon the vehicle then comes home by itself)
+    rssi_connections: tuple = ()  # [(vehicle, connection)]: RSSI beside the autopilot ([link] rssi_connections)
+    set_speed_params: bool = False  # the operator's consent to set the vehicles' speed parameters
 
 
 @dataclass
@@ -92,6 +94,11 @@ class _Vehicle:
     home: bool = False
     ignore_seq_until_wall: float = 0.0
     home_by_s: float = math.inf  # mission time by which a returning vehicle should have landed
+    plans: int = 0  # replans that changed what this vehicle should do
+    uploads: int = 0  # missions uploaded to it (scan included)
+    skipped: int = 0  # new plans not uploaded: not worth a restarted leg (search/uploads.py)
+    uploads_since_look: int = 0  # look missions uploaded in flight since it last passed a look
+    deferred: bool = False  # a newer plan was not uploaded (at most one upload between two looks)
     hold_seq: int = 0  # seq of the scan's closing hold (scan done once the vehicle is there)
     unusable: str = ""  # why the vehicle cannot be commanded ("" = usable)
     odd_moves: list = field(default_factory=list)  # moves outside lifecycle.NEXT (logged, kept)
@@ -147,6 +154,10 @@ class Daemon:
         self._seq_before_crash: dict[int, int] = {}
         self._planner_limit_s = getattr(policy, "time_limit_s", None)
         self._replan_not_before_s = -math.inf
+        self._replan_due = False  # a vehicle with a plan not uploaded has passed a look
+        self._ground_clock = False  # no vehicle gave its time: the mission clock is the ground's
+        self._return_speed_m_s = scenario.fleet.speed_m_s  # RTL speed (the landing wait)
+        self._rssi_links: list = []
         self.on_mission_acked: Callable[[int, str], None] | None = None
         self.stop_report: list[str] = []  # what each vehicle does, when the daemon was stopped
 
@@ -155,6 +166,8 @@ class Daemon:
         """Mission time [s since the epoch]: the vehicles' newest clock, extrapolated."""
         if self.epoch_unix_s is None:
             return 0.0
+        if self._ground_clock:
+            return time.time() - self.epoch_unix_s
         best = -math.inf
         w = self.wall()
         for v in self.vehicles.values():
@@ -189,11 +202,16 @@ class Daemon:
             self.store.set_meta("on_stop", self.opt.on_stop)
             await self._connect_all()
             try:
+                # the monitor follows every vehicle from the start: one vehicle's slow start must
+                # not hide another's scan finishing
+                monitor = asyncio.create_task(self._monitor(), name="monitor")
                 try:
-                    await self._prepare_all(resumed)
-                    async with asyncio.TaskGroup() as tg:
-                        tg.create_task(self._monitor(), name="monitor")
-                        tg.create_task(self._brain(), name="brain")
+                    try:
+                        await self._prepare_all(resumed)
+                        await self._brain()
+                    finally:
+                        self._stop.set()
+                        await monitor  # ends at the next tick (raises what broke it, if anything)
                 except asyncio.CancelledError:  # stopped by the operator (Ctrl-C, SIGTERM)
                     self.stop_report = await self._stopping()
                     raise
@@ -250,6 +268,7 @@ class Daemon:
                 v.agent.close()
             if v.link is not None and all(v.link is not other for other in links):
                 links.append(v.link)
+        links += [lk for lk in self._rssi_links if all(lk is not other for other in links)]
         for link in links:
             await link.close()
 
@@ -331,13 +350,56 @@ class Daemon:
                 v.unusable = "its link could not be opened"
             self._event("lost", f"vehicle {v.id}: no heartbeat within {self.opt.connect_timeout_s:g} s on "
                         f"{v.connection}; searching without it (it joins for the looks if heard later)", v.id)
-        # wait for a clock (SYSTEM_TIME) so slot times have an epoch
+        await self._open_rssi_links()
+        await self._setup_vehicles([v for v in self.vehicles.values() if v.agent is not None and not v.lost])
+        # wait for a clock (SYSTEM_TIME, asked for above) so slot times have an epoch
         deadline = self.wall() + self.opt.connect_timeout_s
         while self._epoch() is None and self.wall() < deadline:
             await asyncio.sleep(0.05)
         if self.epoch_unix_s is None:
-            raise LinkError("no vehicle sent SYSTEM_TIME; the search needs the vehicles' clock", operation="connect")
+            # degrade, do not stop: slot times then come from the ground's clock
+            self._ground_clock = True
+            self.epoch_unix_s = float(math.floor(time.time()))
+            self.store.set_meta("epoch_unix_s", self.epoch_unix_s)
+            self._event("warning", f"no vehicle sent SYSTEM_TIME within {self.opt.connect_timeout_s:g} s (asked "
+                        "with SET_MESSAGE_INTERVAL); using the ground station's clock for mission time, which "
+                        "is wrong under a simulator speed-up")
         await self._check_failsafes()
+
+    async def _open_rssi_links(self) -> None:
+        """RSSI beside the autopilot: one link per distinct [link] rssi_connections entry."""
+        from ..link.connection import open_link  # noqa: PLC0415
+
+        opened: dict[str, object] = {}
+        for vid, conn in self.opt.rssi_connections:
+            v = self.vehicles.get(vid)
+            if not conn or v is None or v.agent is None:
+                continue
+            if conn not in opened:
+                opened[conn] = await open_link(conn, source_system=self.opt.source_system,
+                                               signing_key=self.opt.signing_key)
+                self._rssi_links.append(opened[conn])
+            v.agent.attach_rssi(opened[conn])
+            self._event("connect", f"vehicle {vid}: RSSI also taken from {conn} (beside the autopilot)", vid)
+
+    async def _setup_vehicles(self, vehicles: list) -> None:
+        """Ask each vehicle for the streams the search reads; plan with the speed it will fly."""
+        from .setup import fleet_speed, request_streams  # noqa: PLC0415
+
+        refused = await asyncio.gather(*(request_streams(v.link, v.id) for v in vehicles))
+        for v, names in zip(vehicles, refused):
+            if names:
+                self._event("warning", f"vehicle {v.id} did not accept a stream of {', '.join(names)}; "
+                            "the search uses what it sends anyway", v.id)
+        speed = await fleet_speed([(v.id, v.link, v.agent.flavour) for v in vehicles], self.sc.fleet.speed_m_s,
+                                  consent=self.opt.set_speed_params)
+        for note in speed.notes:
+            self._event("speed", note)
+        self._return_speed_m_s = speed.return_m_s
+        if speed.mission_m_s < self.sc.fleet.speed_m_s:
+            self.sc = self.sc.replace(fleet={"speed_m_s": speed.mission_m_s})
+            if hasattr(self.policy, "speed_m_s"):
+                self.policy.scenario, self.policy.speed_m_s = self.sc, self.sc.fleet.speed_m_s
 
     async def _check_failsafes(self) -> None:
         """Warn about every vehicle a lost ground station would leave hovering (service/failsafe.py)."""
@@ -494,6 +556,7 @@ class Daemon:
             return same_stored_mission(await a.download(), items, a.flavour)
 
         await self._persist(v, f"{purpose} upload", lambda: a.upload(items), lambda: False, check=on_board)
+        v.uploads += 1
         self._adopt(v, purpose, items)
         self.store.add_mission(self.now_s(), v.id, purpose, items)
         if self.on_mission_acked is not None:
@@ -551,7 +614,7 @@ class Daemon:
         if v.phase == "waiting for operator" and a.tel.armed and a.in_mission_mode:
             v.phase = "scanning"
             self._event("start", f"vehicle {v.id} started by the operator", v.id)
-        fresh = self.wall() >= v.ignore_seq_until_wall
+        fresh = self.wall() >= v.ignore_seq_until_wall and a.tel.mission_ours
         past_end = seq is not None and v.end_seq and seq >= v.end_seq and fresh
         if v.hold_seq:  # the scan ends with a hold, then RTL: done once it holds
             complete = fresh and seq is not None and seq >= v.hold_seq
@@ -577,7 +640,7 @@ class Daemon:
         v.phase = "returning"
         xy = v.agent.position_xy_m() or (0.0, 0.0)
         alt = v.agent.tel.rel_alt_m if math.isfinite(v.agent.tel.rel_alt_m) else self.sc.fleet.altitude_m
-        v.home_by_s = (self.now_s() + math.hypot(*xy) / self.sc.fleet.speed_m_s + alt / LANDING_RATE_M_S
+        v.home_by_s = (self.now_s() + math.hypot(*xy) / self._return_speed_m_s + alt / LANDING_RATE_M_S
                        + LANDING_MARGIN_S)
 
     def snapshot(self) -> StatusSnapshot:
@@ -616,10 +679,8 @@ class Daemon:
     def _report_looks(self, t: float) -> None:
         """Tell the policy which looks the vehicles have flown: a look waypoint is flown once the
         mission has moved past it (MISSION_CURRENT) or the vehicle is within WAYPOINT_TOLERANCE_M
-        of it."""
+        of it. A look passed also re-opens the vehicle to one more upload (search/uploads.py)."""
         report = getattr(self.policy, "look_flown", None)
-        if report is None:
-            return
         for v in self._active():
             if v.purpose != "look" or v.look_xy_m is None or self.wall() < v.ignore_seq_until_wall:
                 continue
@@ -630,8 +691,12 @@ class Daemon:
                     math.dist(xy, v.look_xy_m[passed]) <= WAYPOINT_TOLERANCE_M:
                 passed += 1
             while v.looks_reported < passed:
-                report(v.targets[v.looks_reported], t)
+                if report is not None:
+                    report(v.targets[v.looks_reported], t)
                 v.looks_reported += 1
+                v.uploads_since_look = 0
+                if v.deferred:
+                    self._replan_due = True  # a plan it was not given can be uploaded now
 
     def _active(self) -> list[_Vehicle]:
         """The usable vehicles: in contact and commandable."""
@@ -653,8 +718,10 @@ class Daemon:
             return await self._finish(active)
         fleet = frozenset(v.id for v in active)
         usable = active
-        if (self.policy.needs_replan(t, changed) or fleet != self._last_fleet) and t >= self._replan_not_before_s:
+        if (self.policy.needs_replan(t, changed) or fleet != self._last_fleet or self._replan_due) \
+                and t >= self._replan_not_before_s:
             self._last_fleet = fleet
+            self._replan_due = False
             await self._replan(t, usable)
         if all(v.home for v in active):
             # nobody is flying and nothing more can be planned: stop with who is not located
@@ -707,8 +774,17 @@ class Daemon:
                 if not v.phase.startswith("returning") and not v.home:
                     jobs.append((v, self._send_home(v)))
                 continue
-            if v.purpose == "look" and self._still_flying(v, pts, tuple(task.target_ids)):
-                continue  # the vehicle already flies this: do not upload
+            decision = self._worth_uploading(v, pts, tuple(task.target_ids))
+            if not decision.upload:
+                if decision.reason != "unchanged":
+                    v.skipped += 1
+                    v.deferred = True  # plan again once it has passed its next look
+                    self._event("plan", f"vehicle {v.id}: new plan not uploaded ({decision.reason})", v.id)
+                continue
+            v.plans += 1
+            v.deferred = False
+            if decision.reason != "first look mission":  # it replaces looks in flight: a restarted leg
+                v.uploads_since_look += 1
             jobs.append((v, self._upload_look(v, pts, tuple(task.target_ids))))
         if jobs:
             results = await asyncio.gather(*(j for _, j in jobs), return_exceptions=True)
@@ -720,14 +796,23 @@ class Daemon:
                 elif isinstance(r, BaseException):
                     raise r
 
-    def _still_flying(self, v: _Vehicle, pts: np.ndarray, targets: tuple) -> bool:
-        """Whether the vehicle's current mission still has exactly these looks ahead of it."""
-        if v.look_xy_m is None or v.lost:
-            return False
-        seq = v.agent.tel.mission_seq
-        passed = 0 if seq is None else int(np.clip(seq - v.look_first_seq, 0, len(v.look_xy_m)))
-        remaining_xy, remaining_ids = v.look_xy_m[passed:], v.targets[passed:]
-        return tuple(targets) == tuple(remaining_ids) and same_route(pts, remaining_xy, WAYPOINT_TOLERANCE_M)
+    def _worth_uploading(self, v: _Vehicle, pts: np.ndarray, targets: tuple):
+        """Whether the new looks ``pts``/``targets`` are worth an upload to ``v`` (search/uploads.py)."""
+        from ..search.uploads import DEFAULT_UPLOAD_COST_S, UPLOAD_COST_S, decide_upload  # noqa: PLC0415
+
+        flying_look = (v.purpose == "look" and v.look_xy_m is not None and not v.home
+                       and not v.phase.startswith("returning") and not v.agent.on_ground())
+        old_pts, old_targets = np.zeros((0, 2)), ()
+        if flying_look:
+            seq = v.agent.tel.mission_seq
+            passed = 0 if seq is None else int(np.clip(seq - v.look_first_seq, 0, len(v.look_xy_m)))
+            old_pts, old_targets = v.look_xy_m[passed:], tuple(v.targets[passed:])
+        return decide_upload(
+            flying_look=flying_look, uploads_since_look=v.uploads_since_look,
+            position_xy_m=v.agent.position_xy_m() or (0.0, 0.0), old_targets=old_targets, old_points_xy_m=old_pts,
+            new_targets=targets, new_points_xy_m=pts, speed_m_s=self.sc.fleet.speed_m_s,
+            cost_s=UPLOAD_COST_S.get(self.sc.fleet.autopilot, DEFAULT_UPLOAD_COST_S),
+            move_tolerance_m=self.sc.people.required_accuracy_m, same_tolerance_m=WAYPOINT_TOLERANCE_M)
 
     async def _upload_look(self, v: _Vehicle, pts: np.ndarray, targets: tuple) -> None:
         latlon = self.frame.to_wgs84_latlon(pts)
@@ -782,5 +867,9 @@ class Daemon:
         self._event("end", text)
         self.store.set_meta("finished", True)
         self.store.flush()
+        per_vehicle = tuple((v.id, v.plans, v.uploads, v.skipped) for v in self.vehicles.values())
+        self.store.set_meta("uploads", [list(row) for row in per_vehicle])
+        self._event("end", "replans " + str(self._replans) + "; per vehicle (plans for it, uploads incl. the scan, "
+                    "plans not uploaded): " + ", ".join(f"{vid}: {pl}/{up}/{sk}" for vid, pl, up, sk in per_vehicle))
         return SearchOutcome(people, bool(people) and all(p.located for p in people), text, t, self._replans,
-                             tuple(v.id for v in self.vehicles.values() if v.home), lost, returning)
+                             tuple(v.id for v in self.vehicles.values() if v.home), lost, returning, per_vehicle)

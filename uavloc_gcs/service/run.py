@@ -49,6 +49,24 @@ def connections_for(scenario: Scenario) -> list[tuple[int, str]]:
     return [(i + 1, c) for i, c in enumerate(conns)]
 
 
+def rssi_connections_for(scenario: Scenario) -> tuple[tuple[int, str], ...]:
+    """[(system id, RSSI connection)] from [link] rssi_connections ("" entries left out)."""
+    from ..errors import ConfigError  # noqa: PLC0415
+    from ..link import parse_connection  # noqa: PLC0415
+
+    out = []
+    for i, c in enumerate(scenario.link.rssi_connections or []):
+        if not c:
+            continue
+        try:
+            parse_connection(c)
+        except ConfigError as exc:
+            raise ConfigError(f"entry {i} ({c!r}) for vehicle {i + 1}: {exc}", source=scenario.source,
+                              key="link.rssi_connections") from None
+        out.append((i + 1, c))
+    return tuple(out)
+
+
 def run_search(scenario: Scenario, connections: Sequence[tuple[int, str]], options: DaemonOptions,
                out_dir: Path, *, view: LiveView | None = None,
                truth: Callable[[Sequence[PersonResult], float], Mapping[int, tuple]] | None = None,
