@@ -157,6 +157,8 @@ class LinkSpec:
     without it the daemon plans with the speed the vehicles will really fly and says so.
     ``source_system`` is the daemon's own MAVLink system id: 245 by default, not 255, so that a
     QGroundControl (255) on the same vehicles is a different ground station to the autopilot.
+    ``on_stop`` is what the airborne vehicles do when the daemon is stopped (Ctrl-C, SIGTERM):
+    ``"rtl"`` commands them home, ``"continue"`` lets them finish their missions (which end in RTL).
     """
 
     connections: list | None = None
@@ -167,6 +169,7 @@ class LinkSpec:
     rssi_connections: list | None = None
     set_speed_params: bool = False
     source_system: int = 245  # QGroundControl is 255; see docs/readme/daemon.md
+    on_stop: Literal["rtl", "continue"] = "rtl"
 
 
 @dataclass(frozen=True)

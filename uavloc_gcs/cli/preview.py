@@ -53,6 +53,10 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError(f"--width must be at least 20 columns, got {args.width}")
     if args.png and Path(args.png).suffix.lower() not in (".png", ".svg"):
         raise ConfigError(f"--png {args.png}: the picture must end in .png or .svg")
+    if args.png:
+        from ._output import check_output_file
+
+        check_output_file(args.png, "--png")
     mission, kind = load_mission(args.file)
     positional = [it for it in mission.items if it.frame in GLOBAL_FRAMES]
     has_home = not (math.isnan(mission.home_lat_deg) or math.isnan(mission.home_lon_deg))

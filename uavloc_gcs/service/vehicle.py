@@ -17,8 +17,8 @@ from typing import Callable, Sequence
 
 from ..dialect import mavlink
 from ..dialect.rssi import decode_rssi_batch
-from ..link import (arm, download_mission, flavour_named, return_to_launch, set_current_item, set_mode,
-                    start_mission, upload_mission)
+from ..link import (download_mission, flavour_named, return_home, start_mission_from, switch_mission,
+                    upload_mission)
 from ..geo import LocalFrame
 from ..mission import WireItem
 from ..observations import SlotBatch
@@ -28,7 +28,6 @@ log = logging.getLogger(__name__)
 MAV_MODE_FLAG_SAFETY_ARMED = 128
 LANDED_ALT_M = 1.5  # below this relative altitude (and disarmed or not moving) a vehicle is on the ground
 MISSION_MODES = ("AUTO", "AUTO.MISSION")  # ArduPilot, PX4
-ARMABLE_AP_MODES = ("GUIDED", "LOITER", "STABILIZE", "ALT_HOLD", "POSHOLD")
 
 
 @dataclass
@@ -197,27 +196,21 @@ class VehicleAgent:
     async def download(self) -> list[WireItem]:
         return list(await download_mission(self.link, self.vehicle, 1))
 
-    async def start(self, first_seq: int = 0) -> None:
-        """Arm on the ground and start the uploaded mission (its first item is the takeoff).
-
-        ArduPilot does not arm in AUTO or RTL: the vehicle is put in GUIDED first.
-        """
-        if self.flavour.name == "ardupilot" and self.tel.mode not in ARMABLE_AP_MODES:
-            await set_mode(self.link, self.vehicle, 1, "GUIDED", autopilot=self.autopilot)
-        if not self.tel.armed:
-            await arm(self.link, self.vehicle, 1)
-        if first_seq:
-            await set_current_item(self.link, self.vehicle, 1, first_seq)
-        await start_mission(self.link, self.vehicle, 1, first_seq)
+    async def start(self, first_seq: int | None = None) -> None:
+        """Arm on the ground (waiting until the vehicle is ready; the error names its own reason)
+        and fly the uploaded mission from ``first_seq`` (default: its first item, the takeoff).
+        The per-autopilot sequence is the link layer's (link/mission_control.py)."""
+        first = self.flavour.first_mission_seq if first_seq is None else max(first_seq, self.flavour.first_mission_seq)
+        await start_mission_from(self.link, self.vehicle, 1, self.flavour, first, armed=self.tel.armed,
+                                 mode=self.tel.mode)
 
     async def switch_to(self, first_seq: int, *, on_ground: bool) -> None:
         """Fly the just-uploaded mission from item ``first_seq`` (taking off when on the ground)."""
         if on_ground:
             await self.start(first_seq)
             return
-        await set_current_item(self.link, self.vehicle, 1, first_seq)
-        if not self.in_mission_mode:
-            await start_mission(self.link, self.vehicle, 1, first_seq)
+        await switch_mission(self.link, self.vehicle, 1, self.flavour, first_seq,
+                             in_mission_mode=self.in_mission_mode, mission_state=self.tel.mission_state)
 
     async def return_home(self) -> None:
-        await return_to_launch(self.link, self.vehicle, 1)
+        await return_home(self.link, self.vehicle, 1)
