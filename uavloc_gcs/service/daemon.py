@@ -66,11 +66,11 @@ class DaemonOptions:
     source_system: int = 245  # not QGroundControl's 255 (operators keep QGC open beside us)
     max_mission_s: float = 4 * 3600.0
     resume: bool = True
+    rssi_connections: tuple = ()  # [(vehicle, connection)]: RSSI beside the autopilot ([link] rssi_connections)
+    set_speed_params: bool = False  # the operator's consent to set the vehicles' speed parameters
     on_stop: str = "rtl"  # when the daemon is stopped (Ctrl-C, SIGTERM): "rtl" sends the airborne home
     scan_hold_s: float = 120.0  # mission seconds a finished scan holds before its RTL (the next mission
     # is normally uploaded well before; without a daemon the vehicle then comes home by itself)
-    rssi_connections: tuple = ()  # [(vehicle, connection)]: RSSI beside the autopilot ([link] rssi_connections)
-    set_speed_params: bool = False  # the operator's consent to set the vehicles' speed parameters
 
 
 @dataclass
@@ -366,6 +366,21 @@ class Daemon:
                         "is wrong under a simulator speed-up")
         await self._check_failsafes()
 
+    async def _check_failsafes(self) -> None:
+        """Warn about every vehicle a lost ground station would leave hovering (service/failsafe.py)."""
+        from .failsafe import read_gcs_loss_warning  # noqa: PLC0415
+
+        heard = [v for v in self.vehicles.values() if not v.lost and v.link is not None]
+        warnings = await asyncio.gather(*(read_gcs_loss_warning(v.link, v.id, self.sc.fleet.autopilot)
+                                          for v in heard), return_exceptions=True)
+        for v, w in zip(heard, warnings):
+            if isinstance(w, LinkError):
+                w = f"vehicle {v.id}: could not read its link-loss failsafe ({w})"
+            elif isinstance(w, BaseException):
+                raise w
+            if w:
+                self._event("failsafe", w, v.id)
+
     async def _open_rssi_links(self) -> None:
         """RSSI beside the autopilot: one link per distinct [link] rssi_connections entry."""
         from ..link.connection import open_link  # noqa: PLC0415
@@ -386,7 +401,7 @@ class Daemon:
         """Ask each vehicle for the streams the search reads; plan with the speed it will fly."""
         from .setup import fleet_speed, request_streams  # noqa: PLC0415
 
-        refused = await asyncio.gather(*(request_streams(v.link, v.id) for v in vehicles))
+        refused = await asyncio.gather(*(request_streams(v.link, v.id, v.agent.flavour) for v in vehicles))
         for v, names in zip(vehicles, refused):
             if names:
                 self._event("warning", f"vehicle {v.id} did not accept a stream of {', '.join(names)}; "
@@ -400,21 +415,6 @@ class Daemon:
             self.sc = self.sc.replace(fleet={"speed_m_s": speed.mission_m_s})
             if hasattr(self.policy, "speed_m_s"):
                 self.policy.scenario, self.policy.speed_m_s = self.sc, self.sc.fleet.speed_m_s
-
-    async def _check_failsafes(self) -> None:
-        """Warn about every vehicle a lost ground station would leave hovering (service/failsafe.py)."""
-        from .failsafe import read_gcs_loss_warning  # noqa: PLC0415
-
-        heard = [v for v in self.vehicles.values() if not v.lost and v.link is not None]
-        warnings = await asyncio.gather(*(read_gcs_loss_warning(v.link, v.id, self.sc.fleet.autopilot)
-                                          for v in heard), return_exceptions=True)
-        for v, w in zip(heard, warnings):
-            if isinstance(w, LinkError):
-                w = f"vehicle {v.id}: could not read its link-loss failsafe ({w})"
-            elif isinstance(w, BaseException):
-                raise w
-            if w:
-                self._event("failsafe", w, v.id)
 
     async def _prepare_all(self, resumed: dict) -> None:
         """Upload every scan (or re-adopt the missions found after a restart), then start."""

@@ -16,32 +16,22 @@ import asyncio
 import logging
 from dataclasses import dataclass
 
-from ..dialect import mavlink
 from ..errors import LinkError
 from ..link.params import SpeedLimits, raise_speed_limits, speed_limits
 
 log = logging.getLogger(__name__)
 
-# message -> interval [s]: what the daemon reads (vehicle.py) and how often it needs it
-STREAMS = {
-    "GLOBAL_POSITION_INT": 0.2, "SYS_STATUS": 1.0, "MISSION_CURRENT": 0.5, "SYSTEM_TIME": 1.0,
-    "HOME_POSITION": 5.0,
-}
+async def request_streams(link, sysid: int, flavour) -> list[str]:
+    """Ask vehicle ``sysid`` for the link layer's DEFAULT_STREAMS (what vehicle.py reads); return
+    the names it refused or did not answer."""
+    from ..link import request_streams as ask  # noqa: PLC0415
 
-
-async def request_streams(link, sysid: int) -> list[str]:
-    """Ask vehicle ``sysid`` for :data:`STREAMS`; return the names it refused or did not answer."""
-    from ..link import set_message_interval  # noqa: PLC0415
-
-    refused = []
-    for name, interval_s in STREAMS.items():
-        msg_id = getattr(mavlink, f"MAVLINK_MSG_ID_{name}")
-        try:
-            await set_message_interval(link, sysid, 1, msg_id, interval_s)
-        except LinkError as exc:
-            log.info("vehicle %d: %s not streamed: %s", sysid, name, exc)
-            refused.append(name)
-    return refused
+    try:
+        accepted = await ask(link, sysid, flavour)
+    except LinkError as exc:
+        log.info("vehicle %d: streams not requested: %s", sysid, exc)
+        return ["all"]
+    return [name for name, ok in accepted.items() if not ok]
 
 
 @dataclass(frozen=True)
