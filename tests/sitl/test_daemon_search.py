@@ -18,13 +18,19 @@ MAX_UPLOADS_PER_VEHICLE = 6  # the scan, then a handful of look missions (issue 
 
 
 def _check(run, scenario, vehicles):
+    (run.out / "daemon-output.txt").write_text(run.output)
     assert run.code == 0, run.output[-3000:]
     rows = dr.truth_check(scenario, run.people)
+    print("  (person, true error m, 95 % radius m, located):", [(e, round(err, 1), round(r, 1), ok)
+                                                              for e, err, r, ok in rows])
+    print("  " + "\n  ".join(line for line in run.output.splitlines()
+                               if "per vehicle" in line or "speed" in line.lower() or "people heard" in line))
     assert rows, "nobody was heard"
     inside = [r for r in rows if r[3] and r[1] <= r[2]]
     assert len(inside) == len(rows), f"(person, true error, 95 % radius, located): {rows}\n{run.output[-2000:]}"
     m = re.search(r"per vehicle \(plans for it, uploads incl\. the scan, plans not uploaded\): (.*)", run.output)
-    if m:  # the outcome event is printed on the live view
+    assert m, "the daemon reports its plans and uploads per vehicle"
+    if m:
         uploads = [int(x.split("/")[1]) for x in re.findall(r"\d+: (\d+/\d+/\d+)", m.group(1))]
         assert all(u <= MAX_UPLOADS_PER_VEHICLE for u in uploads), m.group(0)
     for v in vehicles:
