@@ -70,7 +70,7 @@ def test_cli_upload_download_verify(autopilot, tmp_path):
     out = tmp_path / "back.plan"
     r = uavloc("download", "--from", sitl.connection, "--out", str(out))
     assert r.returncode == 0, r.stderr
-    sent, back = plan_file.read(plans / "uav1.waypoints"), plan_file.read(out)
+    sent, back = plan_file.read(plans / "uav1.plan"), plan_file.read(out)
     assert [it.command for it in back.items] == [it.command for it in sent.items]
     # what QGC writes: altitude-relative positions in frame 3, non-positional items in frame 2,
     # the vehicle's home (HOME_POSITION) as the planned home
