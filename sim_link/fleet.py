@@ -208,6 +208,7 @@ class FakeFleet:
         companion_heartbeat: bool = False,
         route: bool = False,
         peer_timeout_s: float = PEER_TIMEOUT_S,
+        vehicle_options: dict | None = None,
     ):
         if signing_key is not None and len(signing_key) != 32:
             raise ValueError(f"signing_key must be 32 bytes, got {len(signing_key)}")
@@ -234,7 +235,7 @@ class FakeFleet:
                 max_accel_m_s2=f.max_acceleration_m_s2, energy_budget_j=f.energy_budget_j,
                 power=scenario.power_model, slot_s=scenario.channel.slot_s,
                 epoch_unix_s=self.clock.epoch_unix_s, rssi=onboard_rssi,
-                companion_heartbeat=companion_heartbeat), world)
+                companion_heartbeat=companion_heartbeat, **(vehicle_options or {})), world)
             for i in range(1, f.vehicles + 1)
         ]
         seeds = np.random.SeedSequence(self.seed, spawn_key=(7,)).spawn(len(self.vehicles))
