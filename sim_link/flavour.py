@@ -60,7 +60,7 @@ class Flavour:
     # a repeat of the last one -- e.g. a late duplicate of an older request on a lossy link. Off
     # by default (lenient) so ground stations that do not retry downloads still verify uploads.
     strict_download_order: bool = False
-    # What the real autopilots do, measured on SITL (tests/sim_link/test_autopilot_behaviours.py
+    # What the real autopilots do, measured on SITL (tests/sitl/test_behaviours.py
     # checks each against the fake and, when present, the real SITL):
     positionless_download_frame0: bool = False  # AP: DO_CHANGE_SPEED, RTL ... come back frame 0, x=y=0
     download_int_frames: bool = False  # PX4: positions come back in the _INT frames (6 for 3)
@@ -74,6 +74,7 @@ class Flavour:
     # stale_mission_complete): what the real autopilot does, used only when switched on there.
     default_streams: tuple[int, ...] = ()  # streamed without being asked (realistic_streams)
     keeps_mission_complete: bool = False  # PX4: "complete" stays until the next mission starts
+    hold_after_mission: bool = False  # PX4: AUTO.LOITER (Hold) when a mission ends in the air
 
     def custom_mode(self, mode: str) -> int:
         return self.modes[mode]
@@ -120,7 +121,7 @@ PX4 = Flavour(
     default_streams=(mav.MAVLINK_MSG_ID_HEARTBEAT, mav.MAVLINK_MSG_ID_GLOBAL_POSITION_INT,
                      mav.MAVLINK_MSG_ID_SYS_STATUS, mav.MAVLINK_MSG_ID_MISSION_CURRENT,
                      mav.MAVLINK_MSG_ID_EXTENDED_SYS_STATE),  # no SYSTEM_TIME unless asked
-    keeps_mission_complete=True,
+    keeps_mission_complete=True, hold_after_mission=True,
 )
 
 FLAVOURS = {"ardupilot": ARDUPILOT, "px4": PX4}

@@ -41,7 +41,7 @@ class TelemetryMixin:
         if self.cfg.realistic_streams:  # only what the autopilot streams unasked
             self.intervals_s = {k: (v if k in self.flavour.default_streams else math.inf)
                                 for k, v in self.intervals_s.items()}
-        self._next_due = {mid: self.t_s for mid in self.intervals_s}
+        self._next_due = {mid: self.t_s if iv < math.inf else math.inf for mid, iv in self.intervals_s.items()}
         self._mission_current_due = True
         self._last_yaw_cdeg = 0
 

@@ -102,8 +102,8 @@ async def _fly(sitl, kind: str, plan_path: Path) -> None:
         accepted = await request_streams(link, system, flavour)
         assert accepted["GLOBAL_POSITION_INT"] and accepted["SYSTEM_TIME"], accepted
         await watch.until("GLOBAL_POSITION_INT, MISSION_CURRENT and SYSTEM_TIME streams",
-                          lambda: all(k in watch.last for k in ("GLOBAL_POSITION_INT", "MISSION_CURRENT",
-                                                                "SYSTEM_TIME")), 30)
+                          lambda: all(k in watch.last for k in ("HEARTBEAT", "GLOBAL_POSITION_INT",
+                                                                "MISSION_CURRENT", "SYSTEM_TIME")), 30)
         home = watch.latlon
         scan = to_wire(plan_file.read(plan_path), kind)
         await upload_mission(link, system, 1, scan, verify=True, autopilot=flavour)
