@@ -75,6 +75,10 @@ class Flavour:
     default_streams: tuple[int, ...] = ()  # streamed without being asked (realistic_streams)
     keeps_mission_complete: bool = False  # PX4: "complete" stays until the next mission starts
     hold_after_mission: bool = False  # PX4: AUTO.LOITER (Hold) when a mission ends in the air
+    # Routing a companion's messages to the ground (VehicleConfig.realistic_forwarding): PX4 drops
+    # ids its dialect does not know (UAVLOC_RSSI_BATCH); ArduPilot forwards them when MAVn_OPTIONS
+    # bit 3 is set on the companion's port, which the fake assumes.
+    forwards_unknown_ids: bool = True
 
     def custom_mode(self, mode: str) -> int:
         return self.modes[mode]
@@ -121,7 +125,7 @@ PX4 = Flavour(
     default_streams=(mav.MAVLINK_MSG_ID_HEARTBEAT, mav.MAVLINK_MSG_ID_GLOBAL_POSITION_INT,
                      mav.MAVLINK_MSG_ID_SYS_STATUS, mav.MAVLINK_MSG_ID_MISSION_CURRENT,
                      mav.MAVLINK_MSG_ID_EXTENDED_SYS_STATE),  # no SYSTEM_TIME unless asked
-    keeps_mission_complete=True, hold_after_mission=True,
+    keeps_mission_complete=True, hold_after_mission=True, forwards_unknown_ids=False,
 )
 
 FLAVOURS = {"ardupilot": ARDUPILOT, "px4": PX4}

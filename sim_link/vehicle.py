@@ -72,6 +72,9 @@ class VehicleConfig:
     # reproduced on SITL so far: after a mission ends in the air PX4 holds (AUTO.LOITER) and a new
     # upload reports NOT_STARTED, seq 0. Kept as an option for the daemon's tests of that report.
     stale_mission_complete: bool = False
+    # With FakeFleet(route=True): forward a companion's messages as the autopilot would (PX4 drops
+    # ids outside its dialect). Off until the daemon takes RSSI beside the autopilot (issue 14.5).
+    realistic_forwarding: bool = False
     # Refuse to arm this long after boot with the flavour's STATUSTEXT; None: the flavour's measured
     # period. Off by default: MAVSDK and the pymavlink test clients arm at once without retrying.
     arm_refused_after_boot_s: float | None = 0.0

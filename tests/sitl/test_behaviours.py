@@ -234,3 +234,69 @@ def test_in_flight_upload_and_finished_mission(target):
     else:
         assert mode == "AUTO" and state == 5 and seq == seq_done, (state, seq, mode)
         assert held is True, "ArduPilot flew on after set-current on a finished mission without MISSION_START"
+
+
+@pytest.mark.parametrize("backend,kind", [("fake", "ardupilot"), ("fake", "px4"), ("sitl", "ardupilot"),
+                                          ("sitl", "px4")], ids=lambda v: v)
+def test_companion_messages_forwarded_only_if_known(backend, kind, sitl):
+    """A companion's HEARTBEAT reaches the ground through the autopilot on both; its
+    UAVLOC_RSSI_BATCH (an id outside common.xml) only through ArduPilot with MAVn_OPTIONS bit 3 on
+    the companion's port -- PX4 drops it, so RSSI must travel beside a PX4 (issue 14.5)."""
+    import asyncio
+    import socket
+
+    comp_sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    fleet = None
+    try:
+        if backend == "fake":
+            from sim_link.fleet import FakeFleet
+            sc = load_scenario(ROOT / "examples" / "small.toml").replace(fleet={"autopilot": kind, "vehicles": 1})
+            fleet = FakeFleet(sc, speedup=FAKE_SPEEDUP, seed=1, base_port=0, route=True,
+                              vehicle_options={"realistic_forwarding": True}).start_in_thread()
+            (_, connection), = fleet.endpoints
+            host, port = connection.split(":")[1:]
+            comp_sock.bind(("127.0.0.1", 0))
+            to_vehicle, sysid = (host, int(port)), 1
+        elif kind == "px4":
+            require(kind)
+            proc = sitl(kind)
+            comp_sock.bind(("127.0.0.1", 14540 + proc.instance))  # PX4's onboard link sends here
+            to_vehicle, connection, sysid = ("127.0.0.1", 14580 + proc.instance), proc.connection, proc.sysid
+        else:
+            require(kind)
+            comp_sock.bind(("127.0.0.1", 0))
+            proc = sitl(kind, serial1=f"udpclient:127.0.0.1:{comp_sock.getsockname()[1]}", params={"MAV2_OPTIONS": 8})
+            connection, sysid = proc.connection, proc.sysid
+            comp_sock.settimeout(30)
+            _, to_vehicle = comp_sock.recvfrom(65535)  # where ArduPilot's serial1 sends from
+        comp = mavlink.MAVLink(None, srcSystem=sysid, srcComponent=191)
+
+        async def go():
+            async with await open_link(connection) as link:
+                await link.wait_heartbeat(sysid, timeout_s=30)
+                got = {"HEARTBEAT": 0, "UAVLOC_RSSI_BATCH": 0}
+
+                def on(msg):
+                    if msg.get_srcComponent() == 191 and msg.get_type() in got:
+                        got[msg.get_type()] += 1
+                with link.subscribe(None, source_system=sysid, callback=on):
+                    for _ in range(20):
+                        comp_sock.sendto(comp.heartbeat_encode(mavlink.MAV_TYPE_ONBOARD_CONTROLLER,
+                                                               mavlink.MAV_AUTOPILOT_INVALID, 0, 0, 4).pack(comp),
+                                         to_vehicle)
+                        comp_sock.sendto(comp.uavloc_rssi_batch_encode(
+                            1, 2, 3, 4, 0, 0, 0, 50000, 1, [0] * 12, [7] * 12, [-7000] * 12, [3] * 12).pack(comp),
+                            to_vehicle)
+                        await asyncio.sleep(0.25)
+                    await asyncio.sleep(1.0)
+                return got
+        got = harness.run(go(), 120)
+    finally:
+        comp_sock.close()
+        if fleet is not None:
+            fleet.stop()
+    assert got["HEARTBEAT"] > 0, got
+    if kind == "px4":
+        assert got["UAVLOC_RSSI_BATCH"] == 0, got
+    else:
+        assert got["UAVLOC_RSSI_BATCH"] > 0, got
