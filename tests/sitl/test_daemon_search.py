@@ -56,6 +56,22 @@ def test_two_arducopters_together(sitl, tmp_path):
     _check(run, sc, vs)
 
 
+SPARSE_SCAN = "[scan]\nlane_spacing_m = 220.0\ncoverage = \"single\""  # two lanes: people are left for looks
+
+
+@pytest.mark.parametrize("kind", ["ardupilot", "px4"])
+def test_a_search_with_looks_replans_without_churn(sitl, tmp_path, kind):
+    """A sparse scan leaves people unlocated, so the look phase runs on the real autopilot: the
+    daemon replans and uploads looks in flight; a handful of uploads per vehicle at most."""
+    v = dr.start_px4(sitl) if kind == "px4" else dr.start_arducopter(sitl)
+    sc = dr.load(dr.scenario_text(f"{kind}-looks", kind, [v], scan=SPARSE_SCAN), tmp_path / "mission.toml")
+    with dr.Companions(sc, [v]):
+        run = dr.run_daemon(tmp_path / "mission.toml", tmp_path / "out")
+    print(f"{kind} with looks: {run.wall_s:.0f} s wall")
+    _check(run, sc, [v])
+    assert re.search(r"replans [1-9]", run.output), "the look phase ran"
+
+
 def test_one_px4_whole_search_with_rssi_beside_the_autopilot(sitl, tmp_path):
     v = dr.start_px4(sitl)
     sc = dr.load(dr.scenario_text("px4", "px4", [v]), tmp_path / "mission.toml")
