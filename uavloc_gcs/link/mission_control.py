@@ -175,7 +175,9 @@ async def switch_mission(link: Link, system: int, component: int, flavour: Flavo
         return  # the upload itself restarted it from its first item
     await set_current(link, system, component, flavour, first_seq)
     finished = mission_state == MISSION_STATE_COMPLETED
-    if not in_mission_mode or (finished and flavour.finished_mission_needs_start):
+    # ArduPilot ignores MISSION_START(0, 0) while its mission runs and resumes from the current
+    # item when it does not, so it is always sent there: the state we last heard may be stale.
+    if not in_mission_mode or finished or flavour.finished_mission_needs_start:
         await start_mission(link, system, component, *((first_seq, 0) if flavour.mission_start_takes_first_item
                                                        else (0, 0)))
 
