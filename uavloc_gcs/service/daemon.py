@@ -50,6 +50,7 @@ REPLAN_BACKOFF_S = 10.0  # mission seconds before planning again after the plann
 LAND_WAIT_S = 300.0  # mission seconds to wait at most for the fleet to land after sending it home
 LANDING_MARGIN_S = 30.0  # beyond the flight home and the descent at LANDING_RATE_M_S
 LANDING_RATE_M_S = 1.0
+HOLD_WALL_S = 30.0  # a finished scan holds at least this many wall seconds for the next mission
 JOB_WAIT_S = 3.0  # wall seconds the brain waits for a vehicle's exchanges before leaving them to it
 START_WAIT_S = 10.0  # the same for the scan starts
 STOP_WAIT_S = 15.0  # wall seconds to send everyone home when stopped
@@ -106,6 +107,7 @@ class _Vehicle:
     unusable: str = ""  # why the vehicle cannot be commanded ("" = usable)
     job: asyncio.Task | None = None  # the exchange under way with this vehicle (its own task)
     job_late: bool = False  # the brain stopped waiting for it: replan when it ends
+    flew: bool = False  # seen airborne (armed, off the ground) since it was last on the ground
     odd_moves: list = field(default_factory=list)  # moves outside lifecycle.NEXT (logged, kept)
 
     @property
@@ -166,6 +168,7 @@ class Daemon:
         self.on_mission_acked: Callable[[int, str], None] | None = None
         self.stop_report: list[str] = []  # what each vehicle does, when the daemon was stopped
         self._job_crash: BaseException | None = None  # a vehicle task's unexpected error, for the brain
+        self._finish_wall = -math.inf  # wall time the fleet was sent home
 
     # -- clock ---------------------------------------------------------------------------------
     def now_s(self) -> float:
@@ -433,7 +436,9 @@ class Daemon:
         # The hold lasts until the longest scan is over, plus scan_hold_s.
         plan = plan_scan(self.sc)
         longest = max((p.duration_s for p in plan.vehicles), default=0.0)
-        scans = [with_hold_before_rtl(m, longest - p.duration_s + self.opt.scan_hold_s)
+        # at least HOLD_WALL_S of the daemon's own time, whatever the clock rate (a simulator speed-up)
+        hold_s = max(self.opt.scan_hold_s, HOLD_WALL_S * self._rate.rate)
+        scans = [with_hold_before_rtl(m, longest - p.duration_s + hold_s)
                  for m, p in zip(scan_missions(self.sc, plan), plan.vehicles)]
         ap = self.sc.fleet.autopilot
         wires = {vid: to_wire(m, ap) for vid, m in zip(sorted(self.vehicles), scans)}
@@ -544,6 +549,8 @@ class Daemon:
         if v.unusable:
             return
         v.unusable = str(err)
+        if v.agent is not None and v.agent.on_ground() and not v.agent.tel.armed:
+            v.home = True  # it never left, or is back: reported as home
         v.phase = "unusable"
         where = "it flies its current mission, which ends in RTL" if v.airborne else "it stays where it is"
         self._event("unusable", f"vehicle {v.id} cannot be commanded ({err}); {where}; its people go to the others",
@@ -570,7 +577,8 @@ class Daemon:
         v.phase = "starting"
         a = v.agent
         await self._persist(v, "start", a.start, lambda: a.tel.armed and a.in_mission_mode)
-        v.phase = "scanning"
+        if v.phase == "starting":  # (the monitor may have seen it fly, or finish, meanwhile)
+            v.phase = "scanning"
         self._event("start", f"vehicle {v.id} started its scan", v.id)
 
     # -- exchanges, judged from what the vehicle then reports (lifecycle.persist) --------------------
@@ -666,6 +674,8 @@ class Daemon:
         if v.phase == "waiting for operator" and a.tel.armed and a.in_mission_mode:
             v.phase = "scanning"
             self._event("start", f"vehicle {v.id} started by the operator", v.id)
+        elif v.phase == "starting" and a.tel.armed and a.in_mission_mode and not a.on_ground():
+            v.phase = "scanning"  # flying its scan, while the start exchange may still be judged
         fresh = self.wall() >= v.ignore_seq_until_wall and a.tel.mission_ours
         past_end = seq is not None and v.end_seq and seq >= v.end_seq and fresh
         if v.hold_seq:  # the scan ends with a hold, then RTL: done once it holds
@@ -681,8 +691,15 @@ class Daemon:
             self._returning(v)  # the hold ran out before a new mission came: it flies home by itself
         elif v.phase == "localizing" and past_end:
             self._returning(v)
+        if not a.on_ground() and a.tel.armed:
+            v.flew = True
+        elif v.flew and not a.tel.armed and v.phase in ("scanning", "hovering (scan done)", "localizing"):
+            # It landed by itself (its mission's RTL, a failsafe) before we saw its mission end:
+            # whatever it flew is done; it is home and can be sent out again.
+            v.scan_done = True
+            self._returning(v)
         if v.phase.startswith("returning") and a.on_ground() and not v.home:
-            v.home = True
+            v.home, v.flew = True, False
             v.phase = "landed"
             self._event("landed", f"vehicle {v.id} landed", v.id)
         if v.home and not a.on_ground() and a.tel.armed:
@@ -892,12 +909,15 @@ class Daemon:
     async def _finish(self, active: list[_Vehicle]) -> bool:
         if self._finishing_since is None:
             self._finishing_since = self.now_s()
+            self._finish_wall = self.wall()
             self._event("done", "every person heard is located or given up: all vehicles return home")
             going = [v for v in active if not v.home and not v.phase.startswith("returning")]
             for v in going:
                 if v.job is not None:
                     v.job.cancel()  # home instead of whatever it was being told
             await self._jobs([(v, self._send_home(v)) for v in going])
+        if any(v.job is not None for v in self._active()) and self.wall() - self._finish_wall < STOP_WAIT_S:
+            return False  # a return-home exchange is still being retried: its outcome goes in the statement
         now = self.now_s()
         if all(v.home or (v.phase == "returning" and now > v.home_by_s) for v in self._active()):
             return True  # landed, or returning and overdue: report them as returning
