@@ -244,7 +244,7 @@ class Link:
         s = self.stats
         if self.mav.signing.secret_key is None or not (s.unsigned_dropped or s.bad_signature_dropped):
             return ""
-        if s.unsigned_dropped and not s.bad_signature_dropped and not s.rx_packets:
+        if s.unsigned_dropped and not s.bad_signature_dropped:  # (RADIO_STATUS may pass unsigned)
             return (f"; heard only unsigned packets ({s.unsigned_dropped} dropped): the vehicle does not sign "
                     f"on this link (set its signing key, or connect without --signing-key)")
         if s.bad_signature_dropped and not s.rx_packets:
