@@ -98,6 +98,9 @@ class InstanceLock:
             except OSError:
                 os.close(fd)
                 continue
+            if kind == "px4" and _px4_instance_running(n):  # a PX4 nobody's lock accounts for
+                os.close(fd)
+                continue
             os.ftruncate(fd, 0)
             os.write(fd, f"{os.getpid()}\n".encode())
             self.kind, self.number, self._fd = kind, n, fd
@@ -109,6 +112,36 @@ class InstanceLock:
         if self._fd is not None:
             os.close(self._fd)  # closing drops the flock
             self._fd = None
+
+
+def _px4_instance_running(n: int) -> bool:
+    """Whether a PX4 server holds its own per-instance lock (``/tmp/px4_lock-N``, a POSIX record
+    lock while it runs), e.g. one started by hand or left by a test process that was killed."""
+    path = Path("/tmp") / f"px4_lock-{n}"
+    if not path.exists():
+        return False
+    try:
+        fd = os.open(path, os.O_RDWR)
+    except OSError:
+        return True
+    try:
+        fcntl.lockf(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        fcntl.lockf(fd, fcntl.LOCK_UN)
+        return False
+    except OSError:
+        return True
+    finally:
+        os.close(fd)
+
+
+def _die_with_parent() -> None:
+    """In the child before exec: SIGKILL when the test process dies, however it dies (a killed
+    pytest runs no atexit handler, and the SITL lives in its own session)."""
+    try:
+        import ctypes
+        ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+    except Exception:  # not Linux: the finalizers and atexit still stop it
+        pass
 
 
 def free_udp_port() -> int:
@@ -195,7 +228,7 @@ def _spawn(sitl: SitlProcess, argv: list[str], env: dict[str, str] | None = None
     out = open(sitl.log_path, "wb")
     try:
         sitl.proc = subprocess.Popen(argv, cwd=sitl.workdir, stdin=subprocess.DEVNULL, stdout=out,
-                                     stderr=subprocess.STDOUT, start_new_session=True,
+                                     stderr=subprocess.STDOUT, start_new_session=True, preexec_fn=_die_with_parent,
                                      env={**os.environ, **(env or {})})
     finally:
         out.close()
