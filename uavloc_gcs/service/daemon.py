@@ -34,7 +34,7 @@ from ..errors import ConfigError, LinkError, UavlocError
 from ..mission import NAV_WAYPOINT, flight_mission, to_wire
 from ..observations import SlotBatch
 from ..scenario import Scenario
-from .liveview import LiveView, PersonStatusView, StatusSnapshot, VehicleStatus
+from .liveview import LiveView, StatusSnapshot, VehicleStatus, person_view
 from .missionstate import ClockRate, final_seq, same_route, same_stored_mission, without_final_rtl
 from .outcome import SearchOutcome, estimate_row, final_results, statement_for
 from .store import Store, StoreReader, TelemetryRow
@@ -428,8 +428,7 @@ class Daemon:
                             v.agent.tel.battery_pct if v.agent else None,
                             v.agent.tel.mission_seq if v.agent else None, v.end_seq or None, v.lost)
               for v in self.vehicles.values()]
-        people = [PersonStatusView(p.emitter_id, float(p.radius95_m),
-                                   p.located, p.reason) for p in self._people_cache]
+        people = [person_view(p) for p in self._people_cache]
         return StatusSnapshot(t, vs, people, self._n_slots, self.sc.people.required_accuracy_m, self._replans)
 
     # -- the brain ---------------------------------------------------------------------------------------

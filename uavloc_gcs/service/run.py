@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import asyncio
+import dataclasses
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -13,8 +14,9 @@ import numpy as np
 
 from ..scenario import Scenario
 from .daemon import Daemon, DaemonOptions
+from .labels import PersonLabels
 from .liveview import LiveView
-from .outcome import SearchOutcome
+from .outcome import SearchOutcome, statement_for
 from .results import PersonResult, results_table, write_results
 from .store import StoreReader
 
@@ -55,6 +57,9 @@ def run_search(scenario: Scenario, connections: Sequence[tuple[int, str]], optio
     ``truth(people, epoch_unix_s)`` (simulations only) returns {emitter id: (east, north)} true
     positions at each estimate's reference time, including people that were never heard.
     """
+    labels = PersonLabels(options.store_path)
+    if view is not None:
+        view.labels = labels
     daemon = Daemon(scenario, connections, options, view=view)
     if on_daemon is not None:
         on_daemon(daemon)
@@ -67,11 +72,20 @@ def run_search(scenario: Scenario, connections: Sequence[tuple[int, str]], optio
         for eid in sorted(set(truth_xy) - heard):
             people.append(PersonResult(eid, math.nan, math.nan, math.nan, math.nan, math.nan, math.nan, math.nan,
                                        math.nan, math.nan, False, False, "never heard"))
+    labels.refresh()
+    labels.add(sorted(p.emitter_id for p in people))  # anyone not in the store (never heard) comes last
+    people = [dataclasses.replace(p, label=labels.get(p.emitter_id)) for p in people]
+    heard = [p for p in people if p.reason != "never heard"]
+    others = tuple(v for v, _ in connections if v not in (*outcome.vehicles_home, *outcome.vehicles_lost,
+                                                          *outcome.vehicles_returning))
+    outcome = dataclasses.replace(outcome, people=tuple(heard), statement=statement_for(
+        heard, scenario.people.required_accuracy_m, outcome.vehicles_lost, others, outcome.vehicles_returning))
+    epoch = daemon.epoch_unix_s
     with StoreReader(options.store_path) as rd:
         tracks = rd.tracks()
     frame = scenario.frame
     files = write_results(out_dir, people, frame=frame, area_latlon_deg=np.array(scenario.polygon_latlon_deg),
                           tracks_latlon_deg=tracks, required_accuracy_m=scenario.people.required_accuracy_m,
-                          truth_xy_m=truth_xy, name=scenario.name)
-    table = results_table(people, scenario.people.required_accuracy_m, truth_xy)
+                          truth_xy_m=truth_xy, name=scenario.name, epoch_unix_s=epoch)
+    table = results_table(people, scenario.people.required_accuracy_m, truth_xy, epoch_unix_s=epoch)
     return RunResult(outcome, tuple(people), table, tuple(files))
