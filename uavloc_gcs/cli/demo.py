@@ -13,6 +13,8 @@ import math
 import sys
 from pathlib import Path
 
+from .daemon import add_web_options, print_web_url, web_options_from
+
 
 def _default_scenario() -> Path:
     import uavloc_gcs
@@ -33,6 +35,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--base-port", type=int, default=14560, metavar="PORT",
                    help="vehicle i listens on UDP port PORT+i (default 14560: 14561, 14562, ...; 0 = any free)")
     p.add_argument("--signing-key", metavar="HEX", help="sign every link with this 32-byte key (64 hex digits)")
+    add_web_options(p)
     p.set_defaults(func=run)
 
 
@@ -66,6 +69,7 @@ def run(args: argparse.Namespace) -> int:
     if not 0.0 <= args.loss < 1.0:
         raise ConfigError(f"--loss must be in [0, 1), got {args.loss}")
     key = parse_signing_key(args.signing_key) if args.signing_key else None
+    web = web_options_from(args)
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise ConfigError(f"output path {out} exists and is not a directory")
@@ -98,7 +102,7 @@ def run(args: argparse.Namespace) -> int:
                              lost_timeout_s=sc.link.lost_timeout_s, resume=False)
         view = LiveView(sys.stdout)
         connections = [(i + 1, conn) for i, (_name, conn) in enumerate(fleet.endpoints)]
-        result = run_search(sc, connections, opts, out, view=view, truth=truth)
+        result = run_search(sc, connections, opts, out, view=view, truth=truth, web=web, on_web_url=print_web_url)
     finally:
         fleet.stop()
     print()

@@ -48,11 +48,31 @@ def connections_for(scenario: Scenario) -> list[tuple[int, str]]:
     return [(i + 1, c) for i, c in enumerate(conns)]
 
 
+async def _run(daemon: Daemon, scenario: Scenario, options: DaemonOptions, web, on_web_url) -> SearchOutcome:
+    server = None
+    if web is not None:
+        from .web import MapFeed, MapServer  # noqa: PLC0415 (aiohttp only when the map is wanted)
+
+        feed = MapFeed(scenario, options.store_path, snapshot=daemon.snapshot, epoch=lambda: daemon.epoch_unix_s)
+        server = await MapServer(feed, web).start()
+        if on_web_url is not None:
+            on_web_url(server.url)
+    try:
+        return await daemon.run()
+    finally:
+        if server is not None:
+            await server.stop()
+
+
 def run_search(scenario: Scenario, connections: Sequence[tuple[int, str]], options: DaemonOptions,
                out_dir: Path, *, view: LiveView | None = None,
                truth: Callable[[Sequence[PersonResult], float], Mapping[int, tuple]] | None = None,
-               on_daemon: Callable[[Daemon], None] | None = None) -> RunResult:
+               on_daemon: Callable[[Daemon], None] | None = None, web=None,
+               on_web_url: Callable[[str], None] | None = None) -> RunResult:
     """Run the search to its end, then write the result files into ``out_dir``.
+
+    ``web`` (a ``service.web.WebOptions``): also serve the live map while the search runs, in
+    the same event loop; ``on_web_url(url)`` is called once it listens.
 
     ``truth(people, epoch_unix_s)`` (simulations only) returns {emitter id: (east, north)} true
     positions at each estimate's reference time, including people that were never heard.
@@ -63,7 +83,7 @@ def run_search(scenario: Scenario, connections: Sequence[tuple[int, str]], optio
     daemon = Daemon(scenario, connections, options, view=view)
     if on_daemon is not None:
         on_daemon(daemon)
-    outcome = asyncio.run(daemon.run())
+    outcome = asyncio.run(_run(daemon, scenario, options, web, on_web_url))
     people = list(outcome.people)
     truth_xy = None
     if truth is not None:
