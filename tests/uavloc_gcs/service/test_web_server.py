@@ -49,6 +49,8 @@ def store(tmp_path):
                      EstimateRow(11.0, 70, 200.0, 150.0, 0.5, 0.0, 40.0, 60.0, False, True, "mirror ambiguity")])
     s.add_plan(12.0, {"t_s": 12.0, "tasks": [{"vehicle": "1", "targets": [70], "waypoints_xy_m": [[210, 140], [0, 0]]}]})
     s.add_event("connect", "vehicle 1 connected", t_s=0.0, vehicle=1)
+    s.add_event("plan", "vehicle 1 looks at 70, 5", t_s=12.0, vehicle=1)
+    s.add_event("end", "1 of 2 people located; not located: person 70: mirror ambiguity.", t_s=30.0)
     s.flush()
     yield s
     s.close()
@@ -68,7 +70,8 @@ def test_feed_reads_the_store_labels_people_and_computes_headings(store):
     assert len(st["tracks"]["1"]) == 3
     assert st["plan"]["tasks"][0]["looks_xy_m"] == [[210.0, 140.0]]  # home is not a look
     assert st["plan"]["tasks"][0]["labels"] == ["P01 #70"]
-    assert [e["text"] for e in st["events"]] == ["vehicle 1 connected"]
+    assert [e["text"] for e in st["events"]] == ["vehicle 1 connected", "vehicle 1 looks at P01 #70, P02 #5",
+                                                 "1 of 2 people located; not located: P01 #70: mirror ambiguity."]
     assert not feed.poll()  # nothing new
 
 

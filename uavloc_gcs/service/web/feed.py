@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import sqlite3
 import time
 from dataclasses import dataclass, field
@@ -26,6 +27,8 @@ from ..labels import PersonLabels
 from ..liveview import StatusSnapshot
 from ..results import person_state, utc_text
 
+_LOOKS = re.compile(r"(looks at )([\d, ]+)")  # the daemon's "vehicle 2 looks at 17, 42"
+_PERSON = re.compile(r"\bperson (\d+)")  # the statement's "person 17: ..."
 TRACK_STEP_M = 2.0  # a new track point only after this much movement (keeps the page light)
 MAX_EVENTS = 500  # the newest events kept for the timeline
 
@@ -89,13 +92,13 @@ class MapFeed:
             conn = sqlite3.connect(f"file:{self.store_path}?mode=ro", uri=True, timeout=1.0)
         except sqlite3.Error:
             return False
+        self.labels.refresh()  # before the events, so they can name people by label
         try:
             changed = self._read(conn)
         except sqlite3.OperationalError:  # the schema is not there yet, or the store is busy
             return False
         finally:
             conn.close()
-        self.labels.refresh()
         if changed:
             self.version += 1
         return changed
@@ -120,6 +123,8 @@ class MapFeed:
             self._cursor["events"] = rowid
             if kind == "statustext":
                 text = f"vehicle {v} says: {text}"
+            else:
+                text = self._named(text)
             self.events.append({"t_s": _f(t_s, 1), "kind": kind, "text": text, "vehicle": v})
             changed = True
         if len(self.events) > MAX_EVENTS:
@@ -144,6 +149,15 @@ class MapFeed:
             self.finished = bool(meta.get("finished"))
             changed = True
         return changed
+
+    def _named(self, text: str) -> str:
+        """The daemon's event text with people named by label ("P03 #17") where it names them."""
+        def name(eid: str) -> str:
+            return self.labels.name(int(eid)) if self.labels.get(int(eid)) else eid
+
+        text = _LOOKS.sub(lambda m: m.group(1) + ", ".join(name(e.strip()) for e in m.group(2).split(",")
+                                                           if e.strip()), text)
+        return _PERSON.sub(lambda m: name(m.group(1)) if self.labels.get(int(m.group(1))) else m.group(0), text)
 
     # -- what the page gets -------------------------------------------------------------------------
     def static(self) -> dict:

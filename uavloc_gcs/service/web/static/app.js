@@ -89,15 +89,16 @@
     // first of 8 spots around (x, y) beyond radius r whose box overlaps no earlier label
     const w = 7.2 * text.length + 4, h = 15, d = Math.max(r, 6) + 3;
     const spots = [[1, -1], [1, 1], [-1, -1], [-1, 1], [1, 0], [-1, 0], [0, -1], [0, 1]];
-    let best = null;
-    for (const k of [1, 1.8, 2.8]) for (const [sx, sy] of spots) {
+    let best = null, far = false;
+    search:
+    for (const k of [1, 2, 3.2]) for (const [sx, sy] of spots) {
       const cx = x + sx * (d * k + (sx ? w / 2 : 0)), cy = y + sy * (d * k + (sy ? h / 2 : 0));
       const b = [cx - w / 2, cy - h / 2, cx + w / 2, cy + h / 2];
-      if (!boxes.some((o) => b[0] < o[2] && o[0] < b[2] && b[1] < o[3] && o[1] < b[3])) { best = b; break; }
+      if (!boxes.some((o) => b[0] < o[2] && o[0] < b[2] && b[1] < o[3] && o[1] < b[3])) { best = b; far = k > 1; break search; }
     }
-    if (!best) best = [x + d, y - d - h, x + d + w, y - d];
+    if (!best) { best = [x + d, y - d - h, x + d + w, y - d]; far = false; }
     boxes.push(best);
-    return [(best[0] + best[2]) / 2, (best[1] + best[3]) / 2 + 4];
+    return [(best[0] + best[2]) / 2, (best[1] + best[3]) / 2 + 4, far, best];
   }
 
   function draw() {
@@ -161,7 +162,11 @@
       if (!ok(p.east_m)) continue;
       const [x, y] = px(p.east_m, p.north_m);
       const text = (p.label || "#" + p.id) + (p.ambiguous ? " ?" : "");
-      const [tx, ty] = placeLabel(boxes, x, y, text, 6);
+      const [tx, ty, far, b] = placeLabel(boxes, x, y, text, 6);
+      if (far) {  // a leader line to the nearest point of the label's box
+        const lx = Math.max(b[0], Math.min(x, b[2])), ly = Math.max(b[1], Math.min(y, b[3]));
+        el("line", { x1: x, y1: y, x2: lx, y2: ly, stroke: C[p.state] || "#ff7f0e", "stroke-width": 0.8 }, gLabels);
+      }
       el("text", { x: tx, y: ty, "text-anchor": "middle", fill: C[p.state] || "#ff7f0e", "font-weight": 700, class: "plabel" }, gLabels, text);
     }
     const gVeh = el("g", { class: "vehicles" }, svg);
@@ -230,7 +235,11 @@
     for (const p of S.people) {
       const st = document.createElement("span");
       st.textContent = p.state + (p.ambiguous ? " (2 candidates)" : ""); st.className = "state"; st.style.color = C[p.state] || "#333";
-      row(pb, [p.name, st, ok(p.radius95_m) ? `${fmt(p.radius95_m, 1)} m` : "-", utc(p.t_ref_s) || "-"], { "data-id": p.id });
+      const nm = document.createElement("span");
+      const b = document.createElement("b"); b.textContent = p.label || "";
+      const id = document.createElement("span"); id.className = "eid"; id.textContent = ` #${p.id}`;
+      nm.appendChild(b); nm.appendChild(id);
+      row(pb, [nm, st, ok(p.radius95_m) ? `${fmt(p.radius95_m, 1)} m` : "-", utc(p.t_ref_s) || "-"], { "data-id": p.id });
       if (p.reason && p.state !== "located") {
         const tr = row(pb, [""]); tr.firstChild.colSpan = 4; tr.firstChild.className = "reason"; tr.firstChild.textContent = p.reason;
       }
