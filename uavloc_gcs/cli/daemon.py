@@ -91,6 +91,7 @@ def run(args: argparse.Namespace) -> int:
 
     scenario = load_scenario(args.config)
     connections = connections_for(scenario)
+    web = web_options_from(args)
     out = Path(args.out) if args.out else Path(f"uavloc-{scenario.name}")
     if out.exists() and not out.is_dir():
         raise ConfigError(f"output path {out} exists and is not a directory")
@@ -99,7 +100,6 @@ def run(args: argparse.Namespace) -> int:
         for f in [out / "search.sqlite", out / "search.sqlite-wal", out / "search.sqlite-shm", *out.glob("uav*.tlog")]:
             f.unlink(missing_ok=True)
     opts = options_from(args, scenario, out)
-    web = web_options_from(args)
     view = LiveView(sys.stdout)
     result = run_search(scenario, connections, opts, out, view=view, web=web, on_web_url=print_web_url)
     print()

@@ -213,3 +213,17 @@ def test_a_busy_port_is_one_sentence_or_a_free_port_for_the_default(store):
         with pytest.raises(ConfigError, match="--web-port"):
             _run(go(False))
         assert _run(go(True)) not in (port, 0)
+
+
+def test_bad_web_options_are_one_sentence_before_anything_starts(tmp_path):
+    import subprocess
+    import sys
+
+    for args, words in ((["--map-tiles", str(tmp_path / "none")], "--map-tiles"),
+                        (["--web-port", "70000"], "--web-port"),
+                        (["--map-tiles", "https://tiles.example/x.png"], "{z}")):
+        proc = subprocess.run([sys.executable, "-m", "uavloc_gcs", "demo", "--out", str(tmp_path / "o"), *args],
+                              capture_output=True, text=True, timeout=60)
+        assert proc.returncode == 2, proc.stderr
+        assert proc.stderr.count("\n") == 1 and words in proc.stderr
+        assert not (tmp_path / "o").exists()  # nothing started, nothing written
