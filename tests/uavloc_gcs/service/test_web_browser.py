@@ -58,16 +58,21 @@ def _wait(what: str, check, timeout_s: float, proc=None):
     raise AssertionError(f"timed out waiting for {what}")
 
 
-def _vehicles(driver) -> dict[str, tuple[float, float]]:
-    from selenium.webdriver.common.by import By
+# The page redraws its SVG on every update: read what it shows in one script call (element
+# handles would go stale between two calls).
+_READ = """return Array.from(document.querySelectorAll(arguments[0])).map(
+    e => Object.fromEntries(Array.from(e.attributes).map(a => [a.name, a.value])));"""
 
-    return {e.get_attribute("data-id"): (float(e.get_attribute("data-east")), float(e.get_attribute("data-north")))
-            for e in driver.find_elements(By.CSS_SELECTOR, "svg g.vehicle")}
+
+def _shown(driver, css: str) -> list[dict]:
+    return driver.execute_script(_READ, css)
+
+
+def _vehicles(driver) -> dict[str, tuple[float, float]]:
+    return {v["data-id"]: (float(v["data-east"]), float(v["data-north"])) for v in _shown(driver, "svg g.vehicle")}
 
 
 def test_live_map_shows_vehicles_moving_and_estimates_appearing(tmp_path):
-    from selenium.webdriver.common.by import By
-
     out = tmp_path / "demo"
     env = {**os.environ, "PYTHONPATH": f"{ROOT}{os.pathsep}{os.environ.get('PYTHONPATH', '')}"}
     proc = subprocess.Popen(
@@ -103,20 +108,17 @@ def test_live_map_shows_vehicles_moving_and_estimates_appearing(tmp_path):
             return any(v in now and abs(now[v][0] - p[0]) + abs(now[v][1] - p[1]) > 30.0 for v, p in first.items())
 
         _wait("a vehicle to move 30 m on the page (no reload)", moved, 90, proc)
-        people = _wait("estimates on the map",
-                       lambda: driver.find_elements(By.CSS_SELECTOR, "svg g.person"), 120, proc)
-        assert people[0].get_attribute("data-label").startswith("P0")
-        assert people[0].get_attribute("data-state") in ("heard", "located", "given up")
-        assert driver.find_elements(By.CSS_SELECTOR, "svg polygon.area")
-        assert driver.find_elements(By.CSS_SELECTOR, "svg polyline.track")
-        assert driver.find_elements(By.CSS_SELECTOR, "svg g.scalebar text")
-        table = driver.find_element(By.ID, "people").text
-        assert "P01 #" in table
-        assert "connected on" in driver.find_element(By.ID, "events").text  # the timeline
-        assert driver.find_element(By.ID, "link").text == "live"
-        # let the search go on a little so the picture shows tracks and (often) a plan
-        _wait("someone located", lambda: driver.find_elements(By.CSS_SELECTOR, "svg g.person[data-state=located]"),
-              120, proc)
+        people = _wait("estimates on the map", lambda: _shown(driver, "svg g.person"), 120, proc)
+        assert people[0]["data-label"].startswith("P0")
+        assert people[0]["data-state"] in ("heard", "located", "given up")
+        assert _shown(driver, "svg polygon.area") and _shown(driver, "svg polyline.track")
+        assert _shown(driver, "svg g.scalebar")
+        text = lambda css: driver.execute_script("return document.querySelector(arguments[0]).innerText", css)
+        assert "P01 #" in text("#people")
+        assert "connected on" in text("#events")  # the timeline
+        assert text("#link") == "live"
+        # let the search go on a little so the picture shows someone located and (often) a plan
+        _wait("someone located", lambda: _shown(driver, "svg g.person[data-state=located]"), 120, proc)
         shot = tmp_path / "live_map.png"
         driver.save_screenshot(str(shot))
         assert shot.read_bytes()[:4] == b"\x89PNG"

@@ -107,11 +107,13 @@ class MapFeed:
         changed = False
         rows = conn.execute("SELECT rowid, t_s, vehicle, lat_deg, lon_deg, alt_m, battery_pct, mode, mission_seq, "
                             "lost FROM telemetry WHERE rowid > ? ORDER BY rowid", (self._cursor["telemetry"],)).fetchall()
-        for rowid, t_s, v, lat, lon, alt, batt, mode, seq, lost in rows:
-            self._cursor["telemetry"] = rowid
-            if lat is None or lon is None or not (math.isfinite(lat) and math.isfinite(lon)):
-                continue
-            e, n = (float(x) for x in self.frame.to_local(lat, lon))
+        if rows:
+            self._cursor["telemetry"] = rows[-1][0]
+            rows = [r for r in rows if r[3] is not None and r[4] is not None and math.isfinite(r[3])
+                    and math.isfinite(r[4])]
+        local = self.frame.to_local_xy(np.array([[r[3], r[4]] for r in rows], dtype=float)) if rows else []
+        for (rowid, t_s, v, lat, lon, alt, batt, mode, seq, lost), (e, n) in zip(rows, local):
+            e, n = float(e), float(n)
             tr = self.tracks.setdefault(int(v), _Track())
             tr.add(e, n)
             self.telemetry[int(v)] = {"t_s": t_s, "east_m": e, "north_m": n, "alt_m": alt, "battery_pct": batt,
