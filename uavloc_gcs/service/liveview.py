@@ -64,8 +64,10 @@ def person_view(status) -> PersonStatusView:
         primary = tuple(float(v) for v in getattr(est, "position_xy_m", (math.nan, math.nan)))
         cand = tuple(float(v) for v in mirror.position_xy_m)
         # show the candidate that is not the believed one (the policy may believe the mirror)
-        other = primary if math.dist(cand, (num(xy[0]), num(xy[1]))) < 1e-6 else cand
-        mxy, mr = other, num(getattr(mirror, "radius95_m", math.nan))
+        if math.dist(cand, (num(xy[0]), num(xy[1]))) < 1e-6:  # the primary's own radius, when known
+            mxy, mr = primary, num(getattr(est, "mode_radius95_m", math.nan))
+        else:
+            mxy, mr = cand, num(getattr(mirror, "radius95_m", math.nan))
     return PersonStatusView(int(status.emitter_id), num(status.radius95_m), bool(status.located), status.reason or "",
                             num(xy[0]), num(xy[1]), num(status.t_ref_s), num(vel[0]), num(vel[1]), ambiguous,
                             mxy[0], mxy[1], mr)

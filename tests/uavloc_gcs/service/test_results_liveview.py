@@ -154,3 +154,21 @@ def test_terminal_view_shows_labels():
     text = "\n".join(render_lines(SNAP, labels))
     assert "P01 #2" in text and "P02 #1" in text
     assert text.index("P01 #2") < text.index("P02 #1")
+
+
+def test_person_view_shows_the_other_mirror_candidate_while_ambiguous():
+    from types import SimpleNamespace as NS
+
+    from uavloc_gcs.service.liveview import person_view
+
+    est = NS(ambiguous=True, position_xy_m=np.array([100.0, 50.0]),
+             mirror=NS(position_xy_m=np.array([100.0, -50.0]), radius95_m=12.0))
+    status = dict(emitter_id=7, estimate=est, located=False, reason="mirror ambiguity", t_ref_s=30.0,
+                  radius95_m=11.0, velocity_m_s=(0.5, 0.0))
+    believes_primary = person_view(NS(xy_m=(100.0, 50.0), **status))
+    assert believes_primary.ambiguous and (believes_primary.mirror_east_m, believes_primary.mirror_north_m) == (100.0, -50.0)
+    believes_mirror = person_view(NS(xy_m=(100.0, -50.0), **status))
+    assert (believes_mirror.east_m, believes_mirror.north_m) == (100.0, -50.0)
+    assert (believes_mirror.mirror_east_m, believes_mirror.mirror_north_m) == (100.0, 50.0)
+    located = person_view(NS(xy_m=(100.0, 50.0), **{**status, "located": True}))
+    assert not located.ambiguous and math.isnan(located.mirror_east_m)  # a fix has one position
