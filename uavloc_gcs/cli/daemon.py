@@ -41,6 +41,8 @@ def add_web_options(p: argparse.ArgumentParser) -> None:
                    help="TCP port (default 8765, or any free one if that is busy; 0 = any free port)")
     g.add_argument("--web-token", metavar="TOKEN",
                    help="token the page needs (default: a random one when not on 127.0.0.1)")
+    g.add_argument("--web-keep", action="store_true",
+                   help="after the search, go on serving the map (with the final results) until Ctrl-C")
     g.add_argument("--map-tiles", metavar="URL|DIR|FILE.mbtiles",
                    help="background map: an XYZ tile URL with {z}/{x}/{y}, a folder of z/x/y tiles or an "
                         "MBTiles file (default: none, the map is drawn from the search's own geometry)")
@@ -57,7 +59,7 @@ def web_options_from(args):
     if not 0 <= port <= 65535:
         raise ConfigError(f"--web-port must be 0..65535, got {port}")
     opts = WebOptions(host=args.web_host, port=port, token=args.web_token, tiles=args.map_tiles,
-                      port_fallback=args.web_port is None)
+                      port_fallback=args.web_port is None, keep=args.web_keep)
     if opts.tiles:
         from ..service.web.server import _Tiles  # noqa: PLC0415 - check the tile source before flying
 
@@ -67,6 +69,20 @@ def web_options_from(args):
 
 def print_web_url(url: str) -> None:
     print(f"live map: {url}", flush=True)
+
+
+def reporter(out: Path, web):
+    """What the operator reads at the end: the table, the statement, where the files are."""
+    def report(result) -> None:
+        print()
+        print(result.table, end="")
+        print(result.outcome.statement)
+        print(f"results in {out}/: " + ", ".join(p.name for p in result.files) + ", search.sqlite, uav*.tlog")
+        if web is not None and web.keep:
+            print("the live map shows the final result until Ctrl-C", flush=True)
+        sys.stdout.flush()
+
+    return report
 
 
 def options_from(args, scenario, out: Path):
@@ -101,9 +117,6 @@ def run(args: argparse.Namespace) -> int:
             f.unlink(missing_ok=True)
     opts = options_from(args, scenario, out)
     view = LiveView(sys.stdout)
-    result = run_search(scenario, connections, opts, out, view=view, web=web, on_web_url=print_web_url)
-    print()
-    print(result.table, end="")
-    print(result.outcome.statement)
-    print(f"results in {out}/: " + ", ".join(p.name for p in result.files) + ", search.sqlite, uav*.tlog")
+    result = run_search(scenario, connections, opts, out, view=view, web=web, on_web_url=print_web_url,
+                        on_result=reporter(out, web))
     return 0 if result.outcome.all_located else 1

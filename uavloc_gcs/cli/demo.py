@@ -13,7 +13,7 @@ import math
 import sys
 from pathlib import Path
 
-from .daemon import add_web_options, print_web_url, web_options_from
+from .daemon import add_web_options, print_web_url, reporter, web_options_from
 
 
 def _default_scenario() -> Path:
@@ -102,13 +102,10 @@ def run(args: argparse.Namespace) -> int:
                              lost_timeout_s=sc.link.lost_timeout_s, resume=False)
         view = LiveView(sys.stdout)
         connections = [(i + 1, conn) for i, (_name, conn) in enumerate(fleet.endpoints)]
-        result = run_search(sc, connections, opts, out, view=view, truth=truth, web=web, on_web_url=print_web_url)
+        run_search(sc, connections, opts, out, view=view, truth=truth, web=web, on_web_url=print_web_url,
+                   on_result=reporter(out, web))
     finally:
         fleet.stop()
-    print()
-    print(result.table, end="")
-    print(result.outcome.statement)
-    print(f"results in {out}/: " + ", ".join(p.name for p in result.files) + ", search.sqlite, uav*.tlog")
     # The demonstration ran to its end; who was (not) located is in the table and the statement.
     # (`uavloc daemon` exits 1 when someone is not located, for scripts that act on it.)
     return 0

@@ -48,8 +48,10 @@ def connections_for(scenario: Scenario) -> list[tuple[int, str]]:
     return [(i + 1, c) for i, c in enumerate(conns)]
 
 
-async def _run(daemon: Daemon, scenario: Scenario, options: DaemonOptions, web, on_web_url) -> SearchOutcome:
-    server = None
+async def _run(daemon: Daemon, scenario: Scenario, options: DaemonOptions, web, on_web_url,
+               finish: Callable[[SearchOutcome], "RunResult"],
+               on_result: Callable[["RunResult"], None] | None) -> "RunResult":
+    server = feed = None
     if web is not None:
         from .web import MapFeed, MapServer  # noqa: PLC0415 (aiohttp only when the map is wanted)
 
@@ -58,7 +60,18 @@ async def _run(daemon: Daemon, scenario: Scenario, options: DaemonOptions, web, 
         if on_web_url is not None:
             on_web_url(server.url)
     try:
-        return await daemon.run()
+        outcome = await daemon.run()
+        result = await asyncio.to_thread(finish, outcome)  # the map keeps answering meanwhile
+        if feed is not None:
+            feed.set_final(result.people)  # the map then shows what the files say
+        if on_result is not None:
+            on_result(result)
+        if server is not None and web.keep:
+            try:
+                await asyncio.Event().wait()  # until Ctrl-C (asyncio.run cancels this task)
+            except asyncio.CancelledError:
+                pass
+        return result
     finally:
         if server is not None:
             await server.stop()
@@ -68,11 +81,14 @@ def run_search(scenario: Scenario, connections: Sequence[tuple[int, str]], optio
                out_dir: Path, *, view: LiveView | None = None,
                truth: Callable[[Sequence[PersonResult], float], Mapping[int, tuple]] | None = None,
                on_daemon: Callable[[Daemon], None] | None = None, web=None,
-               on_web_url: Callable[[str], None] | None = None) -> RunResult:
+               on_web_url: Callable[[str], None] | None = None,
+               on_result: Callable[[RunResult], None] | None = None) -> RunResult:
     """Run the search to its end, then write the result files into ``out_dir``.
 
     ``web`` (a ``service.web.WebOptions``): also serve the live map while the search runs, in
-    the same event loop; ``on_web_url(url)`` is called once it listens.
+    the same event loop; ``on_web_url(url)`` is called once it listens. ``on_result(result)`` is
+    called once the files are written (before the map, with ``web.keep``, goes on serving the
+    final state until Ctrl-C).
 
     ``truth(people, epoch_unix_s)`` (simulations only) returns {emitter id: (east, north)} true
     positions at each estimate's reference time, including people that were never heard.
@@ -83,7 +99,16 @@ def run_search(scenario: Scenario, connections: Sequence[tuple[int, str]], optio
     daemon = Daemon(scenario, connections, options, view=view)
     if on_daemon is not None:
         on_daemon(daemon)
-    outcome = asyncio.run(_run(daemon, scenario, options, web, on_web_url))
+
+    def finish(outcome: SearchOutcome) -> RunResult:
+        return _results(outcome, daemon, scenario, connections, options, out_dir, labels, truth)
+
+    return asyncio.run(_run(daemon, scenario, options, web, on_web_url, finish, on_result))
+
+
+def _results(outcome: SearchOutcome, daemon: Daemon, scenario: Scenario, connections, options: DaemonOptions,
+             out_dir: Path, labels: PersonLabels, truth) -> RunResult:
+    """Label everyone, write the files and build the table and the statement."""
     people = list(outcome.people)
     truth_xy = None
     if truth is not None:

@@ -227,3 +227,47 @@ def test_bad_web_options_are_one_sentence_before_anything_starts(tmp_path):
         assert proc.returncode == 2, proc.stderr
         assert proc.stderr.count("\n") == 1 and words in proc.stderr
         assert not (tmp_path / "o").exists()  # nothing started, nothing written
+
+
+def test_web_keep_serves_the_final_result_as_the_files_say_until_ctrl_c(tmp_path):
+    """With --web-keep the map stays up after the search and shows the written results (the
+    same label, state and radius as people.csv); Ctrl-C then ends the demo normally."""
+    import csv
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+    import urllib.request
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[3]
+    out = tmp_path / "demo"
+    env = {**os.environ, "PYTHONPATH": f"{root}{os.pathsep}{os.environ.get('PYTHONPATH', '')}"}
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "uavloc_gcs", "demo", "--scenario", str(root / "examples" / "small.toml"),
+         "--people", "2", "--speedup", "30", "--base-port", "0", "--web-port", "0", "--web-keep", "--out", str(out)],
+        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env)
+    try:
+        url, deadline = None, time.monotonic() + 240
+        for line in proc.stdout:
+            if line.startswith("live map: "):
+                url = line.split(": ", 1)[1].strip()
+            if "until Ctrl-C" in line or time.monotonic() > deadline:
+                break
+        assert url is not None and proc.poll() is None
+        with urllib.request.urlopen(url + "api/state", timeout=30) as r:
+            state = json.loads(r.read())
+        assert state["finished"]
+        rows = {r["label"]: r for r in csv.DictReader((out / "people.csv").open()) if r["state"] != "never heard"}
+        shown = {p["label"]: p for p in state["people"]}
+        assert set(shown) == set(rows) and rows
+        for label, row in rows.items():
+            assert shown[label]["state"] == row["state"]
+            assert shown[label]["radius95_m"] == round(float(row["radius95_m"]), 1)
+        proc.send_signal(signal.SIGINT)
+        assert proc.wait(timeout=60) == 0
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()

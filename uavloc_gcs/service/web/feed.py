@@ -80,6 +80,7 @@ class MapFeed:
         self.meta: dict = {}
         self.version = 0
         self.finished = False
+        self.final: list | None = None  # the search's results once written (PersonResult)
         self._cursor = {"telemetry": 0, "events": 0, "estimates": 0}
         self._plan_rowid = 0
 
@@ -175,10 +176,21 @@ class MapFeed:
         e = self.epoch() if self.epoch is not None else None
         return e if e is not None else self.meta.get("epoch_unix_s")
 
+    def set_final(self, people) -> None:
+        """Show the final results (``service.results.PersonResult``, labelled) from now on: the
+        map then says what the files say."""
+        self.final = list(people)
+        self.finished = True
+        self.version += 1
+
     def _people(self, snap: StatusSnapshot | None) -> list[dict]:
         epoch = self._epoch()
         out = []
-        if snap is not None:
+        if self.final is not None:
+            rows = [(p.emitter_id, p.east_m, p.north_m, p.radius95_m, p.located, p.reason, p.t_ref_s,
+                     (p.vel_east_m_s, p.vel_north_m_s), not p.ambiguity_resolved, (math.nan, math.nan), math.nan)
+                    for p in self.final if p.reason != "never heard"]
+        elif snap is not None:
             views = {p.emitter_id: p for p in snap.people}
             rows = [(eid, v.east_m, v.north_m, v.radius95_m, v.located, v.reason, v.t_ref_s,
                      (v.vel_east_m_s, v.vel_north_m_s), v.ambiguous, (v.mirror_east_m, v.mirror_north_m),

@@ -47,6 +47,7 @@ class WebOptions:
     tiles: str | None = None
     period_s: float = 0.5
     port_fallback: bool = False
+    keep: bool = False  # go on serving the final map after the search, until Ctrl-C
 
     def resolved_token(self) -> str | None:
         """The token the server requires: the given one, or a new random one for a non-loopback
