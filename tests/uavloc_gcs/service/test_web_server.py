@@ -99,6 +99,12 @@ def test_feed_shows_both_mirror_candidates_from_the_snapshot(store):
     (p,) = st["people"]
     assert (p["mirror_east_m"], p["mirror_north_m"], p["mirror_radius95_m"]) == (200.0, 50.0, 25.0)
     assert st["vehicles"][0]["phase"] == "localizing" and st["t_s"] == 20.0 and st["slots"] == 3
+    # a mirror the area rules out (outside it, as the policy judges) is not shown as a candidate
+    outside = PersonStatusView(70, 30.0, False, "95 % radius 30.0 m > 15 m", 200.0, 150.0, 11.0, 0.0, 0.0, True,
+                               200.0, -150.0, 25.0)
+    snap = StatusSnapshot(20.0, [], [outside], 3, 15.0, 1)
+    (p,) = feed.state()["people"]
+    assert not p["ambiguous"] and p["mirror_east_m"] is None
     assert json.loads(_dumps({"a": math.nan, "b": [math.inf, 1.0]})) == {"a": None, "b": [None, 1.0]}
 
 

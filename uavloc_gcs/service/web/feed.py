@@ -23,6 +23,7 @@ import numpy as np
 from ...render.estimates import STATE_COLORS
 from ...render.palette import vehicle_color
 from ...scenario import Scenario
+from ...search.targets import inside_area
 from ..labels import PersonLabels
 from ..liveview import StatusSnapshot
 from ..results import person_state, utc_text
@@ -198,7 +199,12 @@ class MapFeed:
         else:
             rows = [(eid, r["east_m"], r["north_m"], r["radius95_m"], r["located"], r["reason"], r["t_s"], r["vel"],
                      r["ambiguous"], (math.nan, math.nan), math.nan) for eid, r in self.estimates.items()]
+        area, margin = self.sc.area_xy_m(), self.sc.people.required_accuracy_m
         for eid, e, n, r95, located, reason, t_ref, vel, ambiguous, mirror, mirror_r in rows:
+            if ambiguous and all(math.isfinite(v) for v in (e, n, *mirror)) and \
+                    inside_area(area, (e, n), margin) != inside_area(area, mirror, margin):
+                # as the policy does: the area rules out the candidate outside it
+                ambiguous, mirror, mirror_r = False, (math.nan, math.nan), math.nan
             state = person_state(located, reason)
             label = self.labels.get(eid)
             vx, vy = (_f(v, 3) for v in vel)
