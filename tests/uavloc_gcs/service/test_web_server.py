@@ -128,6 +128,10 @@ def test_server_page_state_and_stream(store):
                     assert r.status == 200 and "EventSource" in await r.text()
                 async with http.get(server.url + "static/secret.txt") as r:
                     assert r.status == 404
+                async with http.get(server.url + "api/state", headers={"Host": "evil.example:80"}) as r:
+                    assert r.status == 403  # no token: only this machine's names (DNS rebinding)
+                async with http.get(server.url + "api/state", headers={"Host": "localhost"}) as r:
+                    assert r.status == 200
                 async with http.get(server.url + "api/state") as r:
                     assert (await r.json())["static"]["name"] == "e2e"
                 async with http.get(server.url + "api/stream") as r:

@@ -202,6 +202,11 @@ class MapServer:
     @web.middleware
     async def _auth(self, request: web.Request, handler):
         if self.token is None:
+            # Without a token only this machine's names are answered: a web page elsewhere cannot
+            # read the map through a DNS name re-pointed at 127.0.0.1 (DNS rebinding).
+            host = (request.host or "").rsplit(":", 1)[0].strip("[]")
+            if not is_loopback(host):
+                return web.Response(status=403, text="uavloc live map: open it as 127.0.0.1 or localhost\n")
             return await handler(request)
         given = request.query.get("token") or request.cookies.get(_COOKIE) or ""
         if not hmac.compare_digest(given.encode(), self.token.encode()):
