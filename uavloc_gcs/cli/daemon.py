@@ -26,7 +26,63 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="seconds to wait for each vehicle's heartbeat (default 15)")
     p.add_argument("--planner-time-limit", type=float, metavar="S",
                    help="planner time per replan (default: the config's, capped to ~2 s of mission time)")
+    add_web_options(p)
     p.set_defaults(func=run)
+
+
+def add_web_options(p: argparse.ArgumentParser) -> None:
+    """The live map's options (shared with ``uavloc demo``)."""
+    g = p.add_argument_group("live map (a web page served while the search runs)")
+    g.add_argument("--no-web", action="store_true", help="do not serve the live map (headless)")
+    g.add_argument("--web-host", default="127.0.0.1", metavar="ADDR",
+                   help="address to serve it on (default 127.0.0.1, this machine only; 0.0.0.0 = the LAN, "
+                        "with a token)")
+    g.add_argument("--web-port", type=int, metavar="PORT",
+                   help="TCP port (default 8765, or any free one if that is busy; 0 = any free port)")
+    g.add_argument("--web-token", metavar="TOKEN",
+                   help="token the page needs (default: a random one when not on 127.0.0.1)")
+    g.add_argument("--web-keep", action="store_true",
+                   help="after the search, go on serving the map (with the final results) until Ctrl-C")
+    g.add_argument("--map-tiles", metavar="URL|DIR|FILE.mbtiles",
+                   help="background map: an XYZ tile URL with {z}/{x}/{y}, a folder of z/x/y tiles or an "
+                        "MBTiles file (default: none, the map is drawn from the search's own geometry)")
+
+
+def web_options_from(args):
+    """``WebOptions`` from the command line, or None with --no-web."""
+    from ..errors import ConfigError
+    from ..service.web import DEFAULT_PORT, WebOptions
+
+    if args.no_web:
+        return None
+    port = DEFAULT_PORT if args.web_port is None else args.web_port
+    if not 0 <= port <= 65535:
+        raise ConfigError(f"--web-port must be 0..65535, got {port}")
+    opts = WebOptions(host=args.web_host, port=port, token=args.web_token, tiles=args.map_tiles,
+                      port_fallback=args.web_port is None, keep=args.web_keep)
+    if opts.tiles:
+        from ..service.web.server import _Tiles  # noqa: PLC0415 - check the tile source before flying
+
+        _Tiles(opts.tiles)
+    return opts
+
+
+def print_web_url(url: str) -> None:
+    print(f"live map: {url}", flush=True)
+
+
+def reporter(out: Path, web):
+    """What the operator reads at the end: the table, the statement, where the files are."""
+    def report(result) -> None:
+        print()
+        print(result.table, end="")
+        print(result.outcome.statement)
+        print(f"results in {out}/: " + ", ".join(p.name for p in result.files) + ", search.sqlite, uav*.tlog")
+        if web is not None and web.keep:
+            print("the live map shows the final result until Ctrl-C", flush=True)
+        sys.stdout.flush()
+
+    return report
 
 
 def options_from(args, scenario, out: Path):
@@ -55,6 +111,7 @@ def run(args: argparse.Namespace) -> int:
 
     scenario = load_scenario(args.config)
     connections = connections_for(scenario)
+    web = web_options_from(args)
     out = Path(args.out) if args.out else Path(f"uavloc-{scenario.name}")
     if out.exists() and not out.is_dir():
         raise ConfigError(f"output path {out} exists and is not a directory")
@@ -65,9 +122,6 @@ def run(args: argparse.Namespace) -> int:
                 f.unlink(missing_ok=True)
         opts = options_from(args, scenario, out)
         view = LiveView(sys.stdout)
-        result = run_search(scenario, connections, opts, out, view=view)
-    print()
-    print(result.table, end="")
-    print(result.outcome.statement)
-    print(f"results in {out}/: " + ", ".join(p.name for p in result.files) + ", search.sqlite, uav*.tlog")
+        result = run_search(scenario, connections, opts, out, view=view, web=web, on_web_url=print_web_url,
+                            on_result=reporter(out, web))
     return 0 if result.outcome.all_located else 1

@@ -15,6 +15,8 @@ import signal
 import sys
 from pathlib import Path
 
+from .daemon import add_web_options, print_web_url, reporter, web_options_from
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("demo", help="paper scenario on fake vehicles + daemon + live view (about a minute)",
@@ -29,6 +31,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--base-port", type=int, default=14560, metavar="PORT",
                    help="vehicle i listens on UDP port PORT+i (default 14560: 14561, 14562, ...; 0 = any free)")
     p.add_argument("--signing-key", metavar="HEX", help="sign every link with this 32-byte key (64 hex digits)")
+    add_web_options(p)
     p.set_defaults(func=run)
 
 
@@ -54,6 +57,7 @@ def run(args: argparse.Namespace) -> int:
     if not 0.0 <= args.loss < 1.0:
         raise ConfigError(f"--loss must be in [0, 1), got {args.loss}")
     key = parse_signing_key(args.signing_key) if args.signing_key else None
+    web = web_options_from(args)
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise ConfigError(f"output path {out} exists and is not a directory")
@@ -116,13 +120,10 @@ def _run(args, sc, key, out: Path) -> int:
                              lost_timeout_s=sc.link.lost_timeout_s, resume=False)
         view = LiveView(sys.stdout)
         connections = [(i + 1, conn) for i, (_name, conn) in enumerate(fleet.endpoints)]
-        result = run_search(sc, connections, opts, out, view=view, truth=truth)
+        run_search(sc, connections, opts, out, view=view, truth=truth, web=web, on_web_url=print_web_url,
+                   on_result=reporter(out, web))
     finally:
         fleet.stop()
-    print()
-    print(result.table, end="")
-    print(result.outcome.statement)
-    print(f"results in {out}/: " + ", ".join(p.name for p in result.files) + ", search.sqlite, uav*.tlog")
     # The demonstration ran to its end; who was (not) located is in the table and the statement.
     # (`uavloc daemon` exits 1 when someone is not located, for scripts that act on it.)
     return 0

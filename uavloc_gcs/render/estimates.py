@@ -42,3 +42,57 @@ def estimates_figure(estimates: Mapping, *, area_xy_m: np.ndarray | None = None,
     maps.add_north_arrow(ax)
     maps.add_legend(ax)
     return fig
+
+
+# One colour per person state, shared by result.png and the live map.
+STATE_COLORS = {"located": "#2ca02c", "heard": "#ff7f0e", "given up": "#d62728", "never heard": "#7f7f7f"}
+STATE_LEGEND = {"located": "located (95 % circle)", "heard": "heard, not located (95 % circle)",
+                "given up": "given up (95 % circle)"}
+
+
+def result_figure(people, *, area_xy_m: np.ndarray, tracks_xy_m: Mapping[int, np.ndarray],
+                  truth_xy_m: Mapping[int, np.ndarray] | None = None, title: str = "Result",
+                  subtitle: str | None = None) -> Figure:
+    """The end-of-search map: area, flown tracks, each person's reported position with its 95 %
+    circle coloured by state and its label (P01 ...; labels never overlap), the true positions
+    joined to their estimates when simulated, launch point, legend, scale bar and north arrow.
+
+    ``people``: objects with ``east_m``, ``north_m``, ``radius95_m``, ``state``, ``label`` and
+    ``emitter_id`` (``service.results.PersonResult``)."""
+    import math  # noqa: PLC0415
+
+    area = np.asarray(area_xy_m, dtype=float)
+    span = area.max(axis=0) - area.min(axis=0)
+    n_ok = sum(p.state == "located" for p in people)
+    fig, ax = maps.new_map(f"{title}: {n_ok} of {len(people)} people located", subtitle=subtitle,
+                           extent_m=tuple(span))
+    maps.draw_area(ax, area)
+    ids = sorted(tracks_xy_m)
+    colors = maps.vehicle_colors(max(ids, default=0))
+    maps.draw_polylines(ax, [tracks_xy_m[v] for v in ids], [f"UAV {v} flown" for v in ids],
+                        [colors[v - 1] for v in ids], linewidth=1.0, arrows=False)
+    maps.draw_launch(ax)
+    est = [p for p in people if math.isfinite(p.east_m) and math.isfinite(p.north_m)]
+    for state, label in STATE_LEGEND.items():
+        group = [p for p in est if p.state == state]
+        if not group:
+            continue
+        xy = np.array([[p.east_m, p.north_m] for p in group])
+        maps.draw_circles(ax, xy, [p.radius95_m for p in group], color=STATE_COLORS[state], alpha=0.12)
+        maps.draw_points(ax, xy, label, color=STATE_COLORS[state], marker="P", size=55)
+    truth = None
+    if truth_xy_m:
+        truth = np.array([truth_xy_m[k][:2] for k in sorted(truth_xy_m)], dtype=float)
+        maps.draw_points(ax, truth, "true position (simulation)", color="#111111", marker="X", size=40)
+        for p in est:
+            if p.emitter_id in truth_xy_m:
+                tx, ty = truth_xy_m[p.emitter_id][:2]
+                ax.plot([p.east_m, tx], [p.north_m, ty], color="#111111", linewidth=0.7, zorder=4)
+    maps.add_scale_bar(ax)
+    maps.add_north_arrow(ax)
+    maps.add_legend(ax)
+    if est:
+        maps.place_labels(ax, np.array([[p.east_m, p.north_m] for p in est]),
+                          [p.label or f"#{p.emitter_id}" for p in est],
+                          [STATE_COLORS.get(p.state, "#222222") for p in est], avoid_xy=truth)
+    return fig

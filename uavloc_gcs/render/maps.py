@@ -33,6 +33,7 @@ from . import palette
 __all__ = [
     "new_map", "origin_caption", "vehicle_colors", "draw_area", "draw_polygons", "draw_polylines",
     "draw_points", "draw_circles", "draw_launch", "add_scale_bar", "add_north_arrow", "add_legend",
+    "place_labels",
     "save_figure",
 ]
 
@@ -251,3 +252,66 @@ def save_figure(fig: Figure, path: str | Path) -> Path:
     with atomic_open(p, "wb", suffix=f".{fmt}") as fh, matplotlib.rc_context({"svg.hashsalt": "uavloc"}):
         fig.savefig(fh, format=fmt, metadata=metadata, bbox_inches="tight", pad_inches=0.2)
     return p
+
+
+def place_labels(ax: Axes, xy: np.ndarray, texts: Sequence[str], colors: Sequence | str = "#222222", *,
+                 fontsize: float = 8.5, avoid_xy: np.ndarray | None = None, zorder: float = 12) -> list:
+    """Labels next to points that overlap neither each other nor the points (``avoid_xy``: more
+    points to keep clear of). Call after everything else is drawn (it draws the figure once to
+    know the final layout). A label pushed away from its point gets a thin leader line.
+
+    Greedy: each label (in the given order) takes the first free spot from rings of 8 directions
+    at growing distance; when none is free it takes the least crowded one.
+    """
+    xy = np.asarray(xy, dtype=float).reshape(-1, 2)
+    if len(xy) == 0:
+        return []
+    colors = [colors] * len(xy) if isinstance(colors, str) else list(colors)
+    fig = ax.figure
+    fig.canvas.draw()
+    ax.set_autoscale_on(False)
+    renderer = fig.canvas.get_renderer()
+    to_px = ax.transData.transform
+    pts = to_px(xy)
+    obstacles = [pts] if avoid_xy is None else [pts, to_px(np.asarray(avoid_xy, dtype=float).reshape(-1, 2))]
+    marks = np.vstack(obstacles)
+    scale = fig.dpi / 72.0
+    placed: list[tuple[float, float, float, float]] = []
+    out = []
+    dirs = [(1, 1), (1, -1), (-1, 1), (-1, -1), (1, 0), (-1, 0), (0, 1), (0, -1)]
+    for (px, py), text, color in zip(pts, texts, colors):
+        probe = ax.text(0, 0, text, fontsize=fontsize, fontweight="bold")
+        bb = probe.get_window_extent(renderer)
+        probe.remove()
+        w, h = bb.width + 2 * scale, bb.height + 2 * scale
+        best, best_cost = None, math.inf
+        for ring in (6, 14, 24, 36, 50):
+            for dx, dy in dirs:
+                cx = px + dx * (ring * scale + (w / 2 if dx else 0))
+                cy = py + dy * (ring * scale + (h / 2 if dy else 0))
+                box = (cx - w / 2, cy - h / 2, cx + w / 2, cy + h / 2)
+                cost = sum(_overlap(box, b) for b in placed)
+                cost += sum(w * h * 0.5 for mx, my in marks
+                            if box[0] - 3 * scale <= mx <= box[2] + 3 * scale and box[1] - 3 * scale <= my <= box[3] + 3 * scale)
+                cost += ring * 0.01  # prefer close
+                if cost < best_cost:
+                    best, best_cost = (cx, cy, box, ring), cost
+            if best_cost < 1.0:
+                break
+        cx, cy, box, ring = best
+        placed.append(box)
+        dx_pt, dy_pt = (cx - px) / scale, (cy - py) / scale
+        x, y = ax.transData.inverted().transform((px, py))
+        arrow = dict(arrowstyle="-", color=color, lw=0.6, shrinkA=0, shrinkB=2) if ring > 6 else None
+        out.append(ax.annotate(text, (x, y), xytext=(dx_pt, dy_pt), textcoords="offset points", ha="center",
+                               va="center", fontsize=fontsize, fontweight="bold", color=color, zorder=zorder,
+                               arrowprops=arrow, annotation_clip=False,
+                               bbox=dict(boxstyle="round,pad=0.15", facecolor="white", edgecolor="none",
+                                         alpha=0.75)))
+    return out
+
+
+def _overlap(a, b) -> float:
+    w = min(a[2], b[2]) - max(a[0], b[0])
+    h = min(a[3], b[3]) - max(a[1], b[1])
+    return w * h if w > 0 and h > 0 else 0.0

@@ -36,7 +36,7 @@ from ..mission import NAV_WAYPOINT, flight_mission, to_wire
 from ..observations import SlotBatch
 from ..scenario import Scenario
 from .lifecycle import ExchangeFailed, allowed, persist
-from .liveview import LiveView, PersonStatusView, StatusSnapshot, VehicleStatus
+from .liveview import LiveView, StatusSnapshot, VehicleStatus, person_view
 from .missionstate import ClockRate, final_seq, hold_seq, same_stored_mission, with_hold_before_rtl
 from .outcome import SearchOutcome, estimate_row, final_results, statement_for
 from .store import Store, StoreReader, TelemetryRow
@@ -718,8 +718,7 @@ class Daemon:
                             v.agent.tel.battery_pct if v.agent else None,
                             v.agent.tel.mission_seq if v.agent else None, v.end_seq or None, v.lost)
               for v in self.vehicles.values()]
-        people = [PersonStatusView(p.emitter_id, float(p.radius95_m),
-                                   p.located, p.reason) for p in self._people_cache]
+        people = [person_view(p) for p in self._people_cache]
         return StatusSnapshot(t, vs, people, self._n_slots, self.sc.people.required_accuracy_m, self._replans)
 
     # -- the brain ---------------------------------------------------------------------------------------

@@ -26,10 +26,51 @@ class VehicleStatus:
 
 @dataclass(frozen=True)
 class PersonStatusView:
+    """One person as the views show it; positions in the local frame [m] (NaN when unknown).
+    ``mirror_*``: the other candidate while the estimate is ambiguous."""
+
     emitter_id: int
     radius95_m: float
     located: bool
     reason: str = ""
+    east_m: float = math.nan
+    north_m: float = math.nan
+    t_ref_s: float = math.nan
+    vel_east_m_s: float = math.nan
+    vel_north_m_s: float = math.nan
+    ambiguous: bool = False
+    mirror_east_m: float = math.nan
+    mirror_north_m: float = math.nan
+    mirror_radius95_m: float = math.nan
+
+
+def person_view(status) -> PersonStatusView:
+    """The view of a ``search.policy.PersonStatus`` (the believed candidate, and the other one
+    while the estimate is ambiguous)."""
+    def num(x) -> float:
+        try:
+            v = float(x)
+        except (TypeError, ValueError):
+            return math.nan
+        return v
+
+    xy = status.xy_m if status.xy_m is not None else (math.nan, math.nan)
+    vel = status.velocity_m_s if getattr(status, "velocity_m_s", None) is not None else (math.nan, math.nan)
+    est = status.estimate
+    ambiguous = bool(getattr(est, "ambiguous", False)) and not status.located
+    mxy, mr = (math.nan, math.nan), math.nan
+    mirror = getattr(est, "mirror", None) if ambiguous else None
+    if mirror is not None:
+        primary = tuple(float(v) for v in getattr(est, "position_xy_m", (math.nan, math.nan)))
+        cand = tuple(float(v) for v in mirror.position_xy_m)
+        # show the candidate that is not the believed one (the policy may believe the mirror)
+        if math.dist(cand, (num(xy[0]), num(xy[1]))) < 1e-6:  # the primary's own radius, when known
+            mxy, mr = primary, num(getattr(est, "mode_radius95_m", math.nan))
+        else:
+            mxy, mr = cand, num(getattr(mirror, "radius95_m", math.nan))
+    return PersonStatusView(int(status.emitter_id), num(status.radius95_m), bool(status.located), status.reason or "",
+                            num(xy[0]), num(xy[1]), num(status.t_ref_s), num(vel[0]), num(vel[1]), ambiguous,
+                            mxy[0], mxy[1], mr)
 
 
 @dataclass(frozen=True)
@@ -55,8 +96,8 @@ def _vehicle_text(v: VehicleStatus) -> str:
     return f"UAV{v.vehicle} {v.mode:<6} {batt} {state}{prog}"
 
 
-def render_lines(s: StatusSnapshot) -> list[str]:
-    """The multi-line view (terminal mode)."""
+def render_lines(s: StatusSnapshot, labels=None) -> list[str]:
+    """The multi-line view (terminal mode). ``labels``: a ``service.labels.PersonLabels``."""
     located = sum(p.located for p in s.people)
     lines = [f"uavloc  t = {s.elapsed_s:7.1f} s   slots {s.slots:>7}   replans {s.replans:>3}   "
              f"people located {located}/{len(s.people)} (within {s.required_accuracy_m:g} m)"]
@@ -67,10 +108,15 @@ def render_lines(s: StatusSnapshot) -> list[str]:
         lines.append("  " + _vehicle_text(v))
     lines.append("")
     row = []
-    for p in sorted(s.people, key=lambda p: p.emitter_id):
+    name = labels.name if labels is not None else (lambda eid: f"#{eid}")
+    def order(p):
+        lab = labels.get(p.emitter_id) if labels is not None else ""
+        return (not lab, len(lab), lab, p.emitter_id)
+
+    for p in sorted(s.people, key=order):
         r = "  ?  " if not math.isfinite(p.radius95_m) else f"{p.radius95_m:5.1f}"
-        row.append(f"#{p.emitter_id:<3} {r} m {'ok' if p.located else '..'}")
-        if len(row) == 4:
+        row.append(f"{name(p.emitter_id):<15} {r} m {'ok' if p.located else '..'}")
+        if len(row) == 3:
             lines.append("  " + "   ".join(row))
             row = []
     if row:
@@ -97,6 +143,7 @@ class LiveView:
         self.clock = clock
         self._last_draw = -math.inf
         self._drawn_lines = 0
+        self.labels = None  # a service.labels.PersonLabels: people shown as "P01 #17"
 
     def update(self, snapshot: StatusSnapshot, *, force: bool = False) -> None:
         now = self.clock()
@@ -104,7 +151,9 @@ class LiveView:
             return
         self._last_draw = now
         if self.tty:
-            lines = render_lines(snapshot)
+            if self.labels is not None:
+                self.labels.refresh()
+            lines = render_lines(snapshot, self.labels)
             # move to the top of the previous drawing and clear to the end of the screen
             up = f"\x1b[{self._drawn_lines}F" if self._drawn_lines else ""
             self.stream.write(up + "\x1b[J" + "\n".join(lines) + "\n")

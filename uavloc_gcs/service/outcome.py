@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 import logging
 import math
+import re
 from dataclasses import dataclass
 from typing import Sequence
 
@@ -99,11 +100,29 @@ def final_results(statuses, slots, scenario, frame: LocalFrame) -> list[PersonRe
         lat, lon = (float(v) for v in frame.to_wgs84(e, n))
         located = base.located or est.radius95_m <= required  # est radius <= required if base located
         resolved = located or not est.ambiguous
+        r95 = float(est.radius95_m)
         out.append(PersonResult(base.emitter_id, lat, lon, e, n, float(est.velocity_m_s[0]),
-                                float(est.velocity_m_s[1]), float(est.radius95_m),
-                                _f(est.annulus_bound_m), base.fix_time_s, located, resolved,
-                                "" if located else base.reason, float(est.t_ref_s)))
+                                float(est.velocity_m_s[1]), r95, _f(est.annulus_bound_m), base.fix_time_s,
+                                located, resolved, "" if located else reason_with_radius(base.reason, r95, required),
+                                float(est.t_ref_s)))
     return [_never_located_beyond(r, required) for r in out]
+
+
+_RADIUS_TEXT = re.compile(r"95 % radius (?:[-+]?\d+(?:\.\d*)?|inf|nan) m")
+
+
+def reason_with_radius(reason: str, radius95_m: float, required_m: float) -> str:
+    """``reason`` about the radius that is reported. The policy words its reasons with the radius
+    of its own belief; the final refit reports another one, and the operator must not read two
+    radii for one person (the table said 99.2 m while the reason said 56.8 m). A reason with a
+    radius gets the reported one; a reason without one gets it appended when it exceeds the
+    required accuracy."""
+    text = f"95 % radius {radius95_m:.1f} m"
+    if _RADIUS_TEXT.search(reason):
+        return _RADIUS_TEXT.sub(text, reason)
+    if math.isfinite(radius95_m) and radius95_m > required_m and "radius" not in reason:
+        return f"{reason}; {text} > {required_m:g} m" if reason else f"{text} > {required_m:g} m"
+    return reason
 
 
 def _never_located_beyond(r: PersonResult, required_m: float) -> PersonResult:
@@ -178,7 +197,8 @@ def statement_for(people: Sequence[PersonResult], required_m: float, lost: Seque
     elif not missing:
         text = f"All {len(people)} people heard were located within {required_m:g} m (95 %)."
     else:
-        why = "; ".join(f"person {p.emitter_id}: {p.reason or 'not located'}" for p in missing)
+        why = "; ".join(f"{p.name if p.label else f'person {p.emitter_id}'}: {p.reason or 'not located'}"
+                        for p in missing)
         text = f"{len(people) - len(missing)} of {len(people)} people located within {required_m:g} m; not located: {why}."
     if lost:
         text += f" Lost contact with vehicle(s) {', '.join(map(str, lost))}."

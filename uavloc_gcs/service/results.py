@@ -12,6 +12,7 @@ import io
 import json
 import math
 from dataclasses import dataclass
+from datetime import datetime, timezone
 from pathlib import Path
 from typing import Mapping, Sequence
 from xml.sax.saxutils import escape
@@ -21,10 +22,11 @@ import numpy as np
 from ..geo import LocalFrame
 
 CSV_COLUMNS = (
-    "emitter_id", "located", "lat_deg", "lon_deg", "east_m", "north_m", "vel_east_m_s",
-    "vel_north_m_s", "radius95_m", "annulus_bound_m", "fix_time_s", "ambiguity_resolved",
-    "reason", "t_ref_s",
+    "label", "emitter_id", "state", "located", "time_utc", "t_ref_s", "lat_deg", "lon_deg", "east_m",
+    "north_m", "vel_east_m_s", "vel_north_m_s", "speed_m_s", "radius95_m", "annulus_bound_m",
+    "fix_time_s", "fix_time_utc", "ambiguity_resolved", "reason",
 )
+STATES = ("located", "heard", "given up", "never heard")
 
 
 @dataclass(frozen=True)
@@ -50,21 +52,63 @@ class PersonResult:
     ambiguity_resolved: bool
     reason: str = ""
     t_ref_s: float = math.nan  # mission time [s] the position refers to (people move)
+    label: str = ""  # "P01", ... (service.labels): the same in the table, the files and the maps
+
+    @property
+    def state(self) -> str:
+        """located, heard (not located yet / not located), given up, or never heard."""
+        return person_state(self.located, self.reason)
+
+    @property
+    def name(self) -> str:
+        """'P01 #17': the short label with the emitter id (just '#17' without a label)."""
+        return f"{self.label} #{self.emitter_id}" if self.label else f"#{self.emitter_id}"
+
+
+def person_state(located: bool, reason: str) -> str:
+    """The state a person is shown in: located, heard, given up, never heard."""
+    if located:
+        return "located"
+    if reason == "never heard":
+        return "never heard"
+    if reason.startswith("given up"):
+        return "given up"
+    return "heard"
+
+
+def utc_text(epoch_unix_s: float | None, t_s: float) -> str:
+    """ISO 8601 UTC ('2026-11-23T22:10:05.3Z') of mission time ``t_s``; '' when unknown."""
+    if epoch_unix_s is None or not (math.isfinite(epoch_unix_s) and t_s is not None and math.isfinite(t_s)):
+        return ""
+    stamp = datetime.fromtimestamp(epoch_unix_s + t_s, tz=timezone.utc)
+    return stamp.strftime("%Y-%m-%dT%H:%M:%S.") + f"{stamp.microsecond // 100000}Z"
+
+
+def _speed(p: PersonResult) -> float:
+    return math.hypot(p.vel_east_m_s, p.vel_north_m_s)
 
 
 def _num(x: float, nd: int) -> str:
     return "" if x is None or not math.isfinite(x) else f"{x:.{nd}f}"
 
 
-def people_csv(people: Sequence[PersonResult]) -> str:
+def _order(people: Sequence[PersonResult]) -> list[PersonResult]:
+    """Labelled people by label (P01, P02, ...), then the rest by emitter id."""
+    return sorted(people, key=lambda p: (not p.label, len(p.label), p.label, p.emitter_id))
+
+
+def people_csv(people: Sequence[PersonResult], epoch_unix_s: float | None = None) -> str:
+    """One row per person. ``time_utc``/``t_ref_s``: when the position was true (UTC, mission s);
+    ``fix_time_utc``/``fix_time_s``: when the person was located."""
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(CSV_COLUMNS)
-    for p in sorted(people, key=lambda p: p.emitter_id):
-        w.writerow([p.emitter_id, int(p.located), _num(p.lat_deg, 7), _num(p.lon_deg, 7),
-                    _num(p.east_m, 2), _num(p.north_m, 2), _num(p.vel_east_m_s, 3),
-                    _num(p.vel_north_m_s, 3), _num(p.radius95_m, 2), _num(p.annulus_bound_m, 2),
-                    _num(p.fix_time_s, 2), int(p.ambiguity_resolved), p.reason, _num(p.t_ref_s, 2)])
+    for p in _order(people):
+        w.writerow([p.label, p.emitter_id, p.state, int(p.located), utc_text(epoch_unix_s, p.t_ref_s),
+                    _num(p.t_ref_s, 2), _num(p.lat_deg, 7), _num(p.lon_deg, 7), _num(p.east_m, 2),
+                    _num(p.north_m, 2), _num(p.vel_east_m_s, 3), _num(p.vel_north_m_s, 3), _num(_speed(p), 3),
+                    _num(p.radius95_m, 2), _num(p.annulus_bound_m, 2), _num(p.fix_time_s, 2),
+                    utc_text(epoch_unix_s, p.fix_time_s), int(p.ambiguity_resolved), p.reason])
     return buf.getvalue()
 
 
@@ -72,24 +116,43 @@ def _clean(x: float, nd: int):
     return None if x is None or not math.isfinite(x) else round(float(x), nd)
 
 
-def people_geojson(people: Sequence[PersonResult], truth_latlon: Mapping[int, tuple] | None = None) -> str:
-    """A FeatureCollection: one Point per estimated person (properties: radius, velocity, ...),
-    plus a Point per true position (``"kind": "truth"``) when the run was simulated."""
+def _properties(p: PersonResult, epoch_unix_s: float | None) -> dict:
+    return {
+        "label": p.label, "emitter_id": p.emitter_id, "name": p.name, "state": p.state, "located": p.located,
+        "time_utc": utc_text(epoch_unix_s, p.t_ref_s) or None, "t_ref_s": _clean(p.t_ref_s, 2),
+        "radius95_m": _clean(p.radius95_m, 2), "annulus_bound_m": _clean(p.annulus_bound_m, 2),
+        "vel_east_m_s": _clean(p.vel_east_m_s, 3), "vel_north_m_s": _clean(p.vel_north_m_s, 3),
+        "speed_m_s": _clean(_speed(p), 3), "fix_time_s": _clean(p.fix_time_s, 2),
+        "fix_time_utc": utc_text(epoch_unix_s, p.fix_time_s) or None,
+        "ambiguity_resolved": p.ambiguity_resolved, "reason": p.reason,
+    }
+
+
+def people_geojson(people: Sequence[PersonResult], truth_latlon: Mapping[int, tuple] | None = None, *,
+                   epoch_unix_s: float | None = None, frame: LocalFrame | None = None) -> str:
+    """A FeatureCollection: one Point per estimated person (``"kind": "estimate"``; properties:
+    label, state, UTC time and mission seconds of the position, velocity, radius, ...), its 95 %
+    circle as a Polygon (``"kind": "circle95"``, when ``frame`` is given), plus a Point per true
+    position (``"kind": "truth"``) when the run was simulated."""
     feats = []
-    for p in sorted(people, key=lambda p: p.emitter_id):
+    for p in _order(people):
         if not (math.isfinite(p.lat_deg) and math.isfinite(p.lon_deg)):
             continue
         feats.append({
             "type": "Feature",
             "geometry": {"type": "Point", "coordinates": [round(p.lon_deg, 7), round(p.lat_deg, 7)]},
-            "properties": {
-                "kind": "estimate", "emitter_id": p.emitter_id, "located": p.located,
-                "radius95_m": _clean(p.radius95_m, 2), "annulus_bound_m": _clean(p.annulus_bound_m, 2),
-                "vel_east_m_s": _clean(p.vel_east_m_s, 3), "vel_north_m_s": _clean(p.vel_north_m_s, 3),
-                "fix_time_s": _clean(p.fix_time_s, 2), "ambiguity_resolved": p.ambiguity_resolved,
-                "reason": p.reason,
-            },
+            "properties": {"kind": "estimate", **_properties(p, epoch_unix_s)},
         })
+        if frame is not None and math.isfinite(p.radius95_m) and p.radius95_m > 0:
+            ring = _circle_latlon(frame, p.east_m, p.north_m, p.radius95_m)
+            feats.append({
+                "type": "Feature",
+                "geometry": {"type": "Polygon",
+                             "coordinates": [[[round(float(lo), 7), round(float(la), 7)] for la, lo in ring]]},
+                "properties": {"kind": "circle95", "label": p.label, "emitter_id": p.emitter_id,
+                               "state": p.state, "radius95_m": _clean(p.radius95_m, 2),
+                               "time_utc": utc_text(epoch_unix_s, p.t_ref_s) or None},
+            })
     for eid, (lat, lon) in sorted((truth_latlon or {}).items()):
         feats.append({
             "type": "Feature",
@@ -104,22 +167,41 @@ def _circle_latlon(frame: LocalFrame, e: float, n: float, r: float, k: int = 36)
     return frame.to_wgs84_latlon(np.column_stack([e + r * np.cos(a), n + r * np.sin(a)]))
 
 
-def people_kml(people: Sequence[PersonResult], frame: LocalFrame, name: str = "uavloc") -> str:
-    """KML for Google Earth: a placemark per person and its 95 % circle."""
+# KML colours are aabbggrr
+_KML_STYLE = {"located": "ff2ca02c", "heard": "ff0e7fff", "given up": "ff2827d6", "never heard": "ff7f7f7f"}
+
+
+def people_kml(people: Sequence[PersonResult], frame: LocalFrame, name: str = "uavloc", *,
+               epoch_unix_s: float | None = None) -> str:
+    """KML for Google Earth: a placemark per person and its 95 % circle, each with a TimeStamp
+    (the UTC time the position refers to) so the time slider works; colour by state."""
     out = ['<?xml version="1.0" encoding="UTF-8"?>',
            '<kml xmlns="http://www.opengis.net/kml/2.2"><Document>',
            f"<name>{escape(name)}</name>"]
-    for p in sorted(people, key=lambda p: p.emitter_id):
+    for state, color in _KML_STYLE.items():
+        sid = state.replace(" ", "-")
+        out.append(f'<Style id="{sid}"><IconStyle><color>{color}</color></IconStyle>'
+                   f"<LineStyle><color>{color}</color><width>2</width></LineStyle>"
+                   f"<PolyStyle><color>33{color[2:]}</color></PolyStyle></Style>")
+    for p in _order(people):
         if not (math.isfinite(p.lat_deg) and math.isfinite(p.lon_deg)):
             continue
-        state = "located" if p.located else f"not located: {p.reason}"
-        desc = f"95 % radius {_num(p.radius95_m, 1)} m; {state}"
-        out.append(f"<Placemark><name>person {p.emitter_id}</name><description>{escape(desc)}</description>"
+        when = utc_text(epoch_unix_s, p.t_ref_s)
+        stamp = f"<TimeStamp><when>{when}</when></TimeStamp>" if when else ""
+        style = f"<styleUrl>#{p.state.replace(' ', '-')}</styleUrl>"
+        state = "located" if p.located else f"{p.state}: {p.reason}" if p.reason else p.state
+        desc = (f"{state}; 95 % radius {_num(p.radius95_m, 1)} m; position at {when or '?'} UTC "
+                f"(mission {_num(p.t_ref_s, 1)} s); velocity east {_num(p.vel_east_m_s, 2)} m/s, "
+                f"north {_num(p.vel_north_m_s, 2)} m/s")
+        data = "".join(f'<Data name="{k}"><value>{escape("" if v is None else str(v))}</value></Data>'
+                       for k, v in _properties(p, epoch_unix_s).items())
+        out.append(f"<Placemark><name>{escape(p.name)}</name>{stamp}{style}"
+                   f"<description>{escape(desc)}</description><ExtendedData>{data}</ExtendedData>"
                    f"<Point><coordinates>{p.lon_deg:.7f},{p.lat_deg:.7f},0</coordinates></Point></Placemark>")
         if math.isfinite(p.radius95_m):
             ring = _circle_latlon(frame, p.east_m, p.north_m, p.radius95_m)
             coords = " ".join(f"{lon:.7f},{lat:.7f},0" for lat, lon in ring)
-            out.append(f"<Placemark><name>person {p.emitter_id} 95 %</name><Polygon><outerBoundaryIs>"
+            out.append(f"<Placemark><name>{escape(p.name)} 95 %</name>{stamp}{style}<Polygon><outerBoundaryIs>"
                        f"<LinearRing><coordinates>{coords}</coordinates></LinearRing></outerBoundaryIs>"
                        "</Polygon></Placemark>")
     out.append("</Document></kml>")
@@ -127,16 +209,18 @@ def people_kml(people: Sequence[PersonResult], frame: LocalFrame, name: str = "u
 
 
 def results_table(people: Sequence[PersonResult], required_accuracy_m: float,
-                  truth_xy_m: Mapping[int, Sequence[float]] | None = None) -> str:
+                  truth_xy_m: Mapping[int, Sequence[float]] | None = None, *,
+                  epoch_unix_s: float | None = None) -> str:
     """A plain-text table for the terminal, with the error to the truth when simulated."""
-    head = f"{'person':>10}  {'lat':>11}  {'lon':>11}  {'95% r':>7}  {'status':<10}"
+    width = max([13, *(len(p.name) for p in people)])
+    head = f"{'person':<{width}}  {'lat':>11}  {'lon':>11}  {'95% r':>7}  {'at (UTC)':>10}  {'status':<10}"
     if truth_xy_m:
         head += f"  {'true error':>10}"
     lines = [head, "-" * len(head)]
-    for p in sorted(people, key=lambda p: p.emitter_id):
-        status = "located" if p.located else "NOT"
-        row = (f"{p.emitter_id:>10}  {_num(p.lat_deg, 6):>11}  {_num(p.lon_deg, 6):>11}  "
-               f"{_num(p.radius95_m, 1) + ' m' if math.isfinite(p.radius95_m) else '-':>7}  {status:<10}")
+    for p in _order(people):
+        at = utc_text(epoch_unix_s, p.t_ref_s)[11:21] or "-"
+        row = (f"{p.name:<{width}}  {_num(p.lat_deg, 6):>11}  {_num(p.lon_deg, 6):>11}  "
+               f"{_num(p.radius95_m, 1) + ' m' if math.isfinite(p.radius95_m) else '-':>7}  {at:>10}  {p.state:<10}")
         if truth_xy_m:
             t = truth_xy_m.get(p.emitter_id)
             err = math.hypot(p.east_m - t[0], p.north_m - t[1]) if t is not None and math.isfinite(p.east_m) else math.nan
@@ -152,8 +236,9 @@ def results_table(people: Sequence[PersonResult], required_accuracy_m: float,
 def write_results(out_dir: str | Path, people: Sequence[PersonResult], *, frame: LocalFrame,
                   area_latlon_deg: np.ndarray, tracks_latlon_deg: Mapping[int, np.ndarray],
                   required_accuracy_m: float, truth_xy_m: Mapping[int, Sequence[float]] | None = None,
-                  name: str = "uavloc") -> list[Path]:
-    """Write people.csv, people.geojson, people.kml, result.png and results.txt into ``out_dir``."""
+                  name: str = "uavloc", epoch_unix_s: float | None = None) -> list[Path]:
+    """Write people.csv, people.geojson, people.kml, result.png and results.txt into ``out_dir``.
+    ``epoch_unix_s``: UNIX time of mission time 0 (the UTC times in the files; omitted when None)."""
     from ..atomicfile import atomic_write_text
 
     out = Path(out_dir)
@@ -164,10 +249,10 @@ def write_results(out_dir: str | Path, people: Sequence[PersonResult], *, frame:
         ll = frame.to_wgs84_latlon(np.array([truth_xy_m[i][:2] for i in ids], dtype=float))
         truth_latlon = {i: (float(a), float(b)) for i, (a, b) in zip(ids, ll)}
     files = {
-        "people.csv": people_csv(people),
-        "people.geojson": people_geojson(people, truth_latlon),
-        "people.kml": people_kml(people, frame, name),
-        "results.txt": results_table(people, required_accuracy_m, truth_xy_m),
+        "people.csv": people_csv(people, epoch_unix_s),
+        "people.geojson": people_geojson(people, truth_latlon, epoch_unix_s=epoch_unix_s, frame=frame),
+        "people.kml": people_kml(people, frame, name, epoch_unix_s=epoch_unix_s),
+        "results.txt": results_table(people, required_accuracy_m, truth_xy_m, epoch_unix_s=epoch_unix_s),
     }
     written = []
     for fname, text in files.items():
@@ -175,47 +260,27 @@ def write_results(out_dir: str | Path, people: Sequence[PersonResult], *, frame:
         written.append(out / fname)
     png = out / "result.png"
     render_result_png(png, people, frame=frame, area_latlon_deg=area_latlon_deg,
-                      tracks_latlon_deg=tracks_latlon_deg, truth_xy_m=truth_xy_m, title=name)
+                      tracks_latlon_deg=tracks_latlon_deg, truth_xy_m=truth_xy_m, title=name,
+                      epoch_unix_s=epoch_unix_s)
     written.append(png)
     return written
 
 
 def render_result_png(path: Path, people: Sequence[PersonResult], *, frame: LocalFrame,
                       area_latlon_deg: np.ndarray, tracks_latlon_deg: Mapping[int, np.ndarray],
-                      truth_xy_m: Mapping[int, Sequence[float]] | None, title: str) -> None:
-    """The result map in local metres (the project's shared map style, ``render.maps``): area,
-    flown tracks, estimates with their 95 % circles (green located, red not), true positions
-    joined to their estimates when the run was simulated."""
+                      truth_xy_m: Mapping[int, Sequence[float]] | None, title: str,
+                      epoch_unix_s: float | None = None) -> None:
+    """The result map in local metres (``render.estimates.result_figure``)."""
     from ..render import maps  # noqa: PLC0415
+    from ..render.estimates import result_figure  # noqa: PLC0415
 
     area = frame.to_local_xy(np.asarray(area_latlon_deg, dtype=float))
-    span = area.max(axis=0) - area.min(axis=0)
-    n_ok = sum(p.located for p in people)
-    fig, ax = maps.new_map(f"{title}: {n_ok} of {len(people)} people located",
-                           subtitle=maps.origin_caption(*frame.to_wgs84(0.0, 0.0)), extent_m=tuple(span))
-    maps.draw_area(ax, area)
-    ids = sorted(tracks_latlon_deg)
-    colors = maps.vehicle_colors(max(ids, default=0))
-    tracks = [frame.to_local_xy(np.asarray(tracks_latlon_deg[v], dtype=float)) for v in ids]
-    maps.draw_polylines(ax, tracks, [f"UAV {v} flown" for v in ids], [colors[v - 1] for v in ids],
-                        linewidth=1.0, arrows=False)
-    maps.draw_launch(ax)
-    est = [p for p in people if math.isfinite(p.east_m)]
-    for located, color, label in ((True, "#2ca02c", "located (95 % circle)"), (False, "#d62728", "not located")):
-        group = [p for p in est if p.located == located]
-        if not group:
-            continue
-        xy = np.array([[p.east_m, p.north_m] for p in group])
-        maps.draw_circles(ax, xy, [p.radius95_m for p in group], color=color, alpha=0.12)
-        maps.draw_points(ax, xy, label, color=color, marker="P", size=45,
-                         annotations=[str(p.emitter_id) for p in group])
-    if truth_xy_m:
-        t = np.array([truth_xy_m[k][:2] for k in sorted(truth_xy_m)], dtype=float)
-        maps.draw_points(ax, t, "true position", color="#111111", marker="X", size=40)
-        for p in est:
-            if p.emitter_id in truth_xy_m:
-                tx, ty = truth_xy_m[p.emitter_id][:2]
-                ax.plot([p.east_m, tx], [p.north_m, ty], color="#111111", linewidth=0.7, zorder=4)
-    maps.add_scale_bar(ax)
-    maps.add_legend(ax)
+    tracks = {v: frame.to_local_xy(np.asarray(t, dtype=float)) for v, t in tracks_latlon_deg.items() if len(t)}
+    caption = maps.origin_caption(*frame.to_wgs84(0.0, 0.0))
+    times = [utc_text(epoch_unix_s, p.t_ref_s) for p in people]
+    times = sorted(t for t in times if t)
+    if times:
+        caption += f"\npositions at {times[0][:19].replace('T', ' ')} to {times[-1][11:19]} UTC"
+    fig = result_figure(people, area_xy_m=area, tracks_xy_m=tracks, truth_xy_m=truth_xy_m, title=title,
+                        subtitle=caption)
     maps.save_figure(fig, path)

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import dataclasses
 import math
 import signal
 import threading
@@ -16,8 +17,9 @@ import numpy as np
 
 from ..scenario import Scenario
 from .daemon import Daemon, DaemonOptions
+from .labels import PersonLabels
 from .liveview import LiveView
-from .outcome import SearchOutcome
+from .outcome import SearchOutcome, statement_for
 from .results import PersonResult, results_table, write_results
 from .store import StoreReader
 
@@ -67,19 +69,67 @@ def rssi_connections_for(scenario: Scenario) -> tuple[tuple[int, str], ...]:
     return tuple(out)
 
 
+async def _run(daemon: Daemon, scenario: Scenario, options: DaemonOptions, web, on_web_url,
+               finish: Callable[[SearchOutcome], "RunResult"],
+               on_result: Callable[["RunResult"], None] | None) -> "RunResult":
+    server = feed = None
+    if web is not None:
+        from .web import MapFeed, MapServer  # noqa: PLC0415 (aiohttp only when the map is wanted)
+
+        feed = MapFeed(scenario, options.store_path, snapshot=daemon.snapshot, epoch=lambda: daemon.epoch_unix_s)
+        server = await MapServer(feed, web).start()
+        if on_web_url is not None:
+            on_web_url(server.url)
+    try:
+        outcome = await _until_stopped(daemon)  # Ctrl-C / SIGTERM: the fleet is told what to do first
+        result = await asyncio.to_thread(finish, outcome)  # the map keeps answering meanwhile
+        if feed is not None:
+            feed.set_final(result.people)  # the map then shows what the files say
+        if on_result is not None:
+            on_result(result)
+        if server is not None and web.keep:
+            try:
+                await asyncio.Event().wait()  # until Ctrl-C (asyncio.run cancels this task)
+            except asyncio.CancelledError:
+                pass
+        return result
+    finally:
+        if server is not None:
+            await server.stop()
+
+
 def run_search(scenario: Scenario, connections: Sequence[tuple[int, str]], options: DaemonOptions,
                out_dir: Path, *, view: LiveView | None = None,
                truth: Callable[[Sequence[PersonResult], float], Mapping[int, tuple]] | None = None,
-               on_daemon: Callable[[Daemon], None] | None = None) -> RunResult:
+               on_daemon: Callable[[Daemon], None] | None = None, web=None,
+               on_web_url: Callable[[str], None] | None = None,
+               on_result: Callable[[RunResult], None] | None = None) -> RunResult:
     """Run the search to its end, then write the result files into ``out_dir``.
+
+    ``web`` (a ``service.web.WebOptions``): also serve the live map while the search runs, in
+    the same event loop; ``on_web_url(url)`` is called once it listens. ``on_result(result)`` is
+    called once the files are written (before the map, with ``web.keep``, goes on serving the
+    final state until Ctrl-C).
 
     ``truth(people, epoch_unix_s)`` (simulations only) returns {emitter id: (east, north)} true
     positions at each estimate's reference time, including people that were never heard.
     """
+    labels = PersonLabels(options.store_path)
+    if view is not None:
+        view.labels = labels
     daemon = Daemon(scenario, connections, options, view=view)
     if on_daemon is not None:
         on_daemon(daemon)
-    outcome = asyncio.run(_until_stopped(daemon))
+
+    def finish(outcome: SearchOutcome) -> RunResult:
+        return _results(outcome, daemon, scenario, connections, options, out_dir, labels, truth)
+
+    return asyncio.run(_run(daemon, scenario, options, web, on_web_url, finish, on_result))
+
+
+def _results(outcome: SearchOutcome, daemon: Daemon, scenario: Scenario, connections, options: DaemonOptions,
+             out_dir: Path, labels: PersonLabels, truth) -> RunResult:
+    """Label everyone, write the files and build the table and the statement."""
     people = list(outcome.people)
     truth_xy = None
     if truth is not None:
@@ -88,13 +138,22 @@ def run_search(scenario: Scenario, connections: Sequence[tuple[int, str]], optio
         for eid in sorted(set(truth_xy) - heard):
             people.append(PersonResult(eid, math.nan, math.nan, math.nan, math.nan, math.nan, math.nan, math.nan,
                                        math.nan, math.nan, False, False, "never heard"))
+    labels.refresh()
+    labels.add(sorted(p.emitter_id for p in people))  # anyone not in the store (never heard) comes last
+    people = [dataclasses.replace(p, label=labels.get(p.emitter_id)) for p in people]
+    heard = [p for p in people if p.reason != "never heard"]
+    others = tuple(v for v, _ in connections if v not in (*outcome.vehicles_home, *outcome.vehicles_lost,
+                                                          *outcome.vehicles_returning))
+    outcome = dataclasses.replace(outcome, people=tuple(heard), statement=statement_for(
+        heard, scenario.people.required_accuracy_m, outcome.vehicles_lost, others, outcome.vehicles_returning))
+    epoch = daemon.epoch_unix_s
     with StoreReader(options.store_path) as rd:
         tracks = rd.tracks()
     frame = scenario.frame
     files = write_results(out_dir, people, frame=frame, area_latlon_deg=np.array(scenario.polygon_latlon_deg),
                           tracks_latlon_deg=tracks, required_accuracy_m=scenario.people.required_accuracy_m,
-                          truth_xy_m=truth_xy, name=scenario.name)
-    table = results_table(people, scenario.people.required_accuracy_m, truth_xy)
+                          truth_xy_m=truth_xy, name=scenario.name, epoch_unix_s=epoch)
+    table = results_table(people, scenario.people.required_accuracy_m, truth_xy, epoch_unix_s=epoch)
     return RunResult(outcome, tuple(people), table, tuple(files))
 
 

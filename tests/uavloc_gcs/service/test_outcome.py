@@ -166,3 +166,43 @@ def small_sc_and_fake(monkeypatch):
                                       [10] * 3)
 
     return sc, fake, slots
+
+
+def _crossing_lanes(sc, world):
+    """An east-west then a north-south pass: an unambiguous fit of about 9 m."""
+    from uavloc_gcs.observations import SlotBatch
+
+    t = np.arange(0.0, 20.0, sc.channel.slot_s)
+    a = world.hear_track(1, t, np.column_stack([150.0 + 15.0 * t, np.full(len(t), 40.0), np.full(len(t), 100.0)]))
+    b = world.hear_track(1, t + 30.0, np.column_stack([np.full(len(t), 380.0), 15.0 * t - 60.0,
+                                                       np.full(len(t), 100.0)]))
+    return SlotBatch.concat([a, b])
+
+
+def test_the_reason_names_the_radius_that_is_reported():
+    """Regression: the table said 99.2 m while the reason (the policy's words, about the policy's
+    own belief) said 56.8 m for the same person. The final refit's radius is reported, so the
+    reason must name that one."""
+    from sim_link.world import World
+    from tests.e2e_helpers import small_scenario
+    from uavloc_gcs.service.outcome import final_results
+
+    sc = small_scenario(seed=5).replace(people={"required_accuracy_m": 5.0})
+    world = World.with_people(sc, [[300.0, 90.0]], seed=5)
+    eid = int(world.emitter_ids[0])
+    est = _Est(np.array([280.0, 80.0]), np.zeros(2), 60.0, 56.8, 30.0)
+    st = _Status(eid, est, False, "given up: not located after 3 looks (95 % radius 56.8 m)", (280.0, 80.0),
+                 60.0, None, 56.8)
+    (r,) = final_results([st], _crossing_lanes(sc, world), sc, sc.frame)
+    assert not r.located and r.radius95_m != 56.8
+    assert r.reason == f"given up: not located after 3 looks (95 % radius {r.radius95_m:.1f} m)"
+    assert r.state == "given up"
+
+
+def test_reason_with_radius_rewrites_or_appends():
+    from uavloc_gcs.service.outcome import reason_with_radius
+
+    assert reason_with_radius("95 % radius 56.8 m > 15 m", 99.2, 15.0) == "95 % radius 99.2 m > 15 m"
+    assert reason_with_radius("mirror ambiguity: needs a look off the flight line", 40.0, 15.0) == \
+        "mirror ambiguity: needs a look off the flight line; 95 % radius 40.0 m > 15 m"
+    assert reason_with_radius("not heard on 2 looks", 9.0, 15.0) == "not heard on 2 looks"

@@ -96,3 +96,79 @@ def test_terminal_mode_redraws_in_place():
     n = text.split("\x1b[J", 2)[1].count("\n")
     assert f"\x1b[{n}F\x1b[J" in text  # the second draw moves up exactly over the first
     assert "UAV1 AUTO" in text and "item 4/20" in text
+
+
+EPOCH = 1_795_000_000.0  # 2026-11-18T11:06:40Z
+
+
+def _labelled():
+    import dataclasses
+
+    return [dataclasses.replace(p, label=lab) for p, lab in zip(PEOPLE, ("P02", "P01", "P03"))]
+
+
+def test_every_file_carries_utc_time_mission_seconds_label_and_state():
+    people = _labelled()
+    rows = list(csv.DictReader(io.StringIO(people_csv(people, EPOCH))))
+    assert [r["label"] for r in rows] == ["P01", "P02", "P03"]  # the labels' order, not the ids'
+    assert rows[0]["emitter_id"] == "1" and rows[0]["state"] == "heard"
+    assert rows[1]["state"] == "located" and rows[2]["state"] == "never heard"
+    assert rows[1]["time_utc"] == "2026-11-18T11:07:38.5Z" and rows[1]["t_ref_s"] == "58.50"
+    assert rows[1]["fix_time_utc"] == "2026-11-18T11:07:40.0Z"
+    assert float(rows[1]["speed_m_s"]) == round(math.hypot(0.5, -0.2), 3)
+    assert rows[2]["time_utc"] == ""  # never heard: no time, no position
+    gj = json.loads(people_geojson(people, epoch_unix_s=EPOCH, frame=FRAME))
+    points = [f for f in gj["features"] if f["properties"]["kind"] == "estimate"]
+    assert [f["properties"]["name"] for f in points] == ["P01 #1", "P02 #2"]
+    assert points[1]["properties"]["time_utc"] == "2026-11-18T11:07:38.5Z"
+    assert points[1]["properties"]["state"] == "located" and points[1]["properties"]["radius95_m"] == 8.0
+    circles = [f for f in gj["features"] if f["properties"]["kind"] == "circle95"]
+    assert len(circles) == 2 and circles[0]["geometry"]["type"] == "Polygon"
+
+
+def test_kml_uses_timestamps_for_the_time_slider():
+    root = etree.fromstring(people_kml(_labelled(), FRAME, epoch_unix_s=EPOCH).encode())
+    ns = {"k": "http://www.opengis.net/kml/2.2"}
+    marks = root.findall(".//k:Placemark", ns)
+    assert [m.find("k:name", ns).text for m in marks] == ["P01 #1", "P01 #1 95 %", "P02 #2", "P02 #2 95 %"]
+    whens = [m.find("k:TimeStamp/k:when", ns).text for m in marks]
+    assert whens == ["2026-11-18T11:07:38.5Z"] * 4
+    data = {d.get("name"): d.find("k:value", ns).text for d in marks[2].findall(".//k:Data", ns)}
+    assert data["state"] == "located" and data["t_ref_s"] == "58.5" and data["vel_east_m_s"] == "0.5"
+    assert marks[0].find("k:styleUrl", ns).text == "#heard"
+
+
+def test_table_names_people_by_label_and_id_with_the_time():
+    text = results_table(_labelled(), 15.0, epoch_unix_s=EPOCH)
+    lines = text.splitlines()
+    assert lines[2].startswith("P01 #1 ") and lines[3].startswith("P02 #2 ") and lines[4].startswith("P03 #3 ")
+    assert "11:07:38.5" in lines[3] and "located" in lines[3]
+
+
+def test_terminal_view_shows_labels():
+    from uavloc_gcs.service.labels import PersonLabels
+    from uavloc_gcs.service.liveview import render_lines
+
+    labels = PersonLabels()
+    labels.add([2, 1])
+    text = "\n".join(render_lines(SNAP, labels))
+    assert "P01 #2" in text and "P02 #1" in text
+    assert text.index("P01 #2") < text.index("P02 #1")
+
+
+def test_person_view_shows_the_other_mirror_candidate_while_ambiguous():
+    from types import SimpleNamespace as NS
+
+    from uavloc_gcs.service.liveview import person_view
+
+    est = NS(ambiguous=True, position_xy_m=np.array([100.0, 50.0]),
+             mirror=NS(position_xy_m=np.array([100.0, -50.0]), radius95_m=12.0))
+    status = dict(emitter_id=7, estimate=est, located=False, reason="mirror ambiguity", t_ref_s=30.0,
+                  radius95_m=11.0, velocity_m_s=(0.5, 0.0))
+    believes_primary = person_view(NS(xy_m=(100.0, 50.0), **status))
+    assert believes_primary.ambiguous and (believes_primary.mirror_east_m, believes_primary.mirror_north_m) == (100.0, -50.0)
+    believes_mirror = person_view(NS(xy_m=(100.0, -50.0), **status))
+    assert (believes_mirror.east_m, believes_mirror.north_m) == (100.0, -50.0)
+    assert (believes_mirror.mirror_east_m, believes_mirror.mirror_north_m) == (100.0, 50.0)
+    located = person_view(NS(xy_m=(100.0, 50.0), **{**status, "located": True}))
+    assert not located.ambiguous and math.isnan(located.mirror_east_m)  # a fix has one position
