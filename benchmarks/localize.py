@@ -16,10 +16,14 @@ prints, measured in the same run:
   "ratio" = RMSE / BCRB. Because the geometry varies between runs this bound is loose (the inverse
   of an average is below the average of inverses), so "eff" adds the per-run efficiency
   sqrt(mean((e_k / CRB_k)^2)) with e_k the "near" error and CRB_k the bound of run k's own
-  geometry and truth (1.0 = efficient);
+  geometry and truth (1.0 = efficient); "effE" the same with the reported estimate's error (mirror
+  confusions included), "p90E" the 90th percentile of e_k / CRB_k;
 - coverage: the fraction of runs whose truth lies inside the calibrated 95 % radius, and inside
   the paper's annulus bound (an empty ring intersection counts as a miss);
-- the fraction flagged ambiguous, the median radius / RMSE, and the solve time per emitter;
+- the fraction flagged ambiguous, the median radius / RMSE, the median radius / ideal radius
+  ("r/ideal": the ideal is the 95 % circle of the Gaussian with run k's own bound as covariance,
+  what an efficient estimator that knew its own accuracy would report; mirror spans included),
+  and the solve time per emitter;
 
 plus the solve time for exactly 1,000 slots.
 
@@ -53,6 +57,7 @@ from uavloc_gcs.estimation import (
     estimate_emitter,
     position_rmse_bound_m,
     prior_information,
+    radius_of_probability,
 )
 from uavloc_gcs.observations import SlotBatch
 from uavloc_gcs.scenario import load_scenario
@@ -186,7 +191,7 @@ def run_family(fam: Family, runs: int, seed: int, sc) -> dict:
     prior = prior_information(channel, max_speed_m_s=vmax, model_motion=fam.model_motion,
                               estimate_tx_power=fam.estimate_tx)
     rng = np.random.default_rng(seed)
-    err, near, r95, bound, amb, ms, infos, crb2 = [], [], [], [], [], [], [], []
+    err, near, r95, bound, amb, ms, infos, crb2, ideal = [], [], [], [], [], [], [], [], []
     for k in range(runs):
         vel, start = np.zeros(2), CENTER
         if fam.target_y_m is not None:
@@ -216,16 +221,30 @@ def run_family(fam: Family, runs: int, seed: int, sc) -> dict:
                                     estimate_tx_power=fam.estimate_tx)
         infos.append(info)
         crb2.append(position_rmse_bound_m(info + prior) ** 2)
+        ideal.append(_ideal_radius(info + prior))
     err, near, r95, bound = np.array(err), np.array(near), np.array(r95), np.array(bound)
     rmse = float(np.sqrt(np.mean(err**2)))
     vt = position_rmse_bound_m(np.mean(infos, axis=0) + prior)
     return {
         "family": fam.name, "runs": len(err), "rmse": rmse, "rmse_near": float(np.sqrt(np.mean(near**2))),
         "vt": vt, "ratio": rmse / vt, "eff": float(np.sqrt(np.mean(near**2 / np.array(crb2)))),
+        "eff_e": float(np.sqrt(np.mean(err**2 / np.array(crb2)))),
+        "p90_e": float(np.percentile(err / np.sqrt(crb2), 90)),
+        "r_ideal": float(np.median(r95 / np.array(ideal))),
         "cover95": float(np.mean(err <= r95)), "cover_annulus": float(np.mean(np.nan_to_num(bound, nan=-1) >= err)),
         "ambiguous": float(np.mean(amb)), "median_r95_over_rmse": float(np.median(r95) / rmse),
         "ms": float(np.mean(ms)),
     }
+
+
+def _ideal_radius(information: np.ndarray) -> float:
+    """The 95 % radius an efficient estimator would report: the circle holding 95 % of the Gaussian
+    with the run's own bound (inverse information at the truth) as covariance."""
+    try:
+        cov = np.linalg.inv(0.5 * (information + information.T))
+    except np.linalg.LinAlgError:
+        return math.inf
+    return radius_of_probability(cov[:2, :2])
 
 
 def time_1000_slots(sc, repeats: int = 30) -> float:
@@ -309,14 +328,16 @@ def main(args: argparse.Namespace) -> int:
           f"h {sc.fleet.altitude_m:g} m, R {sc.horizontal_range_m:.1f} m, v_max {sc.people.max_speed_m_s} m/s")
     if fams:
         head = f"{'family':34s} {'runs':>4s} {'RMSE m':>7s} {'near m':>7s} {'BCRB m':>7s} {'ratio':>6s} " \
-               f"{'eff':>6s} {'cov95':>6s} {'covAnn':>6s} {'ambig':>6s} {'r95/RMSE':>8s} {'ms':>6s}"
+               f"{'eff':>6s} {'effE':>5s} {'p90E':>5s} {'cov95':>6s} {'covAnn':>6s} {'ambig':>6s} " \
+               f"{'r95/RMSE':>8s} {'r/ideal':>7s} {'ms':>6s}"
         print(head)
         print("-" * len(head))
         for fam in fams:
             r = run_family(fam, args.runs, args.seed + 1000 * FAMILIES.index(fam), sc)
             print(f"{r['family']:34s} {r['runs']:4d} {r['rmse']:7.2f} {r['rmse_near']:7.2f} {r['vt']:7.2f} "
-                  f"{r['ratio']:6.2f} {r['eff']:6.2f} {r['cover95']:6.2f} {r['cover_annulus']:6.2f} {r['ambiguous']:6.2f} "
-                  f"{r['median_r95_over_rmse']:8.2f} {r['ms']:6.1f}")
+                  f"{r['ratio']:6.2f} {r['eff']:6.2f} {r['eff_e']:5.2f} {r['p90_e']:5.2f} "
+                  f"{r['cover95']:6.2f} {r['cover_annulus']:6.2f} {r['ambiguous']:6.2f} "
+                  f"{r['median_r95_over_rmse']:8.2f} {r['r_ideal']:7.2f} {r['ms']:6.1f}")
     mfams = [f for f in MANEUVER_FAMILIES if not args.family or any(s in f.name for s in args.family)]
     if mfams:
         print("\nmaneuvering people (random_waypoint); coverage / median radius [m] at the last slot, "
