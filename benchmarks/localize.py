@@ -58,7 +58,9 @@ from uavloc_gcs.estimation import (
     position_rmse_bound_m,
     prior_information,
     radius_of_probability,
+    silence_from_track,
 )
+from uavloc_gcs.estimation.evidence import Silence
 from uavloc_gcs.observations import SlotBatch
 from uavloc_gcs.scenario import load_scenario
 
@@ -124,6 +126,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--runs", type=int, default=60, help="Monte Carlo runs per family (default 60)")
     parser.add_argument("--seed", type=int, default=1, help="base seed (default 1)")
     parser.add_argument("--family", action="append", help="only families whose name contains this text")
+    parser.add_argument("--evidence", choices=("all", "heard", "none"), default="all",
+                        help="hearing as evidence (estimate_emitter(silence=)): 'all' (slots heard and the silences "
+                             "of the legs, the default), 'heard' (the slots heard only), 'none' (off: the "
+                             "estimator's default)")
 
 
 def _leg(start, end, t0, speed, slot_s, alt):
@@ -183,7 +189,14 @@ def correlated_information(slots: SlotBatch, channel: ChannelModel, truth, vel, 
     return white.T @ white
 
 
-def run_family(fam: Family, runs: int, seed: int, sc) -> dict:
+def _silence(legs, slots: SlotBatch, slot_s: float) -> Silence:
+    """The slots of the legs at which the phone was not heard."""
+    t = np.concatenate([t for t, _ in legs])
+    x = np.vstack([x for _, x in legs])
+    return silence_from_track(t, x, slots.t_s, slot_s=slot_s)
+
+
+def run_family(fam: Family, runs: int, seed: int, sc, evidence: str = "all") -> dict:
     sc = sc.replace(simulation={"correlated_shadowing": fam.correlated, "shadowing_decorrelation_m": 20.0,
                                 "tx_power_spread_db": fam.tx_spread_db})
     channel = ChannelModel.from_scenario(sc)
@@ -200,12 +213,14 @@ def run_family(fam: Family, runs: int, seed: int, sc) -> dict:
             ang, rad = rng.uniform(0, 2 * np.pi), vmax * math.sqrt(rng.uniform())
             vel = rad * np.array([math.cos(ang), math.sin(ang)])
         world = World.with_people(sc, [start], [vel], seed=seed * 100_003 + k)
-        slots = SlotBatch.concat([world.hear_track(1, t, x) for t, x in _legs(fam.geometry, rng, reach, sc)])
+        legs = _legs(fam.geometry, rng, reach, sc)
+        slots = SlotBatch.concat([world.hear_track(1, t, x) for t, x in legs])
         if len(slots) < 3:
             continue
+        quiet = {"all": _silence(legs, slots, sc.channel.slot_s), "heard": Silence.empty()}.get(evidence)
         t0 = time.thread_time()
-        est = estimate_emitter(slots, channel, max_speed_m_s=vmax, model_motion=fam.model_motion,
-                               estimate_tx_power=fam.estimate_tx)
+        est = estimate_emitter(slots, channel, max_speed_m_s=vmax,
+                               model_motion=fam.model_motion, estimate_tx_power=fam.estimate_tx, silence=quiet)
         ms.append(1e3 * (time.thread_time() - t0))
         truth, tvel = world.positions(est.t_ref_s)[0], world.velocities(est.t_ref_s)[0]
         e = float(np.linalg.norm(est.position_xy_m - truth))
@@ -333,7 +348,7 @@ def main(args: argparse.Namespace) -> int:
         print(head)
         print("-" * len(head))
         for fam in fams:
-            r = run_family(fam, args.runs, args.seed + 1000 * FAMILIES.index(fam), sc)
+            r = run_family(fam, args.runs, args.seed + 1000 * FAMILIES.index(fam), sc, args.evidence)
             print(f"{r['family']:34s} {r['runs']:4d} {r['rmse']:7.2f} {r['rmse_near']:7.2f} {r['vt']:7.2f} "
                   f"{r['ratio']:6.2f} {r['eff']:6.2f} {r['eff_e']:5.2f} {r['p90_e']:5.2f} "
                   f"{r['cover95']:6.2f} {r['cover_annulus']:6.2f} {r['ambiguous']:6.2f} "
