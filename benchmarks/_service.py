@@ -277,7 +277,9 @@ def main() -> int:
     """``python -m benchmarks._service``: the service's numbers on the paper scenario."""
     from uavloc_gcs.scenario import load_scenario
 
-    sc = load_scenario(Path(__file__).resolve().parents[1] / "examples" / "paper.toml")
+    from uavloc_gcs.examples import example_path
+
+    sc = load_scenario(example_path("paper.toml"))
     ing = measure_ingestion(sc)
     print(f"RSSI ingestion (parse + decode + store commit, one core): {ing.rate_slots_per_s:,.0f} slots/s = "
           f"{ing.ratio:,.0f}x the paper scenario's {ing.scenario_rate_slots_per_s:.1f} slots/s (target >= 20x); "

@@ -26,9 +26,9 @@ import statistics
 import struct
 import time
 from dataclasses import dataclass, field
-from pathlib import Path
 
-EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+from ._progress import Progress
+
 HEARTBEAT_WAIT_S = 15.0
 CLEAR_ATTEMPTS = 4
 VEHICLE_TRANSFER_TIMEOUT_S = 8.0  # ArduPilot's upload timeout (PX4: 5 s)
@@ -41,6 +41,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--runs-clean", type=int, default=5, help="uploads per client at 0 %% loss (default 5)")
     p.add_argument("--autopilot", choices=("px4", "ardupilot"), default="px4", help="fake vehicle flavour")
     p.add_argument("--seed", type=int, default=1)
+    p.add_argument("--scenario", default="small", metavar="FILE.toml",
+                   help="scenario of the fake vehicle (or a shipped one: small, paper; default small)")
     p.add_argument("--no-mavsdk", action="store_true", help="measure uavloc only")
     p.add_argument("--no-upload", action="store_true", help="skip the upload comparison")
     p.add_argument("--no-service", action="store_true",
@@ -127,7 +129,9 @@ async def _measure(args: argparse.Namespace) -> list[Row]:
     from uavloc_gcs.link import clear_mission, open_link
     from uavloc_gcs.scenario import load_scenario
 
-    sc = load_scenario(EXAMPLES / "small.toml").replace(fleet={"autopilot": args.autopilot, "vehicles": 1})
+    from uavloc_gcs.examples import scenario_path
+
+    sc = load_scenario(scenario_path(args.scenario)).replace(fleet={"autopilot": args.autopilot, "vehicles": 1})
     items = _mission(args.items, args.autopilot)
 
     async def clear(conn: str) -> None:
@@ -145,13 +149,16 @@ async def _measure(args: argparse.Namespace) -> list[Row]:
                 await asyncio.sleep(VEHICLE_TRANSFER_TIMEOUT_S)
 
     rows = []
-    for loss in [float(x) for x in args.loss.split(",") if x.strip()]:
+    losses = [float(x) for x in args.loss.split(",") if x.strip()]
+    bar = Progress(sum(args.runs_clean if loss == 0 else args.runs for loss in losses))
+    for loss in losses:
         row = Row(loss)
         runs = args.runs_clean if loss == 0 else args.runs
         # one vehicle per loss rate; uavloc and MAVSDK take turns uploading to it
         async with FakeFleet(sc, speedup=1, seed=args.seed, base_port=0, faults=FaultConfig(loss=loss)) as fleet:
             (_, conn), = fleet.endpoints
             for run in range(runs):
+                bar.step(f"loss {loss:g} upload {run + 1}")
                 row.runs += 1
                 ours = None
                 await clear(conn)

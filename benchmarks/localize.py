@@ -46,7 +46,6 @@ import argparse
 import math
 import time
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
@@ -64,7 +63,8 @@ from uavloc_gcs.estimation.evidence import Silence
 from uavloc_gcs.observations import SlotBatch
 from uavloc_gcs.scenario import load_scenario
 
-PAPER = Path(__file__).resolve().parents[1] / "examples" / "paper.toml"
+from ._progress import Progress
+
 CENTER = np.array([560.0, 320.0])
 LANE_SPACING_M = 100.0
 TURN_S = 5.0
@@ -130,6 +130,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="hearing as evidence (estimate_emitter(silence=)): 'all' (slots heard and the silences "
                              "of the legs, the default), 'heard' (the slots heard only), 'none' (off: the "
                              "estimator's default)")
+    parser.add_argument("--scenario", default="paper", metavar="FILE.toml",
+                        help="channel and fleet of this scenario (or a shipped one: paper, small; default paper)")
 
 
 def _leg(start, end, t0, speed, slot_s, alt):
@@ -196,7 +198,7 @@ def _silence(legs, slots: SlotBatch, slot_s: float) -> Silence:
     return silence_from_track(t, x, slots.t_s, slot_s=slot_s)
 
 
-def run_family(fam: Family, runs: int, seed: int, sc, evidence: str = "all") -> dict:
+def run_family(fam: Family, runs: int, seed: int, sc, evidence: str = "all", bar=None) -> dict:
     sc = sc.replace(simulation={"correlated_shadowing": fam.correlated, "shadowing_decorrelation_m": 20.0,
                                 "tx_power_spread_db": fam.tx_spread_db})
     channel = ChannelModel.from_scenario(sc)
@@ -206,6 +208,8 @@ def run_family(fam: Family, runs: int, seed: int, sc, evidence: str = "all") -> 
     rng = np.random.default_rng(seed)
     err, near, r95, bound, amb, ms, infos, crb2, ideal = [], [], [], [], [], [], [], [], []
     for k in range(runs):
+        if bar is not None:
+            bar.step(f"{fam.name} run {k + 1}")
         vel, start = np.zeros(2), CENTER
         if fam.target_y_m is not None:
             vel, start = LAWNMOWER_VELOCITY, np.array([600.0, fam.target_y_m])
@@ -301,7 +305,7 @@ def _maneuver_slots(fam: ManeuverFamily, world: World, rng: np.random.Generator,
     return SlotBatch.concat([slots, world.hear_track(2, t3, x3)])  # another vehicle looks
 
 
-def run_maneuver_family(fam: ManeuverFamily, runs: int, seed: int, sc) -> dict:
+def run_maneuver_family(fam: ManeuverFamily, runs: int, seed: int, sc, bar=None) -> dict:
     if fam.area_m is not None:
         sc = sc.replace(area={"width_m": fam.area_m[0], "height_m": fam.area_m[1]})
     channel = ChannelModel.from_scenario(sc)
@@ -310,6 +314,8 @@ def run_maneuver_family(fam: ManeuverFamily, runs: int, seed: int, sc) -> dict:
     rows = {"new": [], "cv": []}
     span = []
     for k in range(runs):
+        if bar is not None:
+            bar.step(f"{fam.name} run {k + 1}")
         world = World(sc, seed=seed * 100_003 + k, people=1, motion="random_waypoint", horizon_s=1800.0)
         slots = _maneuver_slots(fam, world, rng, sc, channel, vmax)
         if len(slots) < 3:
@@ -337,8 +343,12 @@ def run_maneuver_family(fam: ManeuverFamily, runs: int, seed: int, sc) -> dict:
 
 
 def main(args: argparse.Namespace) -> int:
-    sc = load_scenario(PAPER)
+    from uavloc_gcs.examples import scenario_path
+
+    sc = load_scenario(scenario_path(args.scenario))
     fams = [f for f in FAMILIES if not args.family or any(s in f.name for s in args.family)]
+    mfams = [f for f in MANEUVER_FAMILIES if not args.family or any(s in f.name for s in args.family)]
+    bar = Progress(args.runs * (len(fams) + len(mfams)))
     print(f"uavloc bench localize: {args.runs} runs per family, paper channel (eta 2, sigma 4 dB, 10 samples/slot), "
           f"h {sc.fleet.altitude_m:g} m, R {sc.horizontal_range_m:.1f} m, v_max {sc.people.max_speed_m_s} m/s")
     if fams:
@@ -348,12 +358,11 @@ def main(args: argparse.Namespace) -> int:
         print(head)
         print("-" * len(head))
         for fam in fams:
-            r = run_family(fam, args.runs, args.seed + 1000 * FAMILIES.index(fam), sc, args.evidence)
+            r = run_family(fam, args.runs, args.seed + 1000 * FAMILIES.index(fam), sc, args.evidence, bar)
             print(f"{r['family']:34s} {r['runs']:4d} {r['rmse']:7.2f} {r['rmse_near']:7.2f} {r['vt']:7.2f} "
                   f"{r['ratio']:6.2f} {r['eff']:6.2f} {r['eff_e']:5.2f} {r['p90_e']:5.2f} "
                   f"{r['cover95']:6.2f} {r['cover_annulus']:6.2f} {r['ambiguous']:6.2f} "
                   f"{r['median_r95_over_rmse']:8.2f} {r['r_ideal']:7.2f} {r['ms']:6.1f}")
-    mfams = [f for f in MANEUVER_FAMILIES if not args.family or any(s in f.name for s in args.family)]
     if mfams:
         print("\nmaneuvering people (random_waypoint); coverage / median radius [m] at the last slot, "
               "and predicted +30 s, +60 s; 'CV' = pure constant-velocity model")
@@ -363,7 +372,7 @@ def main(args: argparse.Namespace) -> int:
         print(head)
         print("-" * len(head))
         for fam in mfams:
-            r = run_maneuver_family(fam, args.runs, args.seed + 5000 + 1000 * MANEUVER_FAMILIES.index(fam), sc)
+            r = run_maneuver_family(fam, args.runs, args.seed + 5000 + 1000 * MANEUVER_FAMILIES.index(fam), sc, bar)
             n, c = r["new"], r["cv"]
             print(f"{r['family']:30s} {r['runs']:4d} {r['span']:6.0f} {n['rmse']:7.2f} {n['median_err']:6.2f} {n['ambiguous']:5.2f} "
                   f"{n['cover'][0]:5.2f} {n['median_r'][0]:6.1f} {n['cover'][1]:5.2f} {n['median_r'][1]:6.1f} "

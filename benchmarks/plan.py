@@ -26,6 +26,8 @@ import numpy as np
 
 from uavloc_gcs.planning import RoutingProblem, Target, VehicleState, lower_bound_s, solve
 
+from ._progress import Progress
+
 AREA_M = (1120.0, 640.0)
 FAMILIES = ("paper", "clustered", "uniform", "mtsp", "moving")
 ENERGY_J = 250e3  # generous: ~25 km at 25 m/s; the energy constraint is tested elsewhere
@@ -39,7 +41,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--size", type=int, default=30, help="people in the other families (default 30)")
     parser.add_argument("--seeds", type=int, default=2, help="instances per family and size (default 2)")
     parser.add_argument("--time-limit", type=float, default=1.0, help="budget per solver run [s] (default 1)")
-    parser.add_argument("--vehicles", type=int, default=4)
+    parser.add_argument("--vehicles", type=int, help="vehicles (default 4, or the scenario's)")
+    parser.add_argument("--scenario", metavar="FILE.toml",
+                        help="take area size, vehicles and speed from this scenario (or a shipped one: "
+                             "paper, small); default: the paper's 1120 m x 640 m, 4 vehicles, 25 m/s")
     parser.add_argument("--no-anchors", action="store_true", help="skip OR-Tools and PyVRP")
     parser.add_argument("--no-baselines", action="store_true", help="skip plain EPSO/PSO/GA")
     parser.add_argument("--plain-iters", type=int, default=0, metavar="N",
@@ -48,9 +53,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--verbose", action="store_true", help="one line per instance")
 
 
-def make_instance(family: str, n: int, m: int, seed: int) -> RoutingProblem:
+def make_instance(family: str, n: int, m: int, seed: int, area_m=AREA_M, speed_m_s: float = 25.0,
+                  energy_j: float = ENERGY_J) -> RoutingProblem:
     rng = np.random.default_rng([FAMILIES.index(family), n, seed])
-    w, h = AREA_M
+    w, h = area_m
     launch = (0.0, 0.0)
     radii = rng.uniform(20.0, 80.0, n)
     vel = np.zeros((n, 2))
@@ -72,11 +78,11 @@ def make_instance(family: str, n: int, m: int, seed: int) -> RoutingProblem:
         vel = 1.5 * np.stack([np.cos(ang), np.sin(ang)], axis=1)
     else:
         raise ValueError(f"unknown family {family!r}")
-    vehicles = tuple(VehicleState(f"uav{k + 1}", (float(starts[k, 0]), float(starts[k, 1])), launch, ENERGY_J)
+    vehicles = tuple(VehicleState(f"uav{k + 1}", (float(starts[k, 0]), float(starts[k, 1])), launch, energy_j)
                      for k in range(m))
     targets = tuple(Target(f"p{i + 1}", (float(xy[i, 0]), float(xy[i, 1])),
                            (float(vel[i, 0]), float(vel[i, 1])), float(radii[i])) for i in range(n))
-    return RoutingProblem(vehicles, targets, 25.0)
+    return RoutingProblem(vehicles, targets, float(speed_m_s))
 
 
 def _gmean(x) -> float:
@@ -106,12 +112,27 @@ def _run_instance(p: RoutingProblem, args, seed: int) -> dict:
     return row
 
 
+def _world(args: argparse.Namespace):
+    """(area (w, h) [m], vehicles, speed [m/s], energy [J]) from --scenario, else the paper's."""
+    if not args.scenario:
+        return AREA_M, args.vehicles or 4, 25.0, ENERGY_J
+    from uavloc_gcs.examples import scenario_path
+    from uavloc_gcs.scenario import load_scenario
+
+    sc = load_scenario(scenario_path(args.scenario))
+    xy = np.asarray(sc.area_xy_m())
+    area = tuple(float(v) for v in np.ptp(xy, axis=0))
+    return area, args.vehicles or sc.fleet.vehicles, sc.fleet.speed_m_s, max(ENERGY_J, sc.fleet.energy_budget_j)
+
+
 def main(args: argparse.Namespace) -> int:
     families = [f.strip() for f in args.families.split(",") if f.strip()]
     sizes = [int(s) for s in args.paper_sizes.split(",") if s.strip()]
     plain = (f"{args.plain_iters} iterations x 40" if args.plain_iters else f"{args.time_limit:g} s")
-    print(f"uavloc bench plan: {args.vehicles} vehicles at 25 m/s, area {AREA_M[0]:.0f} m x {AREA_M[1]:.0f} m, "
+    area, args.vehicles, speed, energy = _world(args)
+    print(f"uavloc bench plan: {args.vehicles} vehicles at {speed:g} m/s, area {area[0]:.0f} m x {area[1]:.0f} m, "
           f"budget {args.time_limit:g} s per solver run (plain EPSO/PSO/GA: {plain}), {args.seeds} seed(s)")
+    bar = Progress(sum(len(sizes) if f == "paper" else 1 for f in families) * args.seeds)
     t_all = time.perf_counter()
     table = []
     for fam in families:
@@ -119,8 +140,9 @@ def main(args: argparse.Namespace) -> int:
         ns = sizes if fam == "paper" else [args.size]
         for n in ns:
             for seed in range(args.seeds):
-                p = make_instance(fam, n, args.vehicles, seed)
+                p = make_instance(fam, n, args.vehicles, seed, area, speed, energy)
                 row = _run_instance(p, args, seed)
+                bar.step(f"{fam} n={n} seed={seed}")
                 row["n"] = n
                 rows.append(row)
                 if args.verbose:

@@ -21,27 +21,32 @@ from __future__ import annotations
 import argparse
 import math
 import time
-from pathlib import Path
 
 import numpy as np
 
-PAPER = Path(__file__).resolve().parents[1] / "examples" / "paper.toml"
+from ._progress import Progress
+
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--runs", type=int, default=6, help="simulated worlds per layout (default 6; 20 for the README)")
     parser.add_argument("--seed", type=int, default=100, help="first world seed (default 100)")
-    parser.add_argument("--scenario", default=str(PAPER), help="scenario file (default examples/paper.toml)")
+    parser.add_argument("--scenario", default="paper",
+                        help="scenario file, or a shipped one by name: paper, small (default paper)")
     parser.add_argument("--time-limit", type=float, default=0.3, help="planner time limit per replan, s (default 0.3)")
 
 
-def run_layout(sc, coverage: str, seeds: list[int], time_limit_s: float) -> list:
+def run_layout(sc, coverage: str, seeds: list[int], time_limit_s: float, bar=None) -> list:
     from sim_link.missionsim import simulate_mission
     from sim_link.world import World
 
     scx = sc.replace(scan={"coverage": coverage})
-    return [simulate_mission(scx, World(scx, seed=s), seed=k, time_limit_s=time_limit_s)
-            for k, s in enumerate(seeds)]
+    out = []
+    for k, s in enumerate(seeds):
+        out.append(simulate_mission(scx, World(scx, seed=s), seed=k, time_limit_s=time_limit_s))
+        if bar is not None:
+            bar.step(f"{coverage} world {k + 1}")
+    return out
 
 
 def summarize(results: list, required_accuracy_m: float) -> dict:
@@ -66,7 +71,9 @@ def main(args: argparse.Namespace) -> int:
     from uavloc_gcs.scan import plan_scan
     from uavloc_gcs.scenario import load_scenario
 
-    sc = load_scenario(args.scenario)
+    from uavloc_gcs.examples import scenario_path
+
+    sc = load_scenario(scenario_path(args.scenario))
     seeds = [args.seed + k for k in range(args.runs)]
     e_th = sc.people.required_accuracy_m
     print(f"scan layouts on '{sc.name}': {args.runs} paired worlds ({sc.simulation.people} people, "
@@ -77,9 +84,10 @@ def main(args: argparse.Namespace) -> int:
     print(head)
     print("-" * len(head))
     res = {}
+    bar = Progress(2 * len(seeds))
     for cov in ("double", "single"):
         t0 = time.process_time()
-        res[cov] = run_layout(sc, cov, seeds, args.time_limit)
+        res[cov] = run_layout(sc, cov, seeds, args.time_limit, bar)
         s = summarize(res[cov], e_th)
         spacing = plan_scan(sc.replace(scan={"coverage": cov})).lane_spacing_m
         m, ci, _ = s["mission"]

@@ -5,7 +5,14 @@ UAVLOC_RSSI_BATCH of its companion) is packed as MAVLink 2 exactly as on the wir
 per simulated second, from arming to landing. No sockets: the vehicles run in-process on the
 scenario's world, so the numbers are deterministic for a seed.
 
-    python -m sim_link.budget examples/paper.toml [--seed 1] [--signed]
+Two RSSI paths (docs/readme/daemon.md, "The RSSI path"): ``through`` -- the companion's RSSI goes
+through the autopilot (ArduPilot with MAVn_OPTIONS bit 3) and shares the one radio with the
+telemetry; ``beside`` -- it goes on a link of its own (a second radio, or a router on the
+companion), so the autopilot's radio carries only the telemetry and the RSSI link only the
+companion's messages (component 191). A router on the companion that merges both onto one radio
+costs the same bytes as ``through``.
+
+    python -m sim_link.budget examples/paper.toml [--seed 1] [--signed] [--path through|beside]
 """
 
 from __future__ import annotations
@@ -37,6 +44,8 @@ class VehicleBudget:
     bytes_by_type: dict
     rssi_entries: int
     rssi_messages: int
+    mean_by_component: dict = None  # component id (1 autopilot, 191 companion) -> mean B/s
+    peak_by_component: dict = None  # component id -> busiest 1 s window B/s
 
 
 def measure(scenario: Scenario, *, seed: int | None = None, signed: bool = False,
@@ -63,6 +72,7 @@ def measure(scenario: Scenario, *, seed: int | None = None, signed: bool = False
         v.arm()
         codecs = {c: mav.MAVLink(None, srcSystem=idx, srcComponent=c) for c in (1, 191)}
         per_s: dict[int, int] = {}
+        per_s_comp: dict[int, dict[int, int]] = {1: {}, 191: {}}
         by_type: dict[str, int] = {}
         entries = msgs = 0
         t = 0.0
@@ -72,19 +82,26 @@ def measure(scenario: Scenario, *, seed: int | None = None, signed: bool = False
                 n = len(r.msg.pack(codecs[r.component])) + (SIGNATURE_BYTES if signed else 0)
                 sec = int(np.floor(v.t_s - 1e-9))
                 per_s[sec] = per_s.get(sec, 0) + n
+                comp = per_s_comp[r.component]
+                comp[sec] = comp.get(sec, 0) + n
                 name = r.msg.get_type()
                 by_type[name] = by_type.get(name, 0) + n
                 if name == "UAVLOC_RSSI_BATCH":
                     entries += r.msg.count
                     msgs += 1
-        series = np.array([per_s.get(s, 0) for s in range(int(np.ceil(t)))], dtype=float)
+        secs = range(int(np.ceil(t)))
+        series = np.array([per_s.get(s, 0) for s in secs], dtype=float)
+        comp_series = {c: np.array([d.get(s, 0) for s in secs], dtype=float) for c, d in per_s_comp.items()}
         out.append(VehicleBudget(idx, t, float(series.mean()), float(series.max()),
                                  {k: by_type[k] / t for k in sorted(by_type, key=lambda k: -by_type[k])},
-                                 entries, msgs))
+                                 entries, msgs, {c: float(x.mean()) for c, x in comp_series.items()},
+                                 {c: float(x.max()) for c, x in comp_series.items()}))
     return out
 
 
-def report(budgets: list[VehicleBudget]) -> str:
+def report(budgets: list[VehicleBudget], path: str = "through") -> str:
+    if path == "beside":
+        return _report_beside(budgets)
     lines = ["| vehicle | flight [s] | mean [B/s] | peak 1 s [B/s] | of 57.6 kbit/s (peak) | RSSI B/s | entries/msg |",
              "|---|---|---|---|---|---|---|"]
     for b in budgets:
@@ -99,14 +116,27 @@ def report(budgets: list[VehicleBudget]) -> str:
     return "\n".join(lines)
 
 
+def _report_beside(budgets: list[VehicleBudget]) -> str:
+    lines = ["| vehicle | autopilot radio mean / peak [B/s] | of 57.6 kbit/s (peak) | RSSI link mean / peak [B/s] "
+             "| of 57.6 kbit/s (peak) |", "|---|---|---|---|---|"]
+    for b in budgets:
+        am, ap_ = b.mean_by_component[1], b.peak_by_component[1]
+        rm, rp = b.mean_by_component[191], b.peak_by_component[191]
+        lines.append(f"| uav{b.vehicle} | {am:.0f} / {ap_:.0f} | {100 * ap_ / RADIO_BYTES_S:.0f} % | {rm:.0f} / {rp:.0f} | "
+                     f"{100 * rp / RADIO_BYTES_S:.0f} % |")
+    return "\n".join(lines)
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m sim_link.budget", description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("scenario")
     p.add_argument("--seed", type=int, default=None)
     p.add_argument("--signed", action="store_true", help="count the 13-byte MAVLink 2 signature too")
+    p.add_argument("--path", choices=("through", "beside"), default="through",
+                   help="RSSI through the autopilot's radio (default) or on a link of its own")
     a = p.parse_args(argv)
-    print(report(measure(load_scenario(a.scenario), seed=a.seed, signed=a.signed)))
+    print(report(measure(load_scenario(a.scenario), seed=a.seed, signed=a.signed), a.path))
     return 0
 
 

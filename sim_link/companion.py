@@ -4,9 +4,18 @@ Attach it to ArduPilot or PX4 SITL (``tcp:127.0.0.1:5760``, ``udpin:0.0.0.0:1454
 follows the autopilot's GLOBAL_POSITION_INT, asks :class:`sim_link.world.World` what a receiver at
 that position hears in each time slot (the same world model the fake vehicles use), and sends
 UAVLOC_RSSI_BATCH from component 191 of the autopilot's system, with a 1 Hz HEARTBEAT
-(MAV_TYPE_ONBOARD_CONTROLLER). The autopilot routes the messages to the ground station as a real
-companion's would (ArduPilot forwards unknown messages; PX4 needs MAVLink forwarding enabled on
-both instances, ``mavlink start ... -f``).
+(MAV_TYPE_ONBOARD_CONTROLLER).
+
+Two paths to the ground (docs/readme/daemon.md, "The RSSI path"):
+
+- through the autopilot (default): the batches go to ``autopilot_url`` and the autopilot routes
+  them to the ground station as a real companion's. ArduPilot forwards a message id it does not
+  know only with ``MAVn_OPTIONS`` bit 3 (value 8) set on the companion's serial port; PX4 drops
+  message ids its dialect does not know, so on PX4 this path delivers nothing;
+- beside the autopilot (``rssi_url``): the batches (and the heartbeat) go to their own
+  connection, as a router on the companion (mavlink-router) or a second radio would carry them,
+  and the daemon listens there (``[link] rssi_connections``). Positions and time are still read
+  from the autopilot at ``autopilot_url``.
 
 Time: the autopilot's SYSTEM_TIME pairs UNIX time with its boot clock; each position is stamped
 ``unix = time_unix_usec + (gpi.time_boot_ms - system_time.time_boot_ms)``, so a sped-up SITL stays
@@ -48,7 +57,8 @@ class CompanionStats:
 
 class CompanionEmulator:
     def __init__(self, scenario: Scenario, autopilot_url: str, *, world=None, seed: int | None = None,
-                 epoch_unix_s: float | None = None, signing_key: bytes | None = None, max_gap_s: float = MAX_GAP_S):
+                 epoch_unix_s: float | None = None, signing_key: bytes | None = None, max_gap_s: float = MAX_GAP_S,
+                 rssi_url: str | None = None):
         if world is None:
             from .world import World
 
@@ -56,6 +66,8 @@ class CompanionEmulator:
         self.scenario = scenario
         self.world = world
         self.url = autopilot_url
+        self.rssi_url = rssi_url
+        self._rssi_link: ByteLink | None = None
         self.epoch_unix_s = epoch_unix_s
         self.max_gap_s = max_gap_s
         self.signing_key = signing_key
@@ -76,6 +88,13 @@ class CompanionEmulator:
         stop = stop or asyncio.Event()
         self._link = await open_link(self.url, self._on_bytes)
         log.info("companion emulator attached to %s", self.url)
+        if self.rssi_url is not None:
+            try:
+                self._rssi_link = await open_link(self.rssi_url, lambda data: None)
+            except BaseException:
+                self._link.close()
+                raise
+            log.info("companion emulator sends RSSI beside the autopilot, to %s", self.rssi_url)
         try:
             # over udpout the autopilot only learns our address from a datagram: announce
             # ourselves at once (as system 1 until its HEARTBEAT tells us its id)
@@ -89,6 +108,8 @@ class CompanionEmulator:
                     pass
         finally:
             self._link.close()
+            if self._rssi_link is not None:
+                self._rssi_link.close()
 
     def _codec(self, sysid: int) -> mav.MAVLink:
         if self._tx is None or self._tx.srcSystem != sysid:
@@ -99,16 +120,20 @@ class CompanionEmulator:
                 self._tx.signing.timestamp = int((time.time() - 1420070400) * 1e5)
         return self._tx
 
-    def _send(self, msg) -> None:
+    def _send(self, msg, *, rssi: bool = False) -> None:
+        """To the autopilot; with ``rssi`` and a separate RSSI connection, to that one instead."""
         codec = self._codec(self.sysid or 1)
         buf = msg.pack(codec)
         codec.seq = (codec.seq + 1) % 256
         self.stats.bytes_sent += len(buf)
-        self._link.send(buf)
+        (self._rssi_link if rssi and self._rssi_link is not None else self._link).send(buf)
 
     def _send_heartbeat(self) -> None:
-        self._send(mav.MAVLink_heartbeat_message(mav.MAV_TYPE_ONBOARD_CONTROLLER, mav.MAV_AUTOPILOT_INVALID,
-                                                 0, 0, mav.MAV_STATE_ACTIVE, 3))
+        hb = mav.MAVLink_heartbeat_message(mav.MAV_TYPE_ONBOARD_CONTROLLER, mav.MAV_AUTOPILOT_INVALID,
+                                           0, 0, mav.MAV_STATE_ACTIVE, 3)
+        self._send(hb)
+        if self._rssi_link is not None and self.sysid is not None:
+            self._send(hb, rssi=True)  # the ground sees the companion on its own path too
 
     # ---------------------------------------------------------------- receiving
     def _on_bytes(self, data: bytes) -> None:
@@ -165,4 +190,4 @@ class CompanionEmulator:
         self.stats.slots += len(heard)
         for m in self._batcher.add(heard) + self._batcher.flush(now_s=t):
             self.stats.messages += 1
-            self._send(m)
+            self._send(m, rssi=True)

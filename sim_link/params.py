@@ -26,12 +26,16 @@ def default_params(v: "FakeVehicle") -> dict[str, float]:
             "WPNAV_ACCEL": c.max_accel_m_s2 * 100, "WPNAV_RADIUS": c.acceptance_radius_m * 100,
             "WPNAV_SPEED_UP": c.climb_rate_m_s * 100, "WPNAV_SPEED_DN": c.descent_rate_m_s * 100,
             "RTL_ALT": c.rtl_alt_m * 100, "BATT_CAPACITY": c.energy_budget_j / 3.6 / 16.8,
+            "RTL_SPEED": 0.0,  # 0: RTL at WPNAV_SPEED, as ArduCopter
+            "FS_GCS_ENABLE": 1.0, "FS_GCS_TIMEOUT": 5.0,  # a fleet set up for the field: RTL on link loss
         }
     return {  # PX4 units: m, m/s, m/s^2
         "MAV_SYS_ID": float(v.sysid), "MPC_XY_CRUISE": c.cruise_speed_m_s, "MPC_ACC_HOR": c.max_accel_m_s2,
+        "MPC_XY_VEL_MAX": max(12.0, c.cruise_speed_m_s),  # PX4's default cap, raised to the fleet's speed
         "NAV_ACC_RAD": c.acceptance_radius_m, "MPC_Z_V_AUTO_UP": c.climb_rate_m_s,
         "MPC_Z_V_AUTO_DN": c.descent_rate_m_s, "RTL_RETURN_ALT": c.rtl_alt_m,
         "MIS_TAKEOFF_ALT": v.flavour.takeoff_alt_default_m,
+        "NAV_DLL_ACT": 2.0, "COM_DL_LOSS_T": 10.0,  # a fleet set up for the field: return on link loss
     }
 
 

@@ -107,3 +107,12 @@ class CommandError(LinkError):
 
 class EstimationError(UavlocError):
     """Bad input to the estimator (not: "not enough data", which is a normal result)."""
+
+
+class Interrupted(UavlocError):
+    """The operator stopped a running command (Ctrl-C, SIGTERM); ``signal`` is the signal number.
+    ``str(err)`` says what was left in which state (e.g. which vehicles fly home)."""
+
+    def __init__(self, message: str, *, signal: int = 2):
+        self.signal = signal
+        super().__init__(message)

@@ -150,6 +150,15 @@ class LinkSpec:
     ``"/dev/ttyUSB0:57600"``. ``signing_key_hex`` is the fleet's 32-byte MAVLink 2 signing key as
     64 hex digits (empty = no signing). ``start = "operator"`` uploads the scan and waits for the
     operator to start each vehicle by hand. A vehicle silent for ``lost_timeout_s`` is lost.
+    ``rssi_connections[i]`` (optional, "" = none) is a second connection of vehicle i+1 that carries
+    only its companion's RSSI, beside the autopilot (a router on the companion, a second radio):
+    PX4 does not forward the RSSI message. ``set_speed_params = true`` is the operator's consent
+    to set the vehicles' speed parameters (WPNAV_SPEED, MPC_XY_CRUISE, ...) to ``fleet.speed_m_s``;
+    without it the daemon plans with the speed the vehicles will really fly and says so.
+    ``source_system`` is the daemon's own MAVLink system id: 245 by default, not 255, so that a
+    QGroundControl (255) on the same vehicles is a different ground station to the autopilot.
+    ``on_stop`` is what the airborne vehicles do when the daemon is stopped (Ctrl-C, SIGTERM):
+    ``"rtl"`` commands them home, ``"continue"`` lets them finish their missions (which end in RTL).
     """
 
     connections: list | None = None
@@ -157,7 +166,10 @@ class LinkSpec:
     tlog_path: str = ""
     start: Literal["auto", "operator"] = "auto"
     lost_timeout_s: float = 5.0
-    source_system: int = 255
+    rssi_connections: list | None = None
+    set_speed_params: bool = False
+    source_system: int = 245  # QGroundControl is 255; see docs/readme/daemon.md
+    on_stop: Literal["rtl", "continue"] = "rtl"
 
 
 @dataclass(frozen=True)
@@ -425,6 +437,16 @@ def _check_link(sc: Scenario) -> None:
         _check(len(lk.connections) == sc.fleet.vehicles,
                f"lists {len(lk.connections)} connections for {sc.fleet.vehicles} vehicles (fleet.vehicles); "
                "give one per vehicle", sc, "link.connections")
+    if lk.rssi_connections is not None:
+        for i, c in enumerate(lk.rssi_connections):
+            _check(isinstance(c, str),
+                   f"entry {i} must be a connection string (or \"\" for none), got {c!r}", sc, "link.rssi_connections")
+        _check(len(lk.rssi_connections) == sc.fleet.vehicles,
+               f"lists {len(lk.rssi_connections)} connections for {sc.fleet.vehicles} vehicles (fleet.vehicles); "
+               "give one per vehicle (\"\" for a vehicle whose RSSI comes through its autopilot)",
+               sc, "link.rssi_connections")
+    _check(isinstance(lk.set_speed_params, bool), f"must be true or false, got {lk.set_speed_params!r}",
+           sc, "link.set_speed_params")
     if lk.signing_key_hex:
         try:
             ok = len(bytes.fromhex(lk.signing_key_hex)) == 32

@@ -155,3 +155,47 @@ def test_cli_companion_against_a_fake_autopilot():
         proc.communicate(timeout=10)
         fleet.stop()
     assert proc.returncode == 0 and time.time() - t0 < 10
+
+
+def test_companion_sends_rssi_beside_the_autopilot_when_given_its_own_connection():
+    """The path PX4 allows (it drops unknown message ids): RSSI on a connection of its own, as a
+    router on the companion would carry it; nothing of it goes through the autopilot."""
+    world = World.with_people(SC, [[0.0, 60.0], [30.0, -40.0]], seed=3)
+
+    class _Sink(asyncio.DatagramProtocol):
+        def __init__(self):
+            self.rx, self.msgs = mav.MAVLink(None), []
+            self.rx.robust_parsing = True
+
+        def datagram_received(self, data, addr):
+            self.msgs += [m for m in self.rx.parse_buffer(data) or [] if m.get_type() != "BAD_DATA"]
+
+    async def main():
+        loop = asyncio.get_running_loop()
+        transport, sink = await loop.create_datagram_endpoint(_Sink, local_addr=("127.0.0.1", 0))
+        port = transport.get_extra_info("sockname")[1]
+        async with FakeFleet(SC, speedup=20, seed=1, base_port=0, world=world, onboard_rssi=False,
+                             route=True) as fleet:
+            url = fleet.endpoints[0][1]
+            comp = CompanionEmulator(SC, url, world=world, epoch_unix_s=fleet.epoch_unix_s,
+                                     rssi_url=f"udpout:127.0.0.1:{port}")
+            stop = asyncio.Event()
+            task = asyncio.create_task(comp.run(stop))
+            gcs = await MavClient.connect(url)
+            await gcs.recv("HEARTBEAT")
+            assert (await gcs.command(1, mav.MAV_CMD_DO_SET_MODE, 1, 4)).result == 0
+            assert (await gcs.command(1, mav.MAV_CMD_COMPONENT_ARM_DISARM, 1)).result == 0
+            assert (await gcs.command(1, mav.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, 100)).result == 0
+            await asyncio.sleep(1.2)
+            stop.set()
+            await task
+            gcs.close()
+        transport.close()
+        beside = [m for m in sink.msgs if m.get_type() == "UAVLOC_RSSI_BATCH"]
+        through = [m for m in gcs.log if m.get_type() == "UAVLOC_RSSI_BATCH"]
+        assert len(beside) > 20 and not through
+        assert {(m.get_srcSystem(), m.get_srcComponent()) for m in beside} == {(1, 191)}
+        assert any(m.get_type() == "HEARTBEAT" for m in sink.msgs)
+        slots = decode_rssi_batches(beside, SC.frame, epoch_unix_s=fleet.epoch_unix_s)
+        assert set(slots.emitter_id.tolist()) == set(world.emitter_ids.tolist())
+    asyncio.run(asyncio.wait_for(main(), 30))

@@ -16,3 +16,14 @@ def test_paper_scan_telemetry_fits_a_57k6_radio_with_margin():
     # position at 5 Hz: 28-byte payload + 12 bytes of MAVLink 2 framing (+13 signature)
     assert abs(b.bytes_by_type["GLOBAL_POSITION_INT"] - 5 * (28 + 12 + 13)) < 10
     assert "uav2" in report([b])
+
+
+def test_rssi_beside_the_autopilot_splits_the_bytes_between_two_links():
+    sc = load_scenario("examples/paper.toml")
+    (b,) = measure(sc, vehicles=[2])
+    ap, comp = b.mean_by_component[1], b.mean_by_component[191]
+    assert abs(ap + comp - b.mean_bytes_s) < 1e-6 * b.mean_bytes_s
+    assert comp >= b.bytes_by_type["UAVLOC_RSSI_BATCH"] > 0  # the RSSI (+ the companion's heartbeat)
+    assert b.peak_by_component[1] < b.peak_bytes_s and b.peak_by_component[191] < b.peak_bytes_s
+    text = report([b], "beside")
+    assert "RSSI link" in text and "uav2" in text

@@ -15,7 +15,7 @@ import logging
 import os
 import sys
 
-from ..errors import ConfigError, FileFormatError, InfeasibleError, LinkError, UavlocError
+from ..errors import ConfigError, FileFormatError, InfeasibleError, Interrupted, LinkError, UavlocError
 
 # Command modules, in the order ``uavloc --help`` lists them.
 COMMANDS = [
@@ -37,12 +37,25 @@ EXIT_LINK = 3
 EXIT_FAILED = 1
 
 
+def _version() -> str:
+    """The installed distribution's version (the package's own when run from a checkout)."""
+    from importlib import metadata
+
+    from .. import __version__
+
+    try:
+        return metadata.version("uavloc")
+    except metadata.PackageNotFoundError:
+        return __version__
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="uavloc",
         description="Find people from the RSSI of their phones with a UAV fleet over MAVLink.",
     )
     parser.add_argument("-v", "--verbose", action="count", default=0, help="more log output (-vv for debug)")
+    parser.add_argument("--version", action="version", version=f"uavloc {_version()}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name in COMMANDS:
         modname = f"{__name__}.{name}"
@@ -70,6 +83,9 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_BAD_INPUT
     try:
         return int(args.func(args) or 0)
+    except Interrupted as err:
+        print(f"uavloc {args.command}: {err}", file=sys.stderr)
+        return 128 + err.signal
     except UavlocError as err:
         print(f"uavloc {args.command}: error: {err}", file=sys.stderr)
         return exit_code_for(err)

@@ -10,6 +10,9 @@ from __future__ import annotations
 
 import asyncio
 import multiprocessing as mp
+import os
+import queue as queue_mod
+import signal
 from dataclasses import dataclass
 
 from ..errors import LinkError
@@ -37,11 +40,21 @@ class FleetProcess:
         self._stop.set()
         self._proc.join(timeout_s)
         if self._proc.is_alive():
-            self._proc.terminate()
-            self._proc.join(timeout_s)
+            _kill(self._proc, timeout_s)
 
 
-def _child(scenario, kwargs: dict, queue, stop, commands) -> None:
+def _kill(proc, timeout_s: float = 5.0) -> None:
+    proc.terminate()
+    proc.join(timeout_s)
+    if proc.is_alive():
+        proc.kill()
+        proc.join(timeout_s)
+
+
+def _child(scenario, kwargs: dict, queue, stop, commands, parent_pid: int) -> None:
+    # Ctrl-C in the terminal reaches the whole process group: the parent decides when the fleet
+    # stops (after sending it home); and if the parent dies without stopping it, the fleet ends.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     from sim_link.fleet import FakeFleet
 
     async def main() -> None:
@@ -53,7 +66,7 @@ def _child(scenario, kwargs: dict, queue, stop, commands) -> None:
                                 "try another --base-port"))
             return
         queue.put(("ok", fleet.endpoints, fleet.epoch_unix_s, fleet.speedup))
-        while not stop.is_set():
+        while not stop.is_set() and os.getppid() == parent_pid:
             while not commands.empty():
                 name, *cargs = commands.get()
                 getattr(fleet, name)(*cargs)
@@ -67,13 +80,17 @@ def start_fleet_process(scenario, **kwargs) -> FleetProcess:
     """Start ``sim_link.fleet.FakeFleet(scenario, **kwargs)`` in a child process."""
     ctx = mp.get_context("spawn")
     queue, stop, commands = ctx.Queue(), ctx.Event(), ctx.Queue()
-    proc = ctx.Process(target=_child, args=(scenario, kwargs, queue, stop, commands), name="uavloc-fake-fleet", daemon=True)
+    proc = ctx.Process(target=_child, args=(scenario, kwargs, queue, stop, commands, os.getpid()),
+                       name="uavloc-fake-fleet", daemon=True)
     proc.start()
     try:
         msg = queue.get(timeout=START_TIMEOUT_S)
-    except Exception:  # queue.Empty
-        proc.terminate()
+    except queue_mod.Empty:
+        _kill(proc)
         raise LinkError(f"the fake fleet did not start within {START_TIMEOUT_S:g} s", operation="demo") from None
+    except BaseException:  # a signal while waiting: never leave the fleet behind
+        _kill(proc)
+        raise
     if msg[0] != "ok":
         proc.join(5)
         raise LinkError(msg[1], operation="demo")

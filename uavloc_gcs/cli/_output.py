@@ -45,3 +45,16 @@ def _move_dir(src: Path, dest: Path) -> None:
     if dest.exists():
         shutil.rmtree(dest)
     os.replace(src, dest)
+
+
+def check_output_file(path: str | Path, option: str) -> Path:
+    """Refuse, before any work is done, an output file that cannot be written: an existing
+    directory, or a file in a directory that does not exist (one sentence naming ``option``)."""
+    p = Path(path)
+    if p.is_dir():
+        raise ConfigError(f"{option} {path} is a directory; give a file name, e.g. {p / ('out' + (p.suffix or '.json'))}")
+    parent = p.parent if str(p.parent) else Path(".")
+    if not parent.is_dir():
+        what = "is not a directory" if parent.exists() else "does not exist"
+        raise ConfigError(f"{option} {path}: the directory {parent} {what}; create it first")
+    return p

@@ -32,6 +32,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 def options_from(args, scenario, out: Path):
     from ..link import parse_signing_key
     from ..service.daemon import DaemonOptions
+    from ..service.run import rssi_connections_for
 
     key_hex = args.signing_key if getattr(args, "signing_key", None) else scenario.link.signing_key_hex
     key = parse_signing_key(key_hex) if key_hex else None
@@ -40,13 +41,16 @@ def options_from(args, scenario, out: Path):
         store_path=out / "search.sqlite", start=getattr(args, "start", None) or scenario.link.start,
         signing_key=key, tlog_dir=tlog_dir, lost_timeout_s=scenario.link.lost_timeout_s,
         connect_timeout_s=args.connect_timeout, planner_time_limit_s=getattr(args, "planner_time_limit", None),
-        source_system=scenario.link.source_system, resume=not getattr(args, "fresh", False))
+        source_system=scenario.link.source_system, resume=not getattr(args, "fresh", False),
+        rssi_connections=rssi_connections_for(scenario), set_speed_params=scenario.link.set_speed_params,
+        on_stop=scenario.link.on_stop)
 
 
 def run(args: argparse.Namespace) -> int:
     from ..errors import ConfigError
     from ..scenario import load_scenario
     from ..service.liveview import LiveView
+    from ..service.lock import store_lock
     from ..service.run import connections_for, run_search
 
     scenario = load_scenario(args.config)
@@ -54,13 +58,14 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.out) if args.out else Path(f"uavloc-{scenario.name}")
     if out.exists() and not out.is_dir():
         raise ConfigError(f"output path {out} exists and is not a directory")
-    out.mkdir(parents=True, exist_ok=True)
-    if args.fresh:
-        for f in [out / "search.sqlite", out / "search.sqlite-wal", out / "search.sqlite-shm", *out.glob("uav*.tlog")]:
-            f.unlink(missing_ok=True)
-    opts = options_from(args, scenario, out)
-    view = LiveView(sys.stdout)
-    result = run_search(scenario, connections, opts, out, view=view)
+    with store_lock(out, "daemon"):
+        if args.fresh:
+            for f in [out / "search.sqlite", out / "search.sqlite-wal", out / "search.sqlite-shm",
+                      *out.glob("uav*.tlog")]:
+                f.unlink(missing_ok=True)
+        opts = options_from(args, scenario, out)
+        view = LiveView(sys.stdout)
+        result = run_search(scenario, connections, opts, out, view=view)
     print()
     print(result.table, end="")
     print(result.outcome.statement)

@@ -9,21 +9,17 @@ people.geojson / people.kml, result.png, the store and one .tlog per vehicle.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
+import signal
 import sys
 from pathlib import Path
-
-
-def _default_scenario() -> Path:
-    import uavloc_gcs
-
-    return Path(uavloc_gcs.__file__).resolve().parents[1] / "examples" / "paper.toml"
 
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("demo", help="paper scenario on fake vehicles + daemon + live view (about a minute)",
                        description=__doc__.replace("``", ""), formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--scenario", metavar="FILE.toml", help="scenario (default: examples/paper.toml)")
+    p.add_argument("--scenario", metavar="FILE.toml", help="scenario TOML, or a shipped one by name: paper, small (default: paper)")
     p.add_argument("--out", default="uavloc-demo", metavar="DIR", help="output directory (default uavloc-demo)")
     p.add_argument("--speedup", type=float, metavar="K", help="simulated seconds per second (default: scenario's)")
     p.add_argument("--autopilot", choices=("ardupilot", "px4"), help="fake vehicle flavour (default: scenario's)")
@@ -37,21 +33,13 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    import numpy as np
-
-    from sim_link.faults import FaultConfig
-    from sim_link.world import World
-
-    from ._fleet import start_fleet_process
-
     from ..errors import ConfigError
+    from ..examples import scenario_path
     from ..link import parse_signing_key
     from ..scenario import load_scenario
-    from ..service.daemon import DaemonOptions
-    from ..service.liveview import LiveView
-    from ..service.run import run_search
+    from ..service.lock import store_lock
 
-    sc = load_scenario(args.scenario or _default_scenario())
+    sc = load_scenario(scenario_path(args.scenario or "paper"))
     sim = {}
     if args.speedup is not None:
         sim["speedup"] = args.speedup
@@ -69,9 +57,39 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise ConfigError(f"output path {out} exists and is not a directory")
-    out.mkdir(parents=True, exist_ok=True)
-    for old in [out / "search.sqlite", out / "search.sqlite-wal", out / "search.sqlite-shm", *out.glob("uav*.tlog")]:
-        old.unlink(missing_ok=True)
+    with store_lock(out, "demo"), _terminate_raises():
+        for old in [out / "search.sqlite", out / "search.sqlite-wal", out / "search.sqlite-shm",
+                    *out.glob("uav*.tlog")]:
+            old.unlink(missing_ok=True)
+        return _run(args, sc, key, out)
+
+
+@contextlib.contextmanager
+def _terminate_raises():
+    """SIGTERM outside the search (starting the fleet, writing results) ends the demo like Ctrl-C,
+    through ``finally`` blocks, so the fake fleet's process is always stopped."""
+    from ..errors import Interrupted
+
+    def on_term(signum, _frame):
+        raise Interrupted("stopped by SIGTERM", signal=signum)
+
+    previous = signal.signal(signal.SIGTERM, on_term)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def _run(args, sc, key, out: Path) -> int:
+    import numpy as np
+
+    from sim_link.faults import FaultConfig
+    from sim_link.world import World
+
+    from ..service.daemon import DaemonOptions
+    from ..service.liveview import LiveView
+    from ..service.run import run_search
+    from ._fleet import start_fleet_process
 
     faults = FaultConfig(loss=args.loss) if args.loss else None
     print(f"uavloc demo: scenario '{sc.name}', {sc.fleet.vehicles} {sc.fleet.autopilot} vehicles, "

@@ -25,6 +25,9 @@ def run(args: argparse.Namespace) -> int:
 
     from ..errors import ConfigError
 
+    from ._output import check_output_file
+
+    check_output_file(args.out, "--out")
     if Path(args.out).suffix.lower() not in (".plan", ".waypoints", ".txt"):
         raise ConfigError(f"{args.out}: output file must end in .plan or .waypoints", key="out")
     return asyncio.run(_download(args))

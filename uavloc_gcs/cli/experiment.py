@@ -17,7 +17,7 @@ from pathlib import Path
 
 from ..errors import ConfigError
 
-DEFAULT_SCENARIO = Path(__file__).resolve().parents[2] / "examples" / "paper.toml"
+DEFAULT_SCENARIO = "paper"  # the shipped examples/paper.toml (uavloc_gcs.examples)
 
 
 def _int_list(text: str) -> tuple[int, ...]:
@@ -48,7 +48,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     pp.add_argument("--iterations", type=int, default=40, help="planner iterations per replan (default 40)")
     pp.add_argument("--error-people", type=int, default=10,
                     help="people in figure (c) (default 10; 0 to skip)")
-    pp.add_argument("--scenario", default=str(DEFAULT_SCENARIO), help="scenario TOML (default: the paper's)")
+    pp.add_argument("--scenario", default=DEFAULT_SCENARIO,
+                    help="scenario TOML, or a shipped one by name: paper, small (default: paper)")
     pp.add_argument("--plain", action="store_true",
                     help="the paper's plain optimizers: no local search, no warm start (default: both on, "
                          "as the scenario says)")
@@ -90,6 +91,7 @@ def run(args: argparse.Namespace) -> int:
         write_outputs,
     )
 
+    from ..examples import scenario_path
     from ..scenario import load_scenario
     from ._output import atomic_output_dir
 
@@ -105,7 +107,7 @@ def run(args: argparse.Namespace) -> int:
         bad = [m for m in methods if m not in ALL_METHODS]
         if bad:
             raise ConfigError(f"--methods: unknown method {bad[0]!r}; choose from {', '.join(ALL_METHODS)}")
-    sc = load_scenario(args.scenario)
+    sc = load_scenario(scenario_path(args.scenario))
     if args.coverage:
         sc = sc.replace(scan={"coverage": args.coverage})
     if args.plain:

@@ -33,6 +33,11 @@ def run(args: argparse.Namespace) -> int:
     from ..planning.jsonio import dumps_result, loads_problem
     from ..atomicfile import atomic_write_text
 
+    from ._output import check_output_file
+
+    for option, path in (("--out", args.out), ("--png", args.png)):
+        if path:
+            check_output_file(path, option)
     try:
         text = Path(args.instance).read_text(encoding="utf-8")
     except OSError as err:

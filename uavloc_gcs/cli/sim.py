@@ -36,6 +36,10 @@ def register(sub) -> None:
     p.add_argument("--companion", action="store_true", help="run the companion emulator against a real autopilot")
     p.add_argument("--autopilot", default=None, metavar="URL",
                    help="with --companion: tcp:HOST:PORT, udpout:HOST:PORT or udpin:HOST:PORT")
+    p.add_argument("--rssi-to", default=None, metavar="URL",
+                   help="with --companion: send the RSSI beside the autopilot to this connection (e.g. "
+                        "udpout:127.0.0.1:14600, the daemon's [link] rssi_connections entry) instead of "
+                        "through it; PX4 drops the RSSI message, ArduPilot forwards it only with MAVn_OPTIONS bit 3")
     p.set_defaults(func=run)
 
 
@@ -99,9 +103,12 @@ async def _run_companion(args, scenario, key, stop) -> None:
     from sim_link.connection import parse_url
 
     parse_url(args.autopilot)
-    comp = CompanionEmulator(scenario, args.autopilot, seed=args.seed, signing_key=key)
+    if args.rssi_to is not None:
+        parse_url(args.rssi_to)
+    comp = CompanionEmulator(scenario, args.autopilot, seed=args.seed, signing_key=key, rssi_url=args.rssi_to)
+    path = f"beside the autopilot to {args.rssi_to}" if args.rssi_to else "through the autopilot"
     print(f"uavloc sim: companion emulator on {args.autopilot}: {len(comp.world)} simulated people, "
-          "UAVLOC_RSSI_BATCH from component 191; Ctrl-C to stop", flush=True)
+          f"UAVLOC_RSSI_BATCH from component 191 {path}; Ctrl-C to stop", flush=True)
     await comp.run(stop)
 
 

@@ -16,25 +16,32 @@ from ..dialect import mavlink
 from ..errors import ConfigError
 from ..mission import (DO_CHANGE_SPEED, DO_JUMP, FRAME_GLOBAL, FRAME_GLOBAL_INT, FRAME_GLOBAL_RELATIVE_ALT,
                        FRAME_GLOBAL_RELATIVE_ALT_INT, FRAME_GLOBAL_TERRAIN_ALT, FRAME_GLOBAL_TERRAIN_ALT_INT,
-                       NAV_LAND, NAV_LOITER_TIME, NAV_RETURN_TO_LAUNCH, NAV_TAKEOFF, NAV_WAYPOINT, WireItem)
+                       NAV_LAND, NAV_LOITER_TIME, NAV_RETURN_TO_LAUNCH, NAV_TAKEOFF, NAV_WAYPOINT, POSITIONAL_COMMANDS,
+                       WireItem)
 
 MAV_TYPE_FIXED_WING = mavlink.MAV_TYPE_FIXED_WING
 
-# ArduCopter mode.h (Mode::Number)
+# ArduCopter mode.h (Mode::Number), master 2026-03
 ARDUCOPTER_MODES = {
     "STABILIZE": 0, "ACRO": 1, "ALT_HOLD": 2, "AUTO": 3, "GUIDED": 4, "LOITER": 5, "RTL": 6,
-    "CIRCLE": 7, "LAND": 9, "DRIFT": 11, "SPORT": 13, "POSHOLD": 16, "BRAKE": 17, "SMART_RTL": 21,
+    "CIRCLE": 7, "LAND": 9, "DRIFT": 11, "SPORT": 13, "FLIP": 14, "AUTOTUNE": 15, "POSHOLD": 16,
+    "BRAKE": 17, "THROW": 18, "AVOID_ADSB": 19, "GUIDED_NOGPS": 20, "SMART_RTL": 21, "FLOWHOLD": 22,
+    "FOLLOW": 23, "ZIGZAG": 24, "SYSTEMID": 25, "AUTOROTATE": 26, "AUTO_RTL": 27, "TURTLE": 28,
 }
 # ArduPlane mode.h (Mode::Number)
 ARDUPLANE_MODES = {
-    "MANUAL": 0, "CIRCLE": 1, "STABILIZE": 2, "FBWA": 5, "FBWB": 6, "CRUISE": 7, "AUTO": 10,
-    "RTL": 11, "LOITER": 12, "TAKEOFF": 13, "GUIDED": 15, "QLOITER": 19, "QLAND": 20, "QRTL": 21,
+    "MANUAL": 0, "CIRCLE": 1, "STABILIZE": 2, "TRAINING": 3, "ACRO": 4, "FBWA": 5, "FBWB": 6, "CRUISE": 7,
+    "AUTOTUNE": 8, "AUTO": 10, "RTL": 11, "LOITER": 12, "TAKEOFF": 13, "AVOID_ADSB": 14, "GUIDED": 15,
+    "INITIALISING": 16, "QSTABILIZE": 17, "QHOVER": 18, "QLOITER": 19, "QLAND": 20, "QRTL": 21,
+    "QAUTOTUNE": 22, "QACRO": 23, "THERMAL": 24, "LOITER_ALT_QLAND": 25, "AUTOLAND": 26,
 }
 # PX4 px4_custom_mode.h: custom_mode = main_mode << 16 | sub_mode << 24
 PX4_MODES = {
-    "MANUAL": (1, 0), "ALTCTL": (2, 0), "POSCTL": (3, 0), "ACRO": (5, 0), "OFFBOARD": (6, 0),
-    "STABILIZED": (7, 0), "AUTO.READY": (4, 1), "AUTO.TAKEOFF": (4, 2), "AUTO.LOITER": (4, 3),
-    "AUTO.MISSION": (4, 4), "AUTO.RTL": (4, 5), "AUTO.LAND": (4, 6), "AUTO.PRECLAND": (4, 9),
+    "MANUAL": (1, 0), "ALTCTL": (2, 0), "POSCTL": (3, 0), "POSCTL.ORBIT": (3, 1), "POSCTL.SLOW": (3, 2),
+    "ACRO": (5, 0), "OFFBOARD": (6, 0), "STABILIZED": (7, 0), "RATTITUDE": (8, 0), "TERMINATION": (10, 0),
+    "AUTO.READY": (4, 1), "AUTO.TAKEOFF": (4, 2), "AUTO.LOITER": (4, 3), "AUTO.MISSION": (4, 4),
+    "AUTO.RTL": (4, 5), "AUTO.LAND": (4, 6), "AUTO.FOLLOW_TARGET": (4, 8), "AUTO.PRECLAND": (4, 9),
+    "AUTO.VTOL_TAKEOFF": (4, 10), **{f"AUTO.EXTERNAL{k}": (4, 10 + k) for k in range(1, 9)},
 }
 # Generic names the service uses, per flavour.
 _PX4_ALIASES = {"AUTO": "AUTO.MISSION", "MISSION": "AUTO.MISSION", "RTL": "AUTO.RTL", "LAND": "AUTO.LAND",
@@ -75,6 +82,18 @@ class Flavour:
     stored_params: dict[int, tuple[int, ...]] = field(default_factory=dict)
     alt_resolution_m: float = 0.0  # ArduPilot stores altitudes as whole centimetres
     latlon_tolerance_e7: int = 0  # PX4 keeps lat/lon as doubles and may round back off by one
+    # Behaviours measured on SITL (tests/sitl); see link/mission_control.py for the sequences.
+    positionless_read_back_as_frame0: bool = False  # AP: DO_CHANGE_SPEED/RTL... come back frame 0, x=y=0
+    mission_start_takes_first_item: bool = True  # AP DENIES MISSION_START with first item != 0
+    set_current_command: bool = True  # PX4 answers DO_SET_MISSION_CURRENT UNSUPPORTED
+    upload_restarts_mission: bool = False  # PX4 flies a mission uploaded in AUTO.MISSION from item 0
+    finished_mission_needs_start: bool = False  # AP AUTO holds after set-current on a finished mission
+    armable_modes: tuple[str, ...] = ()  # modes the vehicle arms in (empty: any)
+
+    @property
+    def first_mission_seq(self) -> int:
+        """Wire seq of the first real item (1 after ArduPilot's home item)."""
+        return 1 if self.home_at_seq0 else 0
 
     # -- modes ----------------------------------------------------------------------------
 
@@ -99,7 +118,10 @@ class Flavour:
         if self.name == "px4":
             main, sub = (custom_mode >> 16) & 0xFF, (custom_mode >> 24) & 0xFF
             for name, (m, s) in PX4_MODES.items():
-                if m == main and (s == sub or (s == 0 and main != 4)):
+                if (m, s) == (main, sub):
+                    return name
+            for name, (m, s) in PX4_MODES.items():  # a sub mode we do not know of a known main mode
+                if m == main and s == 0 and main != 4:
                     return name
             return f"PX4({main}.{sub})"
         table = ARDUPLANE_MODES if vehicle_type == MAV_TYPE_FIXED_WING else ARDUCOPTER_MODES
@@ -114,6 +136,9 @@ class Flavour:
         """Whether ``got`` (downloaded) is what this autopilot stores for ``sent`` (uploaded)."""
         if sent.command != got.command or sent.autocontinue != got.autocontinue:
             return False
+        if (self.positionless_read_back_as_frame0 and sent.command not in POSITIONAL_COMMANDS
+                and got.frame == FRAME_GLOBAL and got.x == 0 and got.y == 0):
+            sent = WireItem(**{**sent.__dict__, "frame": FRAME_GLOBAL, "x": 0, "y": 0})
         if _FRAME_CLASS.get(sent.frame, sent.frame) != _FRAME_CLASS.get(got.frame, got.frame):
             return False
         tol = self.latlon_tolerance_e7 if sent.frame in _FRAME_CLASS else 0
@@ -134,9 +159,13 @@ class Flavour:
 
 
 ARDUPILOT = Flavour("ardupilot", "ArduPilot", mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA, home_at_seq0=True,
-                    upload_request="MISSION_REQUEST", stored_params=_AP_STORED_PARAMS, alt_resolution_m=0.01)
+                    upload_request="MISSION_REQUEST", stored_params=_AP_STORED_PARAMS, alt_resolution_m=0.01,
+                    positionless_read_back_as_frame0=True, mission_start_takes_first_item=False,
+                    finished_mission_needs_start=True,
+                    armable_modes=("GUIDED", "LOITER", "STABILIZE", "ALT_HOLD", "POSHOLD"))
 PX4 = Flavour("px4", "PX4", mavlink.MAV_AUTOPILOT_PX4, home_at_seq0=False,
-              upload_request="MISSION_REQUEST_INT", stored_params=_PX4_STORED_PARAMS, latlon_tolerance_e7=1)
+              upload_request="MISSION_REQUEST_INT", stored_params=_PX4_STORED_PARAMS, latlon_tolerance_e7=1,
+              set_current_command=False, upload_restarts_mission=True)
 GENERIC = Flavour("generic", "MAVLink vehicle", mavlink.MAV_AUTOPILOT_GENERIC, home_at_seq0=False,
                   upload_request="MISSION_REQUEST_INT")
 

@@ -156,6 +156,10 @@ class SearchPolicy:
         # judged from when it was flown, not from its planned time (real flights run late).
         self.look_reports = False
         self._replans = 0
+        # Pending people the last replan could not plan for and did not give up: planning again
+        # with nothing new would give the same answer, so only new data about them (or someone
+        # else) asks for another replan. Never replan in a loop when nothing can change.
+        self._unplanned: set[int] = set()
         self._access_cache: dict[tuple[int, float], tuple[object, float]] = {}  # (emitter, t) -> (est, m)
         self._target_t_pass: dict[int, float] = {}  # emitter -> pass time its current radius is for
         self.planner_runtime_s = 0.0  # total over all replans
@@ -241,7 +245,7 @@ class SearchPolicy:
         planned = {e for task in self._plan.tasks for e in task.target_ids}
         if planned - pending:  # someone in the plan is already located or given up
             return True
-        if pending - planned:  # someone new needs a look
+        if pending - planned - self._unplanned:  # someone new needs a look
             return True
         # Estimates shift while a vehicle is passing a person; re-routing it mid-look would only
         # thrash. The look's end (see update) or a fix triggers the replan instead.
@@ -264,29 +268,38 @@ class SearchPolicy:
         runtime = 0.0
         targets = self._targets(t_s, vehicles, None)
         result = None
+        flyable = list(vehicles)  # minus those that can only just get home: they are sent home
         while targets:
-            problem = RoutingProblem(tuple(vehicles), tuple(targets), self.speed_m_s, t0_s=t_s,
+            problem = RoutingProblem(tuple(flyable), tuple(targets), self.speed_m_s, t0_s=t_s,
                                      power=self.scenario.power_model)
             t0 = time.perf_counter()
             try:
                 result = solve(problem, method=self.optimizer, rng=rng, time_limit_s=self.time_limit_s,
                                max_iter=self.max_iter, local_search=self.local_search,
-                               warm_start=self._warm_start())
+                               warm_start=self._warm_start() if len(flyable) == len(vehicles) else None)
             except InfeasibleError as exc:
                 runtime += time.perf_counter() - t0
+                stuck = [v for v in flyable if str(exc).startswith(f"vehicle {v.id} cannot reach home")]
+                if stuck and len(flyable) > 1:
+                    flyable.remove(stuck[0])
+                    log.info("vehicle %s is left out of the looks: %s", stuck[0].id, exc)
+                    continue
                 if not self._drop_unreachable(problem, str(exc)):
+                    # no single person to blame (a vehicle cannot even get home): nobody can be
+                    # looked at with the energy left, which a replan a tick later will not change
+                    self._give_up_all(problem, str(exc))
                     targets, result = [], None
                     break
-                targets = self._targets(t_s, vehicles, None)
+                targets = self._targets(t_s, flyable, None)
                 continue
             runtime += time.perf_counter() - t0
             planned_times = {int(tid): float(ta) for r in result.plan.routes
                              for tid, ta in zip(r.target_ids, r.access_times_s)}
-            rechecked = self._targets(t_s, vehicles, planned_times, targets)
+            rechecked = self._targets(t_s, flyable, planned_times, targets)
             shrunk = any(b.radius_m < RADIUS_RECHECK_FRACTION * a.radius_m for a, b in zip(targets, rechecked))
             if not shrunk:
                 break
-            problem = RoutingProblem(tuple(vehicles), tuple(rechecked), self.speed_m_s, t0_s=t_s,
+            problem = RoutingProblem(tuple(flyable), tuple(rechecked), self.speed_m_s, t0_s=t_s,
                                      power=self.scenario.power_model)
             t0 = time.perf_counter()
             try:
@@ -299,6 +312,7 @@ class SearchPolicy:
         self.planner_runtime_s += runtime
         self._plan = self._to_search_plan(t_s, vehicles, result, runtime)
         self._awaiting = {e: ta for task in self._plan.tasks for e, ta in zip(task.target_ids, task.access_times_s)}
+        self._unplanned = set(self.pending_ids()) - {e for task in self._plan.tasks for e in task.target_ids}
         self._look_vehicle = {e: task.vehicle_id for task in self._plan.tasks for e in task.target_ids}
         # looks already flown keep their pending judgment (self._flown) across the replan
         return self._plan
@@ -399,6 +413,12 @@ class SearchPolicy:
                 log.info("emitter %s given up: %s", t.id, message)
                 return True
         return False
+
+    def _give_up_all(self, problem, message: str) -> None:
+        for t in problem.targets:
+            p = self._people[int(t.id)]
+            p.gave_up = f"no vehicle has the energy left for a look ({message})"
+        log.info("no look can be planned: %s", message)
 
     def _to_search_plan(self, t_s: float, vehicles: list, result, runtime: float) -> SearchPlan:
         tasks = []

@@ -34,8 +34,9 @@ from ..errors import ConfigError, LinkError, UavlocError
 from ..mission import NAV_WAYPOINT, flight_mission, to_wire
 from ..observations import SlotBatch
 from ..scenario import Scenario
+from .lifecycle import ExchangeFailed, allowed, persist
 from .liveview import LiveView, PersonStatusView, StatusSnapshot, VehicleStatus
-from .missionstate import ClockRate, final_seq, same_route, same_stored_mission, without_final_rtl
+from .missionstate import ClockRate, final_seq, hold_seq, same_stored_mission, with_hold_before_rtl
 from .outcome import SearchOutcome, estimate_row, final_results, statement_for
 from .store import Store, StoreReader, TelemetryRow
 from .vehicle import VehicleAgent
@@ -48,6 +49,8 @@ REPLAN_BACKOFF_S = 10.0  # mission seconds before planning again after the plann
 LAND_WAIT_S = 300.0  # mission seconds to wait at most for the fleet to land after sending it home
 LANDING_MARGIN_S = 30.0  # beyond the flight home and the descent at LANDING_RATE_M_S
 LANDING_RATE_M_S = 1.0
+STOP_WAIT_S = 15.0  # wall seconds to send everyone home when stopped
+HOMING_MODES = ("RTL", "SMART_RTL", "LAND", "AUTO.RTL", "AUTO.LAND")  # ArduPilot, PX4
 
 
 @dataclass(frozen=True)
@@ -60,18 +63,25 @@ class DaemonOptions:
     connect_timeout_s: float = 15.0
     planner_time_limit_s: float | None = None  # None: the scenario's, capped to ~2 s of mission time
     tick_s: float = 0.05
-    source_system: int = 255
+    source_system: int = 245  # not QGroundControl's 255 (operators keep QGC open beside us)
     max_mission_s: float = 4 * 3600.0
     resume: bool = True
+    rssi_connections: tuple = ()  # [(vehicle, connection)]: RSSI beside the autopilot ([link] rssi_connections)
+    set_speed_params: bool = False  # the operator's consent to set the vehicles' speed parameters
+    on_stop: str = "rtl"  # when the daemon is stopped (Ctrl-C, SIGTERM): "rtl" sends the airborne home
+    scan_hold_s: float = 120.0  # mission seconds a finished scan holds before its RTL (the next mission
+    # is normally uploaded well before; without a daemon the vehicle then comes home by itself)
 
 
 @dataclass
 class _Vehicle:
+    """One vehicle's state machine (phases and moves: :mod:`.lifecycle`)."""
+
     id: int
     connection: str
     link: object = None
     agent: VehicleAgent | None = None
-    phase: str = "connecting"
+    _phase: str = "connecting"
     purpose: str = ""  # "scan" | "look" | "home"
     mission: list = field(default_factory=list)  # acknowledged wire items
     end_seq: int = 0  # seq of the final RTL item of the current mission
@@ -84,6 +94,30 @@ class _Vehicle:
     home: bool = False
     ignore_seq_until_wall: float = 0.0
     home_by_s: float = math.inf  # mission time by which a returning vehicle should have landed
+    plans: int = 0  # replans that changed what this vehicle should do
+    uploads: int = 0  # missions uploaded to it (scan included)
+    skipped: int = 0  # new plans not uploaded: not worth a restarted leg (search/uploads.py)
+    uploads_since_look: int = 0  # look missions uploaded in flight since it last passed a look
+    deferred: bool = False  # a newer plan was not uploaded (at most one upload between two looks)
+    hold_seq: int = 0  # seq of the scan's closing hold (scan done once the vehicle is there)
+    unusable: str = ""  # why the vehicle cannot be commanded ("" = usable)
+    odd_moves: list = field(default_factory=list)  # moves outside lifecycle.NEXT (logged, kept)
+
+    @property
+    def phase(self) -> str:
+        return self._phase
+
+    @phase.setter
+    def phase(self, new: str) -> None:
+        old = self._phase
+        if new != old and not allowed(old, new):
+            self.odd_moves.append((old, new))
+            log.warning("vehicle %d: unexpected move %s -> %s", self.id, old, new)
+        self._phase = new
+
+    @property
+    def airborne(self) -> bool:
+        return self.agent is not None and not self.agent.on_ground() and math.isfinite(self.agent.tel.rel_alt_m)
 
 
 class Daemon:
@@ -120,13 +154,20 @@ class Daemon:
         self._seq_before_crash: dict[int, int] = {}
         self._planner_limit_s = getattr(policy, "time_limit_s", None)
         self._replan_not_before_s = -math.inf
+        self._replan_due = False  # a vehicle with a plan not uploaded has passed a look
+        self._ground_clock = False  # no vehicle gave its time: the mission clock is the ground's
+        self._return_speed_m_s = scenario.fleet.speed_m_s  # RTL speed (the landing wait)
+        self._rssi_links: list = []
         self.on_mission_acked: Callable[[int, str], None] | None = None
+        self.stop_report: list[str] = []  # what each vehicle does, when the daemon was stopped
 
     # -- clock ---------------------------------------------------------------------------------
     def now_s(self) -> float:
         """Mission time [s since the epoch]: the vehicles' newest clock, extrapolated."""
         if self.epoch_unix_s is None:
             return 0.0
+        if self._ground_clock:
+            return time.time() - self.epoch_unix_s
         best = -math.inf
         w = self.wall()
         for v in self.vehicles.values():
@@ -158,17 +199,62 @@ class Daemon:
         self.store = Store(self.opt.store_path)
         try:
             resumed = self._reload()
+            self.store.set_meta("on_stop", self.opt.on_stop)
             await self._connect_all()
             try:
-                await self._prepare_all(resumed)
-                async with asyncio.TaskGroup() as tg:
-                    tg.create_task(self._monitor(), name="monitor")
-                    tg.create_task(self._brain(), name="brain")
+                try:
+                    await self._prepare_all(resumed)
+                    async with asyncio.TaskGroup() as tg:
+                        tg.create_task(self._monitor(), name="monitor")
+                        tg.create_task(self._brain(), name="brain")
+                except asyncio.CancelledError:  # stopped by the operator (Ctrl-C, SIGTERM)
+                    self.stop_report = await self._stopping()
+                    raise
                 return self._outcome()
             finally:
                 await self._close_links()
         finally:
             self.store.close()
+
+    async def _stopping(self) -> list[str]:
+        """The daemon is being stopped: send the airborne vehicles home (``on_stop = "rtl"``) or let
+        them fly on; one sentence per vehicle saying what it will do."""
+        rtl = self.opt.on_stop == "rtl"
+
+        async def one(v: _Vehicle) -> str:
+            a = v.agent
+            if a is None or not math.isfinite(a.tel.rel_alt_m):
+                return f"vehicle {v.id}: never heard; nothing sent"
+            if a.on_ground():
+                return f"vehicle {v.id}: on the ground"
+            mission = (f"its {v.purpose or 'current'} mission (item {a.tel.mission_seq} of {len(v.mission)}), "
+                       "which ends in RTL")
+            if v.lost:
+                return f"vehicle {v.id}: airborne, out of contact; it flies {mission}, or its link-loss failsafe acts"
+            if a.tel.mode in HOMING_MODES:
+                return f"vehicle {v.id}: airborne, already returning home ({a.tel.mode})"
+            if not rtl:
+                return f"vehicle {v.id}: airborne, continues {mission} (on_stop = \"continue\")"
+            try:
+                how = await persist(a.return_home, lambda: a.tel.mode in HOMING_MODES, what="return home",
+                                    vehicle=v.id, tries=2, settle_s=1.5, wall=self.wall,
+                                    heard_since=lambda t: a.tel.wall_s > t)
+            except LinkError as exc:
+                return f"vehicle {v.id}: airborne; RTL not confirmed ({exc}); it flies {mission}"
+            seen = "acknowledged" if how == "acked" else "not acknowledged but seen in RTL"
+            return f"vehicle {v.id}: airborne, returning home (RTL {seen})"
+
+        vehicles = list(self.vehicles.values())
+        try:
+            lines = list(await asyncio.wait_for(asyncio.gather(*(one(v) for v in vehicles)), STOP_WAIT_S))
+        except TimeoutError:
+            lines = [f"vehicle {v.id}: no answer within {STOP_WAIT_S:g} s; it flies its mission, which ends in RTL"
+                     for v in vehicles]
+        for v, line in zip(vehicles, lines):
+            self._event("stop", line, v.id)
+        self.store.set_meta("stopped", True)
+        self.store.flush()
+        return lines
 
     async def _close_links(self) -> None:
         links = []
@@ -177,6 +263,7 @@ class Daemon:
                 v.agent.close()
             if v.link is not None and all(v.link is not other for other in links):
                 links.append(v.link)
+        links += [lk for lk in self._rssi_links if all(lk is not other for other in links)]
         for link in links:
             await link.close()
 
@@ -235,39 +322,114 @@ class Daemon:
 
         results = await asyncio.gather(*(connect(v) for v in self.vehicles.values()), return_exceptions=True)
         bad = [(v, r) for v, r in zip(self.vehicles.values(), results) if isinstance(r, BaseException)]
-        if bad:
+        for _, r in bad:
+            if not isinstance(r, Exception):
+                await self._close_links()
+                raise r
+        fatal = [r for _, r in bad if not isinstance(r, LinkError)]
+        names = ", ".join(f"{v.id} ({v.connection})" for v, _ in bad)
+        if fatal or len(bad) == len(self.vehicles):
             await self._close_links()
-            for _, r in bad:
-                if not isinstance(r, Exception):
-                    raise r
-            names = ", ".join(f"{v.id} ({v.connection})" for v, _ in bad)
-            first = next((r for _, r in bad if not isinstance(r, LinkError)), bad[0][1])
-            if all(isinstance(r, LinkError) for _, r in bad):
-                raise LinkError(f"no heartbeat within {self.opt.connect_timeout_s:g} s from vehicle(s) {names}; "
-                                "check that they are powered and the connection strings in [link] are right",
-                                operation="connect")
-            raise first
+            if fatal:
+                raise fatal[0]
+            raise LinkError(f"no heartbeat within {self.opt.connect_timeout_s:g} s from vehicle(s) {names}; "
+                            "check that they are powered and the connection strings in [link] are right",
+                            operation="connect")
         for v in self.vehicles.values():
-            self._event("connect", f"vehicle {v.id} connected on {v.connection}", v.id)
-        # wait for a clock (SYSTEM_TIME) so slot times have an epoch
+            if v.phase == "connected":
+                self._event("connect", f"vehicle {v.id} connected on {v.connection}", v.id)
+        for v, _ in bad:
+            # The others search without it; if it is heard later it joins for the looks.
+            v.phase, v.lost, v.scan_done, v.home = "not connected", True, True, True
+            if v.agent is None:
+                v.unusable = "its link could not be opened"
+            self._event("lost", f"vehicle {v.id}: no heartbeat within {self.opt.connect_timeout_s:g} s on "
+                        f"{v.connection}; searching without it (it joins for the looks if heard later)", v.id)
+        await self._open_rssi_links()
+        await self._setup_vehicles([v for v in self.vehicles.values() if v.agent is not None and not v.lost])
+        # wait for a clock (SYSTEM_TIME, asked for above) so slot times have an epoch
         deadline = self.wall() + self.opt.connect_timeout_s
         while self._epoch() is None and self.wall() < deadline:
             await asyncio.sleep(0.05)
         if self.epoch_unix_s is None:
-            raise LinkError("no vehicle sent SYSTEM_TIME; the search needs the vehicles' clock", operation="connect")
+            # degrade, do not stop: slot times then come from the ground's clock
+            self._ground_clock = True
+            self.epoch_unix_s = float(math.floor(time.time()))
+            self.store.set_meta("epoch_unix_s", self.epoch_unix_s)
+            self._event("warning", f"no vehicle sent SYSTEM_TIME within {self.opt.connect_timeout_s:g} s (asked "
+                        "with SET_MESSAGE_INTERVAL); using the ground station's clock for mission time, which "
+                        "is wrong under a simulator speed-up")
+        await self._check_failsafes()
+
+    async def _check_failsafes(self) -> None:
+        """Warn about every vehicle a lost ground station would leave hovering (service/failsafe.py)."""
+        from .failsafe import read_gcs_loss_warning  # noqa: PLC0415
+
+        heard = [v for v in self.vehicles.values() if not v.lost and v.link is not None]
+        warnings = await asyncio.gather(*(read_gcs_loss_warning(v.link, v.id, self.sc.fleet.autopilot)
+                                          for v in heard), return_exceptions=True)
+        for v, w in zip(heard, warnings):
+            if isinstance(w, LinkError):
+                w = f"vehicle {v.id}: could not read its link-loss failsafe ({w})"
+            elif isinstance(w, BaseException):
+                raise w
+            if w:
+                self._event("failsafe", w, v.id)
+
+    async def _open_rssi_links(self) -> None:
+        """RSSI beside the autopilot: one link per distinct [link] rssi_connections entry."""
+        from ..link.connection import open_link  # noqa: PLC0415
+
+        opened: dict[str, object] = {}
+        for vid, conn in self.opt.rssi_connections:
+            v = self.vehicles.get(vid)
+            if not conn or v is None or v.agent is None:
+                continue
+            if conn not in opened:
+                opened[conn] = await open_link(conn, source_system=self.opt.source_system,
+                                               signing_key=self.opt.signing_key)
+                self._rssi_links.append(opened[conn])
+            v.agent.attach_rssi(opened[conn])
+            self._event("connect", f"vehicle {vid}: RSSI also taken from {conn} (beside the autopilot)", vid)
+
+    async def _setup_vehicles(self, vehicles: list) -> None:
+        """Ask each vehicle for the streams the search reads; plan with the speed it will fly."""
+        from .setup import fleet_speed, request_streams  # noqa: PLC0415
+
+        refused = await asyncio.gather(*(request_streams(v.link, v.id, v.agent.flavour) for v in vehicles))
+        for v, names in zip(vehicles, refused):
+            if names:
+                self._event("warning", f"vehicle {v.id} did not accept a stream of {', '.join(names)}; "
+                            "the search uses what it sends anyway", v.id)
+        speed = await fleet_speed([(v.id, v.link, v.agent.flavour) for v in vehicles], self.sc.fleet.speed_m_s,
+                                  consent=self.opt.set_speed_params)
+        for note in speed.notes:
+            self._event("speed", note)
+        self._return_speed_m_s = speed.return_m_s
+        if speed.mission_m_s < self.sc.fleet.speed_m_s:
+            self.sc = self.sc.replace(fleet={"speed_m_s": speed.mission_m_s})
+            if hasattr(self.policy, "speed_m_s"):
+                self.policy.scenario, self.policy.speed_m_s = self.sc, self.sc.fleet.speed_m_s
 
     async def _prepare_all(self, resumed: dict) -> None:
         """Upload every scan (or re-adopt the missions found after a restart), then start."""
         from ..scan import plan_scan, scan_missions  # noqa: PLC0415
 
-        # The scan ends hovering at its last waypoint (no RTL): the adaptive phase starts from
-        # there, as the experiments model it; the autopilot's own link-loss failsafe still applies.
-        scans = [without_final_rtl(m) for m in scan_missions(self.sc, plan_scan(self.sc))]
+        # The scan ends holding at its last waypoint, then RTL: the adaptive phase starts from
+        # there, as the experiments model it, and the next mission is uploaded while the vehicle
+        # holds; a vehicle the daemon no longer talks to comes home by itself after the hold.
+        # The hold lasts until the longest scan is over, plus scan_hold_s.
+        plan = plan_scan(self.sc)
+        longest = max((p.duration_s for p in plan.vehicles), default=0.0)
+        scans = [with_hold_before_rtl(m, longest - p.duration_s + self.opt.scan_hold_s)
+                 for m, p in zip(scan_missions(self.sc, plan), plan.vehicles)]
         ap = self.sc.fleet.autopilot
         wires = {vid: to_wire(m, ap) for vid, m in zip(sorted(self.vehicles), scans)}
         to_start = []
 
         async def prepare(v: _Vehicle) -> None:
+            if v.lost:  # never connected
+                return
             previous = resumed.get(v.id)
             if previous is not None:
                 on_board = await v.agent.download()
@@ -292,7 +454,8 @@ class Daemon:
                     return
             items = wires.get(v.id)
             if items is None:  # more vehicles than scan parts: it helps with the looks later
-                self._adopt(v, "home", [])
+                v.phase = "idle"
+                v.purpose, v.mission, v.end_seq = "home", [], 0
                 v.scan_done = True
                 v.home = True
                 return
@@ -300,20 +463,34 @@ class Daemon:
             await self._upload(v, "scan", items, first_seq=None)
             to_start.append(v)
 
-        results = await asyncio.gather(*(prepare(v) for v in self.vehicles.values()), return_exceptions=True)
-        for r in results:
-            if isinstance(r, BaseException):
-                raise r
+        await self._each(prepare, list(self.vehicles.values()))
+        to_start = [v for v in to_start if not v.unusable]
         if self.opt.start == "operator":
             for v in to_start:
                 v.phase = "waiting for operator"
             self._event("operator", "scan missions uploaded; start each vehicle's mission from your "
                         "ground station (arm + AUTO); the search follows")
             return
-        starts = await asyncio.gather(*(self._start(v) for v in to_start), return_exceptions=True)
-        for r in starts:
-            if isinstance(r, BaseException):
+        await self._each(self._start, to_start)
+
+    async def _each(self, job, vehicles: list[_Vehicle]) -> None:
+        """Run ``job(v)`` for every vehicle concurrently; a vehicle whose job fails with a link
+        error is marked unusable (the others carry on); any other error ends the search."""
+        results = await asyncio.gather(*(job(v) for v in vehicles), return_exceptions=True)
+        for v, r in zip(vehicles, results):
+            if isinstance(r, LinkError):
+                self._mark_unusable(v, r)
+            elif isinstance(r, BaseException):
                 raise r
+
+    def _mark_unusable(self, v: _Vehicle, err: BaseException) -> None:
+        if v.unusable:
+            return
+        v.unusable = str(err)
+        v.phase = "unusable"
+        where = "it flies its current mission, which ends in RTL" if v.airborne else "it stays where it is"
+        self._event("unusable", f"vehicle {v.id} cannot be commanded ({err}); {where}; its people go to the others",
+                    v.id)
 
     async def _rewind_scan(self, v: _Vehicle, items: list) -> None:
         """Re-fly the part of the scan flown while the daemon was down (its RSSI never arrived):
@@ -326,32 +503,62 @@ class Daemon:
         if not waypoints:
             return
         back = max(waypoints[0], min(then - 1, waypoints[-1]))
-        await v.agent.switch_to(back, on_ground=False)
+        await self._switch(v, back, on_ground=False)
         v.agent.tel.mission_seq = back
         v.ignore_seq_until_wall = self.wall() + 1.0
         self._event("resume", f"vehicle {v.id} re-flies its scan from item {back} (flown while the daemon was "
                     f"down, now at item {now})", v.id)
 
     async def _start(self, v: _Vehicle) -> None:
-        await v.agent.start()
+        v.phase = "starting"
+        a = v.agent
+        await self._persist(v, "start", a.start, lambda: a.tel.armed and a.in_mission_mode)
         v.phase = "scanning"
         self._event("start", f"vehicle {v.id} started its scan", v.id)
+
+    # -- exchanges, judged from what the vehicle then reports (lifecycle.persist) --------------------
+    async def _persist(self, v: _Vehicle, what: str, action, done, check=None) -> str:
+        a = v.agent
+        how = await persist(action, done, what=what, vehicle=v.id, check=check, wall=self.wall,
+                            heard_since=lambda t: a.tel.wall_s > t,
+                            on_retry=lambda text: self._event("retry", text, v.id))
+        if how == "judged":
+            self._event("retry", f"vehicle {v.id} {what}: not acknowledged, but the vehicle does it", v.id)
+        return how
+
+    async def _switch(self, v: _Vehicle, first_seq: int, *, on_ground: bool) -> None:
+        a = v.agent
+
+        def flying_it() -> bool:
+            seq = a.tel.mission_seq
+            return a.tel.armed and a.in_mission_mode and seq is not None and first_seq <= seq <= max(first_seq, v.end_seq)
+
+        await self._persist(v, f"switch to item {first_seq}",
+                            lambda: a.switch_to(first_seq, on_ground=on_ground and not a.tel.armed), flying_it)
 
     def _adopt(self, v: _Vehicle, purpose: str, items: list) -> None:
         v.purpose, v.mission = purpose, list(items)
         v.end_seq = final_seq(items)
-        v.phase = {"scan": "scanning", "look": "localizing", "home": "returning"}.get(purpose, purpose)
+        v.hold_seq = hold_seq(items) if purpose == "scan" else v.end_seq
+        if v.phase != "uploading scan":  # the start follows
+            v.phase = {"scan": "scanning", "look": "localizing", "home": "returning"}.get(purpose, purpose)
 
     async def _upload(self, v: _Vehicle, purpose: str, items: list, first_seq: int | None,
                       on_ground: bool = False) -> None:
-        await v.agent.upload(items)
+        a = v.agent
+
+        async def on_board() -> bool:
+            return same_stored_mission(await a.download(), items, a.flavour)
+
+        await self._persist(v, f"{purpose} upload", lambda: a.upload(items), lambda: False, check=on_board)
+        v.uploads += 1
         self._adopt(v, purpose, items)
         self.store.add_mission(self.now_s(), v.id, purpose, items)
         if self.on_mission_acked is not None:
             self.on_mission_acked(v.id, purpose)
         if first_seq is not None:
-            await v.agent.switch_to(first_seq, on_ground=on_ground)
-            v.agent.tel.mission_seq = first_seq
+            await self._switch(v, first_seq, on_ground=on_ground)
+            a.tel.mission_seq = first_seq
             v.ignore_seq_until_wall = self.wall() + 1.0
         self._event("upload", f"vehicle {v.id}: {purpose} mission of {len(items)} items acknowledged", v.id)
 
@@ -384,6 +591,8 @@ class Daemon:
 
     def _update_phase(self, v: _Vehicle) -> None:
         a = v.agent
+        if a is None:
+            return
         silent = a.silent_for_s() > self.opt.lost_timeout_s
         if silent and not v.lost:
             v.lost = True
@@ -391,6 +600,8 @@ class Daemon:
                         "its people go to the others", v.id)
         elif v.lost and not silent:
             v.lost = False
+            if v.phase == "not connected":
+                v.phase = "idle"
             self._event("found", f"vehicle {v.id} is back", v.id)
         if v.lost:
             return
@@ -398,14 +609,19 @@ class Daemon:
         if v.phase == "waiting for operator" and a.tel.armed and a.in_mission_mode:
             v.phase = "scanning"
             self._event("start", f"vehicle {v.id} started by the operator", v.id)
-        fresh = self.wall() >= v.ignore_seq_until_wall
+        fresh = self.wall() >= v.ignore_seq_until_wall and a.tel.mission_ours
         past_end = seq is not None and v.end_seq and seq >= v.end_seq and fresh
-        complete = fresh and (a.tel.mission_state == MISSION_STATE_COMPLETE or (
-            past_end and a.tel.ground_speed_m_s < 1.0 and not a.on_ground()))
+        if v.hold_seq:  # the scan ends with a hold, then RTL: done once it holds
+            complete = fresh and seq is not None and seq >= v.hold_seq
+        else:  # a scan stored by an older daemon: done once it hovers at its end
+            complete = fresh and (a.tel.mission_state == MISSION_STATE_COMPLETE or (
+                past_end and a.tel.ground_speed_m_s < 1.0 and not a.on_ground()))
         if v.phase == "scanning" and complete:
             v.scan_done = True
             v.phase = "hovering (scan done)"
             self._event("scan", f"vehicle {v.id} finished its scan", v.id)
+        if v.phase == "hovering (scan done)" and v.hold_seq and past_end:
+            self._returning(v)  # the hold ran out before a new mission came: it flies home by itself
         elif v.phase == "localizing" and past_end:
             self._returning(v)
         if v.phase.startswith("returning") and a.on_ground() and not v.home:
@@ -419,7 +635,7 @@ class Daemon:
         v.phase = "returning"
         xy = v.agent.position_xy_m() or (0.0, 0.0)
         alt = v.agent.tel.rel_alt_m if math.isfinite(v.agent.tel.rel_alt_m) else self.sc.fleet.altitude_m
-        v.home_by_s = (self.now_s() + math.hypot(*xy) / self.sc.fleet.speed_m_s + alt / LANDING_RATE_M_S
+        v.home_by_s = (self.now_s() + math.hypot(*xy) / self._return_speed_m_s + alt / LANDING_RATE_M_S
                        + LANDING_MARGIN_S)
 
     def snapshot(self) -> StatusSnapshot:
@@ -458,10 +674,8 @@ class Daemon:
     def _report_looks(self, t: float) -> None:
         """Tell the policy which looks the vehicles have flown: a look waypoint is flown once the
         mission has moved past it (MISSION_CURRENT) or the vehicle is within WAYPOINT_TOLERANCE_M
-        of it."""
+        of it. A look passed also re-opens the vehicle to one more upload (search/uploads.py)."""
         report = getattr(self.policy, "look_flown", None)
-        if report is None:
-            return
         for v in self._active():
             if v.purpose != "look" or v.look_xy_m is None or self.wall() < v.ignore_seq_until_wall:
                 continue
@@ -472,17 +686,23 @@ class Daemon:
                     math.dist(xy, v.look_xy_m[passed]) <= WAYPOINT_TOLERANCE_M:
                 passed += 1
             while v.looks_reported < passed:
-                report(v.targets[v.looks_reported], t)
+                if report is not None:
+                    report(v.targets[v.looks_reported], t)
                 v.looks_reported += 1
+                v.uploads_since_look = 0
+                if v.deferred:
+                    self._replan_due = True  # a plan it was not given can be uploaded now
 
     def _active(self) -> list[_Vehicle]:
-        return [v for v in self.vehicles.values() if not v.lost and v.agent is not None]
+        """The usable vehicles: in contact and commandable."""
+        return [v for v in self.vehicles.values() if not v.lost and v.agent is not None and not v.unusable]
 
     async def _step(self, t: float, changed: set) -> bool:
         """One decision; True when the search is over."""
         active = self._active()
         if not active:
-            self._event("end", "every vehicle is lost; stopping the search")
+            why = "; ".join(f"vehicle {v.id} {'lost' if v.lost else 'unusable'}" for v in self.vehicles.values())
+            self._event("end", f"no vehicle is usable ({why}); stopping the search")
             return True
         if t > self.opt.max_mission_s:
             self._event("end", f"mission time limit {self.opt.max_mission_s:g} s reached")
@@ -493,8 +713,10 @@ class Daemon:
             return await self._finish(active)
         fleet = frozenset(v.id for v in active)
         usable = active
-        if (self.policy.needs_replan(t, changed) or fleet != self._last_fleet) and t >= self._replan_not_before_s:
+        if (self.policy.needs_replan(t, changed) or fleet != self._last_fleet or self._replan_due) \
+                and t >= self._replan_not_before_s:
             self._last_fleet = fleet
+            self._replan_due = False
             await self._replan(t, usable)
         if all(v.home for v in active):
             # nobody is flying and nothing more can be planned: stop with who is not located
@@ -545,27 +767,47 @@ class Daemon:
             pts = np.asarray(task.waypoints_xy_m, dtype=float).reshape(-1, 2)[:-1]  # last row is home
             if len(pts) == 0:
                 if not v.phase.startswith("returning") and not v.home:
-                    jobs.append(self._send_home(v))
+                    jobs.append((v, self._send_home(v)))
                 continue
-            if v.purpose == "look" and self._still_flying(v, pts, tuple(task.target_ids)):
-                continue  # the vehicle already flies this: do not upload
-            jobs.append(self._upload_look(v, pts, tuple(task.target_ids)))
+            decision = self._worth_uploading(v, pts, tuple(task.target_ids))
+            if not decision.upload:
+                if decision.reason != "unchanged":
+                    v.skipped += 1
+                    v.deferred = True  # plan again once it has passed its next look
+                    self._event("plan", f"vehicle {v.id}: new plan not uploaded ({decision.reason})", v.id)
+                continue
+            v.plans += 1
+            v.deferred = False
+            if decision.reason != "first look mission":  # it replaces looks in flight: a restarted leg
+                v.uploads_since_look += 1
+            jobs.append((v, self._upload_look(v, pts, tuple(task.target_ids))))
         if jobs:
-            results = await asyncio.gather(*jobs, return_exceptions=True)
-            for r in results:
-                if isinstance(r, UavlocError):
+            results = await asyncio.gather(*(j for _, j in jobs), return_exceptions=True)
+            for (v, _), r in zip(jobs, results):
+                if isinstance(r, LinkError):
+                    self._mark_unusable(v, r)  # the fleet changed: the next tick replans without it
+                elif isinstance(r, UavlocError):
                     self._event("error", str(r))
                 elif isinstance(r, BaseException):
                     raise r
 
-    def _still_flying(self, v: _Vehicle, pts: np.ndarray, targets: tuple) -> bool:
-        """Whether the vehicle's current mission still has exactly these looks ahead of it."""
-        if v.look_xy_m is None or v.lost:
-            return False
-        seq = v.agent.tel.mission_seq
-        passed = 0 if seq is None else int(np.clip(seq - v.look_first_seq, 0, len(v.look_xy_m)))
-        remaining_xy, remaining_ids = v.look_xy_m[passed:], v.targets[passed:]
-        return tuple(targets) == tuple(remaining_ids) and same_route(pts, remaining_xy, WAYPOINT_TOLERANCE_M)
+    def _worth_uploading(self, v: _Vehicle, pts: np.ndarray, targets: tuple):
+        """Whether the new looks ``pts``/``targets`` are worth an upload to ``v`` (search/uploads.py)."""
+        from ..search.uploads import DEFAULT_UPLOAD_COST_S, UPLOAD_COST_S, decide_upload  # noqa: PLC0415
+
+        flying_look = (v.purpose == "look" and v.look_xy_m is not None and not v.home
+                       and not v.phase.startswith("returning") and not v.agent.on_ground())
+        old_pts, old_targets = np.zeros((0, 2)), ()
+        if flying_look:
+            seq = v.agent.tel.mission_seq
+            passed = 0 if seq is None else int(np.clip(seq - v.look_first_seq, 0, len(v.look_xy_m)))
+            old_pts, old_targets = v.look_xy_m[passed:], tuple(v.targets[passed:])
+        return decide_upload(
+            flying_look=flying_look, uploads_since_look=v.uploads_since_look,
+            position_xy_m=v.agent.position_xy_m() or (0.0, 0.0), old_targets=old_targets, old_points_xy_m=old_pts,
+            new_targets=targets, new_points_xy_m=pts, speed_m_s=self.sc.fleet.speed_m_s,
+            cost_s=UPLOAD_COST_S.get(self.sc.fleet.autopilot, DEFAULT_UPLOAD_COST_S),
+            move_tolerance_m=self.sc.people.required_accuracy_m, same_tolerance_m=WAYPOINT_TOLERANCE_M)
 
     async def _upload_look(self, v: _Vehicle, pts: np.ndarray, targets: tuple) -> None:
         latlon = self.frame.to_wgs84_latlon(pts)
@@ -583,10 +825,11 @@ class Daemon:
 
     async def _send_home(self, v: _Vehicle) -> None:
         v.purpose, v.targets, v.look_xy_m = "home", (), None
-        if v.agent.on_ground():
+        a = v.agent
+        if a.on_ground():
             v.home, v.phase = True, "landed"
             return
-        await v.agent.return_home()
+        await self._persist(v, "return home", a.return_home, lambda: a.tel.mode in HOMING_MODES or a.on_ground())
         self._returning(v)
         self._event("home", f"vehicle {v.id} has nothing left to look at: returning home", v.id)
 
@@ -594,9 +837,11 @@ class Daemon:
         if self._finishing_since is None:
             self._finishing_since = self.now_s()
             self._event("done", "every person heard is located or given up: all vehicles return home")
-            jobs = [self._send_home(v) for v in active if not v.home and not v.phase.startswith("returning")]
-            for r in await asyncio.gather(*jobs, return_exceptions=True):
-                if isinstance(r, UavlocError):
+            going = [v for v in active if not v.home and not v.phase.startswith("returning")]
+            for v, r in zip(going, await asyncio.gather(*(self._send_home(v) for v in going), return_exceptions=True)):
+                if isinstance(r, LinkError):
+                    self._mark_unusable(v, r)
+                elif isinstance(r, UavlocError):
                     self._event("error", str(r))
         now = self.now_s()
         if all(v.home or (v.phase == "returning" and now > v.home_by_s) for v in self._active()):
@@ -617,5 +862,9 @@ class Daemon:
         self._event("end", text)
         self.store.set_meta("finished", True)
         self.store.flush()
+        per_vehicle = tuple((v.id, v.plans, v.uploads, v.skipped) for v in self.vehicles.values())
+        self.store.set_meta("uploads", [list(row) for row in per_vehicle])
+        self._event("end", "replans " + str(self._replans) + "; per vehicle (plans for it, uploads incl. the scan, "
+                    "plans not uploaded): " + ", ".join(f"{vid}: {pl}/{up}/{sk}" for vid, pl, up, sk in per_vehicle))
         return SearchOutcome(people, bool(people) and all(p.located for p in people), text, t, self._replans,
-                             tuple(v.id for v in self.vehicles.values() if v.home), lost, returning)
+                             tuple(v.id for v in self.vehicles.values() if v.home), lost, returning, per_vehicle)

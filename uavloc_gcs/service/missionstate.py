@@ -7,7 +7,8 @@ from typing import Sequence
 
 import numpy as np
 
-from ..mission import NAV_RETURN_TO_LAUNCH, MissionPlan, WireItem
+from ..mission import (NAV_LOITER_TIME, NAV_RETURN_TO_LAUNCH, POSITIONAL_COMMANDS, MissionItem, MissionPlan, WireItem,
+                       return_to_launch)
 
 
 class ClockRate:
@@ -55,3 +56,25 @@ def same_route(a: np.ndarray, b: np.ndarray | None, tolerance_m: float) -> bool:
     if b is None or a.shape != b.shape:
         return False
     return bool(np.all(np.linalg.norm(a - b, axis=1) <= tolerance_m))
+
+
+def with_hold_before_rtl(plan: MissionPlan, hold_s: float) -> MissionPlan:
+    """The mission with a NAV_LOITER_TIME of ``hold_s`` seconds at its last waypoint before its
+    closing RTL: the vehicle waits there for its next mission, and flies home by itself when none
+    comes. A mission without a closing RTL gets one."""
+    items = list(plan.items)
+    if items and items[-1].command == NAV_RETURN_TO_LAUNCH:
+        items.pop()
+    last = next((it for it in reversed(items) if it.command in POSITIONAL_COMMANDS), None)
+    if last is not None:
+        items.append(MissionItem(NAV_LOITER_TIME, last.frame, (float(round(max(0.0, hold_s))), 0.0, 0.0, 0.0),
+                                 last.lat_deg, last.lon_deg, last.alt_m))
+    items.append(return_to_launch())
+    return dataclasses.replace(plan, items=tuple(items))
+
+
+def hold_seq(items: Sequence[WireItem]) -> int:
+    """Seq of the hold before the mission's closing RTL (0 when there is none)."""
+    rtl = final_seq(items)
+    holds = [it.seq for it in items if it.command == NAV_LOITER_TIME and it.seq < rtl]
+    return holds[-1] if holds else 0

@@ -164,6 +164,9 @@ class SearchOutcome:
     vehicles_home: tuple[int, ...]
     vehicles_lost: tuple[int, ...]
     vehicles_returning: tuple[int, ...] = ()  # return home acknowledged, landing not seen yet
+    # per vehicle: (id, replans that changed its looks, missions uploaded incl. the scan, new plans not
+    # uploaded because not worth a restarted leg)
+    uploads: tuple[tuple[int, int, int, int], ...] = ()
 
 
 def statement_for(people: Sequence[PersonResult], required_m: float, lost: Sequence[int],

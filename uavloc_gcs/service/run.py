@@ -4,7 +4,10 @@
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import math
+import signal
+import threading
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Mapping, Sequence
@@ -46,6 +49,24 @@ def connections_for(scenario: Scenario) -> list[tuple[int, str]]:
     return [(i + 1, c) for i, c in enumerate(conns)]
 
 
+def rssi_connections_for(scenario: Scenario) -> tuple[tuple[int, str], ...]:
+    """[(system id, RSSI connection)] from [link] rssi_connections ("" entries left out)."""
+    from ..errors import ConfigError  # noqa: PLC0415
+    from ..link import parse_connection  # noqa: PLC0415
+
+    out = []
+    for i, c in enumerate(scenario.link.rssi_connections or []):
+        if not c:
+            continue
+        try:
+            parse_connection(c)
+        except ConfigError as exc:
+            raise ConfigError(f"entry {i} ({c!r}) for vehicle {i + 1}: {exc}", source=scenario.source,
+                              key="link.rssi_connections") from None
+        out.append((i + 1, c))
+    return tuple(out)
+
+
 def run_search(scenario: Scenario, connections: Sequence[tuple[int, str]], options: DaemonOptions,
                out_dir: Path, *, view: LiveView | None = None,
                truth: Callable[[Sequence[PersonResult], float], Mapping[int, tuple]] | None = None,
@@ -58,7 +79,7 @@ def run_search(scenario: Scenario, connections: Sequence[tuple[int, str]], optio
     daemon = Daemon(scenario, connections, options, view=view)
     if on_daemon is not None:
         on_daemon(daemon)
-    outcome = asyncio.run(daemon.run())
+    outcome = asyncio.run(_until_stopped(daemon))
     people = list(outcome.people)
     truth_xy = None
     if truth is not None:
@@ -75,3 +96,47 @@ def run_search(scenario: Scenario, connections: Sequence[tuple[int, str]], optio
                           truth_xy_m=truth_xy, name=scenario.name)
     table = results_table(people, scenario.people.required_accuracy_m, truth_xy)
     return RunResult(outcome, tuple(people), table, tuple(files))
+
+
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+
+async def _until_stopped(daemon: Daemon) -> SearchOutcome:
+    """Run the daemon; on SIGINT/SIGTERM let it send the fleet home (or on), then raise
+    :class:`~uavloc_gcs.errors.Interrupted` saying what each vehicle does."""
+    from ..errors import Interrupted  # noqa: PLC0415
+
+    loop = asyncio.get_running_loop()
+    task = asyncio.current_task()
+    got: list[int] = []
+
+    def on_signal(signum, _frame=None) -> None:
+        got.append(signum)
+        loop.call_soon_threadsafe(task.cancel)
+
+    with _signal_handlers(on_signal):
+        try:
+            return await daemon.run()
+        except asyncio.CancelledError:
+            if not got:
+                raise
+            task.uncancel()
+            name = signal.Signals(got[0]).name
+            lines = daemon.stop_report or ["no vehicle was commanded yet"]
+            raise Interrupted(f"stopped by {name}: " + "; ".join(lines) + ".", signal=got[0]) from None
+
+
+@contextlib.contextmanager
+def _signal_handlers(handler):
+    """Install ``handler`` for SIGINT and SIGTERM (main thread only), restoring the previous ones."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = {s: signal.getsignal(s) for s in STOP_SIGNALS}
+    for s in STOP_SIGNALS:
+        signal.signal(s, handler)
+    try:
+        yield
+    finally:
+        for s, h in previous.items():
+            signal.signal(s, h)

@@ -15,9 +15,10 @@ import time
 from dataclasses import dataclass
 from typing import Callable, Sequence
 
+from ..dialect import mavlink
 from ..dialect.rssi import decode_rssi_batch
-from ..link import (arm, download_mission, flavour_named, return_to_launch, set_current_item, set_mode,
-                    start_mission, upload_mission)
+from ..link import (download_mission, flavour_named, return_home, start_mission_from, switch_mission,
+                    upload_mission)
 from ..geo import LocalFrame
 from ..mission import WireItem
 from ..observations import SlotBatch
@@ -27,7 +28,6 @@ log = logging.getLogger(__name__)
 MAV_MODE_FLAG_SAFETY_ARMED = 128
 LANDED_ALT_M = 1.5  # below this relative altitude (and disarmed or not moving) a vehicle is on the ground
 MISSION_MODES = ("AUTO", "AUTO.MISSION")  # ArduPilot, PX4
-ARMABLE_AP_MODES = ("GUIDED", "LOITER", "STABILIZE", "ALT_HOLD", "POSHOLD")
 
 
 @dataclass
@@ -47,6 +47,7 @@ class Telemetry:
     mission_state: int | None = None
     unix_s: float | None = None  # the vehicle's clock (SYSTEM_TIME), simulated time under speed-up
     unix_wall_s: float | None = None  # daemon wall clock when unix_s arrived
+    mission_ours: bool = True  # MISSION_CURRENT describes the mission we uploaded last (see VehicleAgent)
     wall_s: float = -math.inf
     messages: int = 0
 
@@ -73,10 +74,25 @@ class VehicleAgent:
         self._wall = wall
         self._pending_rssi: list = []  # raw messages that arrived before the epoch was known
         self.rssi_messages = 0
+        self.upload_opaque_id = 0  # the plan id of our last upload's MISSION_ACK (0: not given)
+        self._acked_wall_s: float | None = None  # when our last upload was acknowledged
         self._sub = link.subscribe(None, source_system=vehicle, callback=self._on_message)
+        self._rssi_subs: list = []
 
     def close(self) -> None:
         self._sub.close()
+        for sub in self._rssi_subs:
+            sub.close()
+
+    def attach_rssi(self, link) -> None:
+        """Also take this vehicle's RSSI from ``link``, a connection beside the autopilot (a router
+        on the companion, a second radio; ``[link] rssi_connections``)."""
+        self._rssi_subs.append(link.subscribe("UAVLOC_RSSI_BATCH", source_system=self.vehicle,
+                                              callback=self._on_rssi_beside))
+
+    def _on_rssi_beside(self, msg) -> None:
+        self.rssi_messages += 1
+        self._rssi(msg)
 
     # -- receive path ---------------------------------------------------------------------------
     def _on_message(self, msg) -> None:
@@ -107,6 +123,8 @@ class VehicleAgent:
             total = getattr(msg, "total", 0)
             t.mission_total = int(total) if total not in (0, 65535) else None
             t.mission_state = getattr(msg, "mission_state", None)
+            if not t.mission_ours:
+                t.mission_ours = self._new_mission_started(t.mission_state, t.wall_s)
         elif kind == "SYSTEM_TIME":
             if msg.time_unix_usec > 0:
                 t.unix_s = msg.time_unix_usec / 1e6
@@ -130,6 +148,23 @@ class VehicleAgent:
         if len(batch) and self._on_slots is not None:
             self._on_slots(batch)
 
+    def _new_mission_started(self, state: int | None, wall_s: float) -> bool:
+        """Whether a MISSION_CURRENT received after our upload was acknowledged describes our mission.
+
+        A PX4 that has flown a mission since boot keeps reporting mission_state COMPLETE (and that
+        mission's item) until the next mission starts, also after a new upload; taken at face value
+        that ended a scan the moment it began. This dialect's MISSION_CURRENT carries no mission id
+        to compare with the ACK's opaque id, so the judgment is "a new mission started": a state
+        other than COMPLETE (not started, active, paused) reported after the ACK; from a vehicle
+        that does not report states (UNKNOWN), any report a second after the ACK.
+        """
+        if self._acked_wall_s is None or wall_s < self._acked_wall_s:
+            return False
+        if state in (None, mavlink.MISSION_STATE_UNKNOWN):
+            return wall_s >= self._acked_wall_s + 1.0
+        return state in (mavlink.MISSION_STATE_NOT_STARTED, mavlink.MISSION_STATE_ACTIVE,
+                         mavlink.MISSION_STATE_PAUSED)
+
     # -- state ------------------------------------------------------------------------------------
     def silent_for_s(self) -> float:
         return self._wall() - self.tel.wall_s
@@ -151,32 +186,31 @@ class VehicleAgent:
 
     async def upload(self, items: Sequence[WireItem]) -> None:
         """Upload and verify by reading back (MissionTransferError names vehicle, item, result)."""
-        await upload_mission(self.link, self.vehicle, 1, list(items), verify=True, autopilot=self.autopilot)
+        result = await upload_mission(self.link, self.vehicle, 1, list(items), verify=True, autopilot=self.autopilot)
+        # from now on the mission state reported is stale until the vehicle shows it started ours
+        self.upload_opaque_id = getattr(result, "opaque_id", 0) or 0
+        self._acked_wall_s = self._wall()
+        self.tel.mission_ours = False
+        return result
 
     async def download(self) -> list[WireItem]:
         return list(await download_mission(self.link, self.vehicle, 1))
 
-    async def start(self, first_seq: int = 0) -> None:
-        """Arm on the ground and start the uploaded mission (its first item is the takeoff).
-
-        ArduPilot does not arm in AUTO or RTL: the vehicle is put in GUIDED first.
-        """
-        if self.flavour.name == "ardupilot" and self.tel.mode not in ARMABLE_AP_MODES:
-            await set_mode(self.link, self.vehicle, 1, "GUIDED", autopilot=self.autopilot)
-        if not self.tel.armed:
-            await arm(self.link, self.vehicle, 1)
-        if first_seq:
-            await set_current_item(self.link, self.vehicle, 1, first_seq)
-        await start_mission(self.link, self.vehicle, 1, first_seq)
+    async def start(self, first_seq: int | None = None) -> None:
+        """Arm on the ground (waiting until the vehicle is ready; the error names its own reason)
+        and fly the uploaded mission from ``first_seq`` (default: its first item, the takeoff).
+        The per-autopilot sequence is the link layer's (link/mission_control.py)."""
+        first = self.flavour.first_mission_seq if first_seq is None else max(first_seq, self.flavour.first_mission_seq)
+        await start_mission_from(self.link, self.vehicle, 1, self.flavour, first, armed=self.tel.armed,
+                                 mode=self.tel.mode)
 
     async def switch_to(self, first_seq: int, *, on_ground: bool) -> None:
         """Fly the just-uploaded mission from item ``first_seq`` (taking off when on the ground)."""
         if on_ground:
             await self.start(first_seq)
             return
-        await set_current_item(self.link, self.vehicle, 1, first_seq)
-        if not self.in_mission_mode:
-            await start_mission(self.link, self.vehicle, 1, first_seq)
+        await switch_mission(self.link, self.vehicle, 1, self.flavour, first_seq,
+                             in_mission_mode=self.in_mission_mode, mission_state=self.tel.mission_state)
 
     async def return_home(self) -> None:
-        await return_to_launch(self.link, self.vehicle, 1)
+        await return_home(self.link, self.vehicle, 1)

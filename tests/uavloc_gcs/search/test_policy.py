@@ -230,3 +230,52 @@ def test_a_flown_look_is_still_judged_after_a_replan_and_later_looks_are_re_base
     grace = small.horizontal_range_m / small.fleet.speed_m_s
     policy.update(t1 + 50.0 + grace + 1.0)
     assert {p.emitter_id: p.looks for p in policy.people(0.0)}[first] == 1  # judged despite the replan
+
+
+def _with_energy(states, energies):
+    return [VehicleState(s.id, s.start_xy_m, s.home_xy_m, e) for s, e in zip(states, energies)]
+
+
+def test_no_replan_loop_when_no_vehicle_has_energy_for_a_look(small):
+    """Reproduces the ArduCopter SITL churn (3,634 replans, ~18 per second once the battery was
+    short): with too little energy the plan came back empty, the people stayed pending and
+    ``needs_replan`` said yes on every tick. Now they are given up with the reason, once."""
+    sc = small.replace(people={"required_accuracy_m": 4.0})
+    world = World(sc, seed=3, people=3, motion="static")
+    policy, _, t_end, states = _scan_policy(sc, world)
+    pending = policy.pending_ids()
+    assert pending
+    plan = policy.replan(t_end, _with_energy(states, [500.0] * len(states)))
+    assert all(task.target_ids == () for task in plan.tasks)
+    assert policy.pending_ids() == [] and policy.done(t_end)
+    reasons = {p.emitter_id: p.reason for p in policy.people(t_end)}
+    assert all("energy" in reasons[e] for e in pending), reasons
+    replans = sum(policy.needs_replan(t_end + 0.05 * k, set()) for k in range(200))
+    assert replans == 0
+
+
+def test_a_vehicle_that_can_only_get_home_is_left_out_and_the_others_look(small):
+    sc = small.replace(people={"required_accuracy_m": 4.0})
+    world = World(sc, seed=3, people=3, motion="static")
+    policy, _, t_end, states = _scan_policy(sc, world)
+    pending = set(policy.pending_ids())
+    plan = policy.replan(t_end, _with_energy(states, [500.0] + [sc.usable_energy_j] * (len(states) - 1)))
+    by_vehicle = {task.vehicle_id: task.target_ids for task in plan.tasks}
+    assert by_vehicle[states[0].id] == ()  # it goes home
+    assert {e for ids in by_vehicle.values() for e in ids} == pending
+    assert not policy.needs_replan(t_end + 1.0, set())
+
+
+def test_unplanned_people_wait_for_new_data_instead_of_a_replan_every_tick(small):
+    sc = small.replace(people={"required_accuracy_m": 4.0})
+    world = World(sc, seed=3, people=3, motion="static")
+    policy, _, t_end, states = _scan_policy(sc, world)
+    policy.replan(t_end, states)
+    victim = policy.pending_ids()[0]
+    # the plan left someone out without giving up on them (e.g. a planner that dropped them)
+    policy._plan = policy._plan.__class__(
+        tuple(t.__class__(t.vehicle_id, t.waypoints_xy_m, tuple(e for e in t.target_ids if e != victim), t.eta_s,
+                          t.access_times_s) for t in policy._plan.tasks), 0.0, 0.0)
+    policy._unplanned = {victim}
+    assert not policy.needs_replan(t_end + 1.0, set())
+    assert policy.needs_replan(t_end + 1.0, {victim})  # new data about them: plan again

@@ -87,6 +87,8 @@ def test_a_lost_vehicles_people_go_to_the_others_and_unchanged_missions_are_not_
 
         d.vehicles[1].lost = False  # back: planned for again
         a2.tel.mission_seq = first_seq + 1  # vehicle 2 has passed its look: an equal plan is new to it
+        d.vehicles[2].ignore_seq_until_wall = 0.0
+        d._report_looks(103.0)  # as the brain does before each step
         asyncio.run(d._step(103.0, set()))
         assert policy.offered[-1] == ["1", "2"] and len(a2.uploads) == 3
     finally:
@@ -160,5 +162,57 @@ def test_a_look_is_reported_from_the_mission_sequence_alone(tmp_path):
         v.agent.tel.mission_seq = v.look_first_seq + 1  # e.g. a MISSION_ITEM_REACHED we did not see
         d._report_looks(140.0)
         assert policy.flown == [(7, 140.0)]
+    finally:
+        d.store.close()
+
+
+class _DriftingPolicy(_Policy):
+    """Every replan moves the look a little (an estimate settling), as the SITL runs showed; or adds
+    a person when told to."""
+
+    def __init__(self):
+        super().__init__()
+        self.shift, self.targets = 0.0, [7]
+
+    def replan(self, t, vehicles):
+        self.offered.append(sorted(v.id for v in vehicles))
+        self.shift += 3.5
+        pts = [[100.0 + 50 * k, 50.0 + self.shift] for k in range(len(self.targets))] + [[0.0, 0.0]]
+        tasks = [SimpleNamespace(vehicle_id=v.id, target_ids=tuple(self.targets), eta_s=t + 60,
+                                 access_times_s=tuple(t + 10 for _ in self.targets), waypoints_xy_m=np.array(pts))
+                 for v in vehicles]
+        return SimpleNamespace(tasks=tuple(tasks), makespan_s=60.0, planner_runtime_s=0.01)
+
+
+def test_replans_that_only_shift_the_looks_a_little_are_not_uploaded_and_one_upload_per_look(tmp_path):
+    """Reproduces the SITL churn of uploads (55-85 look missions per vehicle): now a plan that only
+    moves a look by a few metres is not worth a restarted leg, and a vehicle gets at most one
+    in-flight upload between two looks."""
+    sc = small_scenario()
+    policy = _DriftingPolicy()
+    d = Daemon(sc, [(1, "udpout:127.0.0.1:26990")], DaemonOptions(store_path=tmp_path / "s.sqlite"), policy=policy)
+    d.store = Store(tmp_path / "s.sqlite")
+    try:
+        v = d.vehicles[1]
+        v.agent = _Agent((50.0, 100.0))
+        v.scan_done, v.phase = True, "hovering (scan done)"
+        for k in range(5):  # 3.5-14 m from the uploaded look: within the required accuracy (15 m)
+            asyncio.run(d._step(100.0 + k, {7}))
+        assert len(v.agent.uploads) == 1 and len(policy.offered) == 5
+        assert v.skipped == 2  # the two beyond the 10 m "same route" tolerance, not worth an upload
+        policy.targets = [7, 9]  # someone new: worth an upload
+        asyncio.run(d._step(110.0, {9}))
+        assert len(v.agent.uploads) == 2
+        policy.targets = [7, 9, 11]  # another one before the vehicle passed a look: deferred
+        asyncio.run(d._step(111.0, {11}))
+        assert len(v.agent.uploads) == 2 and v.deferred
+        v.ignore_seq_until_wall = 0.0
+        v.agent.tel.mission_seq = v.look_first_seq + 1  # passed its look at 7
+        d._report_looks(120.0)
+        assert d._replan_due
+        asyncio.run(d._step(120.0, set()))
+        assert len(v.agent.uploads) == 3 and v.targets == (7, 9, 11)
+        outcome_rows = (v.id, v.plans, v.uploads, v.skipped)
+        assert outcome_rows == (1, 3, 3, 3)
     finally:
         d.store.close()

@@ -32,6 +32,17 @@ lost_timeout_s = 3.0
 def test_default_link_section():
     sc = loads_scenario(AREA)
     assert sc.link.connections is None and sc.link.signing_key_hex == "" and sc.link.start == "auto"
+    assert sc.link.source_system == 245  # not QGroundControl's 255: both can talk to the vehicles
+    assert sc.link.rssi_connections is None and sc.link.set_speed_params is False
+
+
+def test_rssi_connections_and_speed_consent_are_read():
+    sc = loads_scenario(AREA + """
+[link]
+rssi_connections = ["udpin:127.0.0.1:26101", ""]
+set_speed_params = true
+""")
+    assert sc.link.rssi_connections == ["udpin:127.0.0.1:26101", ""] and sc.link.set_speed_params is True
 
 
 @pytest.mark.parametrize("body, key", [
@@ -42,6 +53,9 @@ def test_default_link_section():
     ('start = "now"', "link.start"),
     ('lost_timeout_s = 0', "link.lost_timeout_s"),
     ('bogus = 1', "link.bogus"),
+    ('rssi_connections = ["udpin:127.0.0.1:26101"]', "link.rssi_connections"),
+    ('rssi_connections = ["", 3]', "link.rssi_connections"),
+    ('set_speed_params = "yes"', "link.set_speed_params"),
 ])
 def test_bad_link_values_name_the_key(body, key):
     with pytest.raises(ConfigError) as err:

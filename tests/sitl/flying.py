@@ -1,0 +1,96 @@
+"""Test-side helpers for flying a SITL vehicle through uavloc's link layer: a live view of its
+telemetry and waits that judge by state (with generous wall-clock deadlines)."""
+
+from __future__ import annotations
+
+import asyncio
+import math
+import time
+
+from uavloc_gcs.link import flavour_for
+
+ARMED = 128
+
+
+def distance_m(lat1: float, lon1: float, lat2: float, lon2: float) -> float:
+    k = 111_320.0
+    return math.hypot((lat2 - lat1) * k, (lon2 - lon1) * k * math.cos(math.radians(lat1)))
+
+
+class Watch:
+    """The latest HEARTBEAT, GLOBAL_POSITION_INT, MISSION_CURRENT, HOME_POSITION, SYSTEM_TIME and
+    all STATUSTEXTs and MISSION_ITEM_REACHED of one vehicle, kept from the link's receive path."""
+
+    def __init__(self, link, system: int):
+        self.link, self.system = link, system
+        self.last: dict[str, object] = {}
+        self.counts: dict[str, int] = {}
+        self.texts: list[str] = []
+        self.reached: list[int] = []
+        self.seqs: list[int] = []
+        self._sub = link.subscribe(None, source_system=system, callback=self._on)
+
+    def _on(self, msg) -> None:
+        kind = msg.get_type()
+        if kind == "HEARTBEAT" and msg.autopilot == 8:
+            return
+        self.last[kind] = msg
+        self.counts[kind] = self.counts.get(kind, 0) + 1
+        if kind == "STATUSTEXT":
+            self.texts.append(str(msg.text).rstrip("\x00"))
+        elif kind == "MISSION_ITEM_REACHED":
+            self.reached.append(msg.seq)
+        elif kind == "MISSION_CURRENT" and (not self.seqs or self.seqs[-1] != msg.seq):
+            self.seqs.append(msg.seq)
+
+    def close(self) -> None:
+        self._sub.close()
+
+    # -- state ----------------------------------------------------------------------------
+    @property
+    def flavour(self):
+        return flavour_for(self.last["HEARTBEAT"].autopilot)
+
+    @property
+    def armed(self) -> bool:
+        hb = self.last.get("HEARTBEAT")
+        return bool(hb and hb.base_mode & ARMED)
+
+    @property
+    def mode(self) -> str:
+        hb = self.last["HEARTBEAT"]
+        return self.flavour.mode_name(hb.custom_mode, hb.type)
+
+    @property
+    def rel_alt_m(self) -> float:
+        pos = self.last.get("GLOBAL_POSITION_INT")
+        return pos.relative_alt / 1000.0 if pos else math.nan
+
+    @property
+    def latlon(self) -> tuple[float, float]:
+        pos = self.last["GLOBAL_POSITION_INT"]
+        return pos.lat / 1e7, pos.lon / 1e7
+
+    @property
+    def mission_seq(self) -> int | None:
+        cur = self.last.get("MISSION_CURRENT")
+        return cur.seq if cur else None
+
+    @property
+    def mission_state(self) -> int | None:
+        cur = self.last.get("MISSION_CURRENT")
+        return getattr(cur, "mission_state", None) if cur else None
+
+    async def until(self, what: str, check, timeout_s: float, poll_s: float = 0.2):
+        """Wait until ``check()`` is truthy; AssertionError naming ``what`` and the state after
+        ``timeout_s`` wall seconds."""
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            value = check()
+            if value:
+                return value
+            await asyncio.sleep(poll_s)
+        raise AssertionError(f"vehicle {self.system}: no {what} within {timeout_s:g} s "
+                             f"(mode {self.mode if 'HEARTBEAT' in self.last else '?'}, armed {self.armed}, "
+                             f"alt {self.rel_alt_m:.1f} m, mission seq {self.mission_seq}, state "
+                             f"{self.mission_state}, seqs {self.seqs[-12:]}, texts {self.texts[-6:]})")

@@ -1,0 +1,51 @@
+"""One vehicle's fault never ends the search: four fake vehicles over UDP, each fault on one of them
+(lost COMMAND_ACKs, NACKed commands, every upload refused), the others finish the search."""
+
+import pytest
+
+from tests.e2e_helpers import small_scenario
+from tests.uavloc_gcs.service.faulty_proxy import ProxyThread, Rules
+from uavloc_gcs.cli._fleet import start_fleet_process
+from uavloc_gcs.dialect import mavlink as M
+from uavloc_gcs.service.daemon import DaemonOptions
+from uavloc_gcs.service.run import run_search
+from uavloc_gcs.service.store import StoreReader
+
+
+@pytest.mark.parametrize("autopilot", ["ardupilot"])
+def test_lost_acks_nacks_and_a_refusing_vehicle_each_on_one_of_four(tmp_path, autopilot):
+    sc = small_scenario(autopilot, speedup=25.0).replace(fleet={"vehicles": 4})
+    rules = {
+        1: Rules(drop_acks_for=frozenset({M.MAV_CMD_MISSION_START}), drop_ack_p=0.3, seed=1),  # lost ACKs
+        2: Rules(nack_every=2),  # every other command NACKed
+        3: Rules(reject_uploads=True),  # refuses every mission
+        4: Rules(),  # clean
+    }
+    fleet = start_fleet_process(sc, speedup=sc.simulation.speedup, seed=sc.simulation.seed, base_port=0)
+    try:
+        ports = [int(conn.rsplit(":", 1)[1]) for _name, conn in fleet.endpoints]
+        with ProxyThread([(port, vid, rules[vid]) for vid, port in enumerate(ports, start=1)]) as px:
+            conns = [(vid, p.connection) for vid, p in enumerate(px.proxies, start=1)]
+            opts = DaemonOptions(store_path=tmp_path / "search.sqlite", tlog_dir=tmp_path, resume=False)
+            result = run_search(sc, conns, opts, tmp_path)
+    finally:
+        fleet.stop()
+    out = result.outcome
+    # the faults really happened
+    assert rules[1].counts.get(f"dropped ack {M.MAV_CMD_MISSION_START}", 0) >= 1, rules[1].counts
+    assert rules[2].counts.get("nacked", 0) >= 1, rules[2].counts
+    assert rules[3].counts.get("rejected uploads", 0) >= 3, rules[3].counts
+    with StoreReader(tmp_path / "search.sqlite") as rd:
+        events = rd.events()
+    unusable = sorted({e.vehicle for e in events if e.kind == "unusable"})
+    assert unusable == [3], [e.text for e in events if e.kind == "unusable"]
+    started = {e.vehicle for e in events if e.kind == "start"}
+    assert started == {1, 2, 4}, started
+    judged = [e.text for e in events if e.kind == "retry" and e.vehicle == 1 and "does it" in e.text]
+    assert judged, "vehicle 1's lost MISSION_START ACK was judged from its mode"
+    assert any(e.kind == "retry" and e.vehicle == 2 for e in events), "vehicle 2's NACKs were retried"
+    # the search ran to its end with the three usable vehicles, who came home
+    assert any(e.kind == "end" for e in events)
+    assert set(out.vehicles_home + out.vehicles_returning) >= {1, 2, 4}, out.statement
+    assert out.vehicles_lost == ()
+    assert out.people, out.statement

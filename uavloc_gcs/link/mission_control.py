@@ -1,0 +1,189 @@
+"""Flying a mission on a real autopilot: streams, arming, start, switch in flight, return home.
+
+Each sequence here was measured on ArduCopter and PX4 SITL (tests/sitl/test_flight.py keeps the
+measurement as a test); what differs is a named field of :class:`~.autopilots.Flavour`:
+
+* start on the ground -- put ArduPilot in GUIDED (it does not arm in AUTO), arm (waiting until the
+  vehicle is ready, see :func:`arm_when_ready`), make ``first_seq`` current, MISSION_START.
+  ArduPilot DENIES MISSION_START with a first item other than 0 and resumes from its current
+  item (``mission_start_takes_first_item``), so the first item is set with set-current first.
+* switch to a just-uploaded mission in flight -- PX4 restarts a mission uploaded in AUTO.MISSION
+  from item 0 by itself (``upload_restarts_mission``) and answers DO_SET_MISSION_CURRENT
+  UNSUPPORTED (``set_current_command``: it takes the legacy MISSION_SET_CURRENT message);
+  ArduPilot keeps its item index across an upload, so the item is set; after set-current on a
+  finished mission ArduPilot's AUTO holds until MISSION_START (``finished_mission_needs_start``).
+* return home -- MAV_CMD_NAV_RETURN_TO_LAUNCH on both.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import time
+from typing import Mapping
+
+from ..dialect import mavlink
+from ..errors import CommandError
+from .autopilots import Flavour
+from .command import (COMMAND_TIMEOUT_S, MAV_RESULT_ACCEPTED, MAV_RESULT_UNSUPPORTED, arm, command_long,
+                      return_to_launch, set_mode, start_mission)
+from .connection import Link
+
+log = logging.getLogger(__name__)
+
+# Messages the daemon needs and the rate it asks for (Hz, in the vehicle's time).
+DEFAULT_STREAMS: dict[str, float] = {
+    "SYSTEM_TIME": 1.0, "GLOBAL_POSITION_INT": 4.0, "MISSION_CURRENT": 2.0, "SYS_STATUS": 1.0,
+    "HOME_POSITION": 0.5, "EXTENDED_SYS_STATE": 1.0,
+}
+STREAM_COMMAND_RETRIES = 2
+ARM_READY_TIMEOUT_S = 90.0  # wall seconds to keep retrying a refused arm (EKF settling after boot)
+ARM_BACKOFF_S = (0.5, 1.0, 2.0, 3.0)  # waits between refused arms, the last repeated
+ARM_REFUSALS = (mavlink.MAV_RESULT_FAILED, mavlink.MAV_RESULT_DENIED, mavlink.MAV_RESULT_TEMPORARILY_REJECTED)
+MISSION_STATE_COMPLETED = 5  # MISSION_STATE_COMPLETE in MISSION_CURRENT.mission_state
+AP_DATA_STREAM_HZ = 4  # REQUEST_DATA_STREAM fallback: every ArduPilot stream group at this rate
+SET_CURRENT_CONFIRM_S = 3.0
+
+
+async def request_streams(link: Link, system: int, flavour: Flavour,
+                          rates: Mapping[str, float] | None = None, *, component: int = 1) -> dict[str, bool]:
+    """Ask the vehicle to send each message in ``rates`` (name -> Hz) with SET_MESSAGE_INTERVAL.
+
+    Real autopilots stream little on a fresh link (ArduPilot: only HEARTBEAT, HOME_POSITION,
+    STATUSTEXT until asked; PX4: no SYSTEM_TIME on the ground-station link). Returns which
+    messages were accepted. Where ArduPilot refuses or does not answer, REQUEST_DATA_STREAM for
+    all its stream groups is sent as well (it has no ACK; the messages simply start).
+    """
+    rates = dict(DEFAULT_STREAMS if rates is None else rates)
+    accepted: dict[str, bool] = {}
+    for name, hz in rates.items():
+        msg_id = getattr(mavlink, f"MAVLINK_MSG_ID_{name}")
+        interval_us = -1 if hz <= 0 else int(1e6 / hz)
+        try:
+            await command_long(link, system, component, mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, (msg_id, interval_us),
+                               retries=STREAM_COMMAND_RETRIES)
+            accepted[name] = True
+        except CommandError as err:
+            log.info("vehicle %d: %s", system, err)
+            accepted[name] = False
+    if flavour.name == "ardupilot" and not all(accepted.values()):
+        await link.send(link.mav.request_data_stream_encode(system, component, mavlink.MAV_DATA_STREAM_ALL,
+                                                            AP_DATA_STREAM_HZ, 1))
+    return accepted
+
+
+class StatusWatch:
+    """The vehicle's latest STATUSTEXTs while open (to name why a command was refused)."""
+
+    def __init__(self, link: Link, system: int):
+        self.texts: list[str] = []
+        self._sub = link.subscribe("STATUSTEXT", source_system=system, callback=self._on)
+
+    def _on(self, msg) -> None:
+        self.texts.append(str(msg.text).rstrip("\x00"))
+        del self.texts[:-20]
+
+    def reason(self) -> str | None:
+        """The latest text that explains an arming refusal, else the latest text."""
+        for text in reversed(self.texts):
+            low = text.lower()
+            if low.startswith(("prearm", "arm", "preflight", "arming", "disarm")) or "denied" in low:
+                return text
+        return self.texts[-1] if self.texts else None
+
+    def close(self) -> None:
+        self._sub.close()
+
+    def __enter__(self) -> "StatusWatch":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+async def arm_when_ready(link: Link, system: int, component: int = 1, *,
+                         timeout_s: float = ARM_READY_TIMEOUT_S) -> None:
+    """Arm, retrying with backoff while the vehicle refuses (a freshly booted ArduCopter says
+    "Arm: Accels inconsistent" or waits for its EKF to use GPS). After ``timeout_s`` the
+    CommandError names the autopilot's own reason from its latest STATUSTEXT."""
+    deadline = time.monotonic() + timeout_s
+    attempt = 0
+    with StatusWatch(link, system) as watch:
+        while True:
+            try:
+                await arm(link, system, component)
+                return
+            except CommandError as err:
+                result = getattr(err, "result", None)
+                if result not in ARM_REFUSALS or time.monotonic() >= deadline:
+                    reason = watch.reason()
+                    message = str(err).split(": ", 1)[-1] if err.vehicle else str(err)
+                    final = CommandError(f"{message}{f' ({reason})' if reason else ''}"
+                                         f"{f' after {attempt + 1} tries' if attempt else ''}",
+                                         vehicle=str(system), operation="arm")
+                    final.result = result
+                    final.reason = reason
+                    raise final from None
+                wait = ARM_BACKOFF_S[min(attempt, len(ARM_BACKOFF_S) - 1)]
+                log.info("vehicle %d: arming refused (%s); retrying in %g s", system, watch.reason(), wait)
+                attempt += 1
+                await asyncio.sleep(min(wait, max(0.0, deadline - time.monotonic())))
+
+
+async def set_current(link: Link, system: int, component: int, flavour: Flavour, seq: int) -> None:
+    """Make ``seq`` the current item: DO_SET_MISSION_CURRENT where the autopilot takes it, else the
+    legacy MISSION_SET_CURRENT message, confirmed by MISSION_CURRENT reporting ``seq`` or later (PX4
+    passes a DO_CHANGE_SPEED at once, so the item itself may never be reported)."""
+    if flavour.set_current_command:
+        try:
+            await command_long(link, system, component, mavlink.MAV_CMD_DO_SET_MISSION_CURRENT, (seq, 0))
+            return
+        except CommandError as err:
+            if getattr(err, "result", None) != MAV_RESULT_UNSUPPORTED:
+                raise
+    with link.subscribe("MISSION_CURRENT", source_system=system, predicate=lambda m: m.seq >= seq) as cur:
+        for _ in range(3):
+            await link.send(link.mav.mission_set_current_encode(system, component, seq))
+            try:
+                await cur.get(SET_CURRENT_CONFIRM_S)
+                return
+            except TimeoutError:
+                continue
+    raise CommandError(f"MISSION_SET_CURRENT {seq}: the vehicle never reported item {seq} or later as current",
+                       vehicle=str(system), operation="set current item")
+
+
+async def start_mission_from(link: Link, system: int, component: int, flavour: Flavour, first_seq: int, *,
+                             armed: bool, mode: str) -> None:
+    """Arm on the ground (when not ``armed``) and fly the uploaded mission from ``first_seq``."""
+    if flavour.name == "ardupilot" and mode not in flavour.armable_modes:
+        await set_mode(link, system, component, "GUIDED", autopilot=flavour)
+    if not armed:
+        await arm_when_ready(link, system, component)
+    if flavour.mission_start_takes_first_item:
+        await start_mission(link, system, component, first_seq, 0)
+        return
+    if first_seq != flavour.first_mission_seq:
+        await set_current(link, system, component, flavour, first_seq)
+    await start_mission(link, system, component, 0, 0)
+
+
+async def switch_mission(link: Link, system: int, component: int, flavour: Flavour, first_seq: int, *,
+                         in_mission_mode: bool, mission_state: int | None) -> None:
+    """Fly the just-uploaded mission from ``first_seq`` while airborne."""
+    if in_mission_mode and flavour.upload_restarts_mission and first_seq == flavour.first_mission_seq:
+        return  # the upload itself restarted it from its first item
+    await set_current(link, system, component, flavour, first_seq)
+    finished = mission_state == MISSION_STATE_COMPLETED
+    if not in_mission_mode or (finished and flavour.finished_mission_needs_start):
+        await start_mission(link, system, component, *((first_seq, 0) if flavour.mission_start_takes_first_item
+                                                       else (0, 0)))
+
+
+async def return_home(link: Link, system: int, component: int = 1) -> None:
+    """RTL: the vehicle flies home and lands (both autopilots disarm after landing)."""
+    await return_to_launch(link, system, component)
+
+
+__all__ = ["DEFAULT_STREAMS", "StatusWatch", "arm_when_ready", "request_streams", "return_home", "set_current",
+           "start_mission_from", "switch_mission", "COMMAND_TIMEOUT_S", "MAV_RESULT_ACCEPTED"]

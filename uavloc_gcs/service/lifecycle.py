@@ -1,0 +1,115 @@
+"""One vehicle's life in the search as an explicit state machine, and how its exchanges are judged.
+
+Phases and the moves between them (``NEXT``)::
+
+    connecting -> connected | not connected
+    connected -> uploading scan | scanning | localizing | returning | landed | waiting for operator | idle
+    uploading scan -> starting | waiting for operator
+    starting -> scanning
+    scanning -> hovering (scan done) | returning
+    hovering (scan done) | idle | landed -> localizing | returning
+    localizing -> localizing | returning
+    returning -> landed | localizing
+    any -> unusable   (the vehicle talks but cannot be commanded: its people go to the others)
+
+Lost/found is orthogonal (``_Vehicle.lost``): a silent vehicle keeps its phase and is left out of
+planning until it is heard again.
+
+An exchange with a vehicle (upload, start, switch mission, return home) is not judged from its
+acknowledgement alone: on a radio that loses packets the ACK of a command the vehicle carried out
+is lost as often as the command. :func:`persist` runs the exchange; when it fails it waits for
+fresh telemetry and asks ``done()`` whether the vehicle now does what was asked (its mode,
+MISSION_CURRENT, mission on board); if not, it tries again after a backoff. Only when every try
+failed and the vehicle still does not do it is the exchange a failure: the caller then marks the
+vehicle unusable.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import time
+from typing import Awaitable, Callable
+
+from ..errors import LinkError
+
+log = logging.getLogger(__name__)
+
+NEXT: dict[str, frozenset[str]] = {
+    "connecting": frozenset({"connected", "not connected"}),
+    "not connected": frozenset({"idle"}),
+    "connected": frozenset({"uploading scan", "scanning", "localizing", "returning", "landed",
+                            "waiting for operator", "idle", "hovering (scan done)"}),
+    "uploading scan": frozenset({"starting", "waiting for operator", "scanning"}),
+    "waiting for operator": frozenset({"scanning"}),
+    "starting": frozenset({"scanning"}),
+    "scanning": frozenset({"hovering (scan done)", "returning", "scanning", "localizing"}),
+    "hovering (scan done)": frozenset({"localizing", "returning", "landed"}),
+    "idle": frozenset({"localizing", "returning", "landed"}),
+    "localizing": frozenset({"localizing", "returning", "landed"}),
+    "returning": frozenset({"landed", "localizing", "returning"}),
+    "landed": frozenset({"localizing", "returning", "landed"}),
+    "unusable": frozenset(),
+}
+ANY_TO = frozenset({"unusable"})
+
+TRIES = 3
+BACKOFF_S = (0.5, 1.0, 2.0)  # wall seconds before the 2nd, 3rd, ... try
+SETTLE_S = 2.0  # wall seconds to wait for telemetry that shows the exchange's effect
+
+
+def allowed(old: str, new: str) -> bool:
+    return new in ANY_TO or new in NEXT.get(old, frozenset())
+
+
+class ExchangeFailed(LinkError):
+    """Every try of an exchange failed and the vehicle does not do what was asked."""
+
+
+async def persist(action: Callable[[], Awaitable[None]], done: Callable[[], bool], *, what: str,
+                  vehicle: int, tries: int = TRIES, backoff_s=BACKOFF_S, settle_s: float = SETTLE_S,
+                  heard_since: Callable[[float], bool] | None = None,
+                  on_retry: Callable[[str], None] | None = None,
+                  check: Callable[[], Awaitable[bool]] | None = None,
+                  wall: Callable[[], float] = time.monotonic) -> str:
+    """Run ``action`` until it succeeds or the vehicle is seen doing it; "acked" or "judged".
+
+    ``done()`` judges from the latest telemetry; ``heard_since(t)`` says whether telemetry newer
+    than wall time ``t`` has arrived (so the judgement is not made on what was known before);
+    ``check()`` is an optional slower judgement that talks to the vehicle (e.g. reading the
+    mission back). Raises :class:`ExchangeFailed` naming the last error.
+    """
+    last: LinkError | None = None
+    for attempt in range(tries):
+        if attempt:
+            await asyncio.sleep(backoff_s[min(attempt - 1, len(backoff_s) - 1)])
+        try:
+            await action()
+            return "acked"
+        except LinkError as exc:
+            last = exc
+            failed_at = wall()
+        if await _judged(done, failed_at, settle_s, heard_since, wall):
+            log.info("vehicle %d %s: %s, but the vehicle does it", vehicle, what, last)
+            return "judged"
+        if check is not None:
+            try:
+                if await check():
+                    return "judged"
+            except LinkError as exc:
+                log.info("vehicle %d %s: check failed: %s", vehicle, what, exc)
+        if on_retry is not None and attempt + 1 < tries:
+            on_retry(f"vehicle {vehicle} {what}: {last}; trying again")
+    raise ExchangeFailed(f"{what} failed {tries} times and the vehicle does not do it; last: {last}",
+                         vehicle=str(vehicle))
+
+
+async def _judged(done, since: float, settle_s: float, heard_since, wall) -> bool:
+    deadline = wall() + settle_s
+    while True:
+        fresh = heard_since is None or heard_since(since)
+        if fresh and done():
+            return True
+        if wall() >= deadline:
+            return False
+        await asyncio.sleep(0.05)
