@@ -281,7 +281,8 @@ def time_1000_slots(sc, repeats: int = 30) -> float:
     return float(np.median(times))
 
 
-def _maneuver_slots(fam: ManeuverFamily, world: World, rng: np.random.Generator, sc, channel, vmax):
+def _maneuver_slots(fam: ManeuverFamily, world: World, rng: np.random.Generator, sc, channel, vmax,
+                    evidence: str = "none"):
     """Slots of one maneuver run: two scan lanes around the person, optionally a look pass."""
     v, slot, alt, reach = sc.fleet.speed_m_s, sc.channel.slot_s, sc.fleet.altitude_m, sc.horizontal_range_m
     t0 = rng.uniform(0.0, 600.0)  # the walk's phase
@@ -292,9 +293,12 @@ def _maneuver_slots(fam: ManeuverFamily, world: World, rng: np.random.Generator,
     t1, x1 = _leg([x0, y1], [x0 + MISSION_LANE_M, y1], t0, v, slot, alt)
     t2, x2 = _leg([x0 + MISSION_LANE_M, y1 + spacing], [x0, y1 + spacing], t1[-1] + TURN_S + spacing / v, v, slot, alt)
     slots = SlotBatch.concat([world.hear_track(1, t1, x1), world.hear_track(1, t2, x2)])
+    tracks = [(1, t1, x1), (1, t2, x2)]
     if fam.stage == "lanes" or len(slots) < 3:
-        return slots
-    first = estimate_emitter(slots, channel, max_speed_m_s=vmax)
+        return slots, tracks
+    first = estimate_emitter(slots, channel, max_speed_m_s=vmax,
+                             silence=_track_silence(tracks, slots, sc.channel.slot_s) if evidence == "all" else
+                             (Silence.empty() if evidence == "heard" else None))
     t_look = float(slots.t_s.max()) + rng.uniform(30.0, 180.0)
     aim, _ = first.predict(t_look)
     psi = rng.uniform(0.0, 2 * np.pi)
@@ -302,10 +306,16 @@ def _maneuver_slots(fam: ManeuverFamily, world: World, rng: np.random.Generator,
     mid = aim + n * rng.uniform(0.0, 0.5 * reach)
     half = reach + 60.0
     t3, x3 = _leg(mid - half * u, mid + half * u, t_look - half / v, v, slot, alt)
-    return SlotBatch.concat([slots, world.hear_track(2, t3, x3)])  # another vehicle looks
+    return SlotBatch.concat([slots, world.hear_track(2, t3, x3)]), tracks + [(2, t3, x3)]  # another vehicle looks
 
 
-def run_maneuver_family(fam: ManeuverFamily, runs: int, seed: int, sc, bar=None) -> dict:
+def _track_silence(tracks, slots: SlotBatch, slot_s: float) -> Silence:
+    """Silences of (vehicle, times, positions) tracks, each vehicle against its own slots heard."""
+    parts = [silence_from_track(t, x, slots.t_s[slots.vehicle == v], slot_s=slot_s) for v, t, x in tracks]
+    return Silence(np.concatenate([p.t_s for p in parts]), np.vstack([p.xyz_m for p in parts]))
+
+
+def run_maneuver_family(fam: ManeuverFamily, runs: int, seed: int, sc, bar=None, evidence: str = "none") -> dict:
     if fam.area_m is not None:
         sc = sc.replace(area={"width_m": fam.area_m[0], "height_m": fam.area_m[1]})
     channel = ChannelModel.from_scenario(sc)
@@ -317,13 +327,14 @@ def run_maneuver_family(fam: ManeuverFamily, runs: int, seed: int, sc, bar=None)
         if bar is not None:
             bar.step(f"{fam.name} run {k + 1}")
         world = World(sc, seed=seed * 100_003 + k, people=1, motion="random_waypoint", horizon_s=1800.0)
-        slots = _maneuver_slots(fam, world, rng, sc, channel, vmax)
+        slots, tracks = _maneuver_slots(fam, world, rng, sc, channel, vmax, evidence)
         if len(slots) < 3:
             continue
+        quiet = {"all": _track_silence(tracks, slots, sc.channel.slot_s), "heard": Silence.empty()}.get(evidence)
         span.append(float(slots.t_s.max() - slots.t_s.min()))
         for key, tm in (("new", None), ("cv", math.inf)):
             opts = {} if tm is None else {"maneuver_time_s": tm}
-            est = estimate_emitter(slots, channel, max_speed_m_s=vmax, **opts)
+            est = estimate_emitter(slots, channel, max_speed_m_s=vmax, silence=quiet, **opts)
             out = [float(np.linalg.norm(est.position_xy_m - world.positions(est.t_ref_s)[0])), est.radius95_m,
                    float(est.ambiguous)]
             for dt in PREDICT_S:
@@ -372,7 +383,8 @@ def main(args: argparse.Namespace) -> int:
         print(head)
         print("-" * len(head))
         for fam in mfams:
-            r = run_maneuver_family(fam, args.runs, args.seed + 5000 + 1000 * MANEUVER_FAMILIES.index(fam), sc, bar)
+            r = run_maneuver_family(fam, args.runs, args.seed + 5000 + 1000 * MANEUVER_FAMILIES.index(fam), sc, bar,
+                                    args.evidence)
             n, c = r["new"], r["cv"]
             print(f"{r['family']:30s} {r['runs']:4d} {r['span']:6.0f} {n['rmse']:7.2f} {n['median_err']:6.2f} {n['ambiguous']:5.2f} "
                   f"{n['cover'][0]:5.2f} {n['median_r'][0]:6.1f} {n['cover'][1]:5.2f} {n['median_r'][1]:6.1f} "
