@@ -40,7 +40,7 @@ from . import targets as tg
 
 log = logging.getLogger(__name__)
 
-MAX_LOOKS = 4  # planned looks per person before giving up (the mission must end)
+MAX_LOOKS = 4  # planned looks per person before giving up (the mission must end; see targets.LOOK_SHRINK)
 MAX_MISSES = 2  # looks that heard nothing before giving up
 MATERIAL_SHIFT_FRACTION = 0.5  # estimate moved > this x required accuracy => replan
 LOOK_LATE_S = 180.0  # with look reports: an unreported look counts only this long after its (re-based) time
@@ -422,7 +422,7 @@ class SearchPolicy:
             if speed > vmax_plan:
                 vel = vel * (vmax_plan / speed)
             out.append(Target(str(eid), (float(centre[0]), float(centre[1])),
-                              (float(vel[0]), float(vel[1])), tg.look_radius_m(rho, sep)))
+                              (float(vel[0]), float(vel[1])), tg.look_radius_m(rho, sep, p.looks - p.misses)))
         return out
 
     def _access_radius(self, p: _Person, t_pass_s: float) -> float:
