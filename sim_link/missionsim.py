@@ -253,6 +253,7 @@ def simulate_mission(
     max_iter: int | None = None,
     max_time_s: float = DEFAULT_MAX_TIME_S,
     oracle: bool = False,
+    hearing_evidence: bool = False,
 ) -> MissionResult:
     """Fly one mission with one of :data:`METHODS` and report completion time, run times, errors."""
     if method not in METHODS:
@@ -261,6 +262,7 @@ def simulate_mission(
     policy = SearchPolicy(scenario, model_motion=model_motion, optimizer=optimizer,
                           local_search=scenario.planner.local_search, seed=seed, time_limit_s=time_limit_s,
                           max_iter=max_iter)
+    policy.hearing_evidence = hearing_evidence and math.isfinite(scenario.fleet.comm_range_m)
     scan = plan_scan(scenario)
     m = scenario.fleet.vehicles
     vehicles = [Vehicle(i + 1, scenario) for i in range(m)]

@@ -77,7 +77,7 @@ def test_mission_is_deterministic_and_moving_people_are_tracked(small):
 def test_clairvoyant_yardstick_and_recorded_silences(small):
     """The oracle plans the same follow-up looks at the true tracks: it ends after the scan and
     no later than the real mission (which may need more looks). The policy records where the
-    vehicles listened, so every estimate after the scan had silences to weigh."""
+    vehicles listened; with the hearing evidence on, estimates after the scan weigh silences."""
     import uavloc_gcs.search.policy as policy_module
 
     seen = []
@@ -91,7 +91,8 @@ def test_clairvoyant_yardstick_and_recorded_silences(small):
     policy_module.SearchPolicy._silence = spy
     try:
         world = World(small, seed=3, people=3, motion="random_waypoint")
-        res = simulate_mission(small, world, "MLE-EPSO (M)", seed=3, time_limit_s=20.0, max_iter=15, oracle=True)
+        res = simulate_mission(small, world, "MLE-EPSO (M)", seed=3, time_limit_s=20.0, max_iter=15, oracle=True,
+                               hearing_evidence=True)
     finally:
         policy_module.SearchPolicy._silence = original
     assert res.scan_time_s < res.oracle_completion_time_s <= res.completion_time_s + 1e-6

@@ -167,7 +167,8 @@ class SearchPolicy:
         self.estimator_runtime_s = 0.0
         # where each vehicle listened (ingest_track): the estimator's silences (estimation.evidence)
         self._tracks: dict[int, list[tuple[np.ndarray, np.ndarray]]] = {}
-        self.hearing_evidence = scenario.fleet.comm_range_m < math.inf
+        # opt-in: measured on missions it did not pay off yet (docs/readme/localization.md)
+        self.hearing_evidence = False
 
     # -- data in ---------------------------------------------------------------------------
     def ingest(self, slots: SlotBatch) -> None:
@@ -194,6 +195,8 @@ class SearchPolicy:
         if not len(xyz):
             return
         self._tracks.setdefault(int(vehicle), []).append((t[k], xyz))
+        if not self.hearing_evidence:
+            return
         for p in self._people.values():  # a silence near a pending candidate may rule it out
             if p.dirty or p.fix_t_s is not None or p.gave_up or not self._ok(p):
                 continue
