@@ -11,6 +11,9 @@ across the slots' principal line, keeps the distinct local optima as candidates,
   ``mode_radius95_m`` is the radius of the best candidate alone.
 - ``annulus_bound_m``: the paper's annulus-intersection bound (:mod:`.annulus`).
 
+With ``silence=`` (opt-in) where the phone was heard and where vehicles listened without hearing
+it constrain every candidate's track (:mod:`.evidence`): mirrors on the silent side lose out.
+
 Why not trust one pass: a constant-velocity person seen from one straight leg is unobservable
 (SPEC §3.1); only the speed prior bounds the error, and the radius says so.
 """
