@@ -69,8 +69,10 @@ def _dispatch(v: "FakeVehicle", cmd: int, p: list, extra: list, is_int: bool = F
     px4 = v.flavour.name == "px4"
     if cmd == mav.MAV_CMD_COMPONENT_ARM_DISARM:
         force = _i(p[1]) == FORCE_MAGIC
-        ok = v.arm(force) if p[0] >= 0.5 else v.disarm(force)
-        return ACCEPTED if ok else FAILED
+        if p[0] >= 0.5:
+            refusal = None if force or v.armed else v.arm_refusal()
+            return ACCEPTED if v.arm(force) else (refusal[0] if refusal else FAILED)
+        return ACCEPTED if v.disarm(force) else FAILED
     if cmd == mav.MAV_CMD_NAV_TAKEOFF:
         if not v.armed:
             return DENIED
@@ -92,6 +94,8 @@ def _dispatch(v: "FakeVehicle", cmd: int, p: list, extra: list, is_int: bool = F
         return ACCEPTED if v.set_mode(mode) else FAILED
     if cmd == mav.MAV_CMD_MISSION_START:
         first = _i(p[0])
+        if (first or _i(p[1])) and v.flavour.mission_start_first_item_denied:
+            return DENIED  # ArduPilot: only 0, 0 (it resumes from its current item)
         if first > 0 and not v.set_current(first):
             return FAILED
         return ACCEPTED if v.set_mode("AUTO") else FAILED
@@ -100,6 +104,8 @@ def _dispatch(v: "FakeVehicle", cmd: int, p: list, extra: list, is_int: bool = F
     if cmd == mav.MAV_CMD_NAV_LAND:
         return ACCEPTED if v.set_mode("LAND") else FAILED
     if cmd == mav.MAV_CMD_DO_SET_MISSION_CURRENT:
+        if v.flavour.set_current_command_unsupported:
+            return UNSUPPORTED  # PX4: use the MISSION_SET_CURRENT message
         if not v.set_current(_i(p[0], -1), reset=p[1] >= 0.5):
             return FAILED
         extra.append(v.mission_current_reply())

@@ -17,9 +17,10 @@ Two paths to the ground (docs/readme/daemon.md, "The RSSI path"):
   and the daemon listens there (``[link] rssi_connections``). Positions and time are still read
   from the autopilot at ``autopilot_url``.
 
-Time: the autopilot's SYSTEM_TIME pairs UNIX time with its boot clock; each position is stamped
-``unix = time_unix_usec + (gpi.time_boot_ms - system_time.time_boot_ms)``, so a sped-up SITL stays
-consistent. Mission time ``t = unix - epoch_unix_s`` (default: the first UNIX time seen).
+Time: the autopilot's first SYSTEM_TIME pairs UNIX time with its boot clock; each position is
+stamped ``unix = time_unix_usec + (gpi.time_boot_ms - system_time.time_boot_ms)`` from that one
+anchor, so a sped-up SITL stays consistent (PX4 SIH sends time_unix_usec at the host's rate but its
+boot clock at the simulation's: re-anchoring on every SYSTEM_TIME would squeeze the track in time). Mission time ``t = unix - epoch_unix_s`` (default: the first UNIX time seen).
 Slot positions are interpolated between consecutive position reports; after a gap longer than
 ``max_gap_s`` the slot grid restarts at the new report instead of inventing a track.
 """
@@ -148,7 +149,8 @@ class CompanionEmulator:
             if msg.get_srcSystem() != self.sysid:
                 continue
             if kind == "SYSTEM_TIME" and msg.time_unix_usec > 0:
-                self._time_ref = (int(msg.time_unix_usec), int(msg.time_boot_ms))
+                if self._time_ref is None or msg.time_boot_ms < self._time_ref[1]:  # anchor once (see below)
+                    self._time_ref = (int(msg.time_unix_usec), int(msg.time_boot_ms))
             elif kind == "GLOBAL_POSITION_INT":
                 self._on_position(msg)
 

@@ -60,6 +60,25 @@ class Flavour:
     # a repeat of the last one -- e.g. a late duplicate of an older request on a lossy link. Off
     # by default (lenient) so ground stations that do not retry downloads still verify uploads.
     strict_download_order: bool = False
+    # What the real autopilots do, measured on SITL (tests/sitl/test_behaviours.py
+    # checks each against the fake and, when present, the real SITL):
+    positionless_download_frame0: bool = False  # AP: DO_CHANGE_SPEED, RTL ... come back frame 0, x=y=0
+    download_int_frames: bool = False  # PX4: positions come back in the _INT frames (6 for 3)
+    mission_start_first_item_denied: bool = False  # AP: MISSION_START with first item != 0 is DENIED
+    set_current_command_unsupported: bool = False  # PX4: DO_SET_MISSION_CURRENT -> UNSUPPORTED
+    set_current_on_finished_holds: bool = False  # AP: AUTO holds after set-current on a finished mission
+    upload_restarts_leg: bool = False  # AP: a mission uploaded in flight restarts the current leg
+    arm_refused_after_boot_s: float = 0.0  # refuses to arm this long after boot (simulated seconds)
+    arm_refusal: tuple[int, str] = (mav.MAV_RESULT_FAILED, "Arm: Accels inconsistent")
+    # Options the daemon needs other fixes for (see VehicleConfig.realistic_streams /
+    # stale_mission_complete): what the real autopilot does, used only when switched on there.
+    default_streams: tuple[int, ...] = ()  # streamed without being asked (realistic_streams)
+    keeps_mission_complete: bool = False  # PX4: "complete" stays until the next mission starts
+    hold_after_mission: bool = False  # PX4: AUTO.LOITER (Hold) when a mission ends in the air
+    # Routing a companion's messages to the ground (VehicleConfig.realistic_forwarding): PX4 drops
+    # ids its dialect does not know (UAVLOC_RSSI_BATCH); ArduPilot forwards them when MAVn_OPTIONS
+    # bit 3 is set on the companion's port, which the fake assumes.
+    forwards_unknown_ids: bool = True
 
     def custom_mode(self, mode: str) -> int:
         return self.modes[mode]
@@ -90,6 +109,10 @@ ARDUPILOT = Flavour(
     request_int=False, nack_out_of_sequence=True, atomic_upload=False,
     item_retry_s=1.0, upload_timeout_s=8.0, max_items=700, keep_mission_on_reboot=True,
     modes=AP_COPTER_MODES, takeoff_alt_default_m=2.5,
+    positionless_download_frame0=True, mission_start_first_item_denied=True, set_current_on_finished_holds=True,
+    upload_restarts_leg=True, arm_refused_after_boot_s=3.0,
+    arm_refusal=(mav.MAV_RESULT_FAILED, "Arm: Accels inconsistent"),
+    default_streams=(mav.MAVLINK_MSG_ID_HEARTBEAT,),  # + HOME_POSITION, STATUSTEXT, TIMESYNC unasked
 )
 
 PX4 = Flavour(
@@ -97,6 +120,12 @@ PX4 = Flavour(
     request_int=True, nack_out_of_sequence=False, atomic_upload=True,
     item_retry_s=0.25, upload_timeout_s=5.0, max_items=2000, keep_mission_on_reboot=False,
     modes=PX4_MODES, takeoff_alt_default_m=2.5,
+    download_int_frames=True, set_current_command_unsupported=True, arm_refused_after_boot_s=1.0,
+    arm_refusal=(mav.MAV_RESULT_TEMPORARILY_REJECTED, "Arming denied: Resolve system health failures first"),
+    default_streams=(mav.MAVLINK_MSG_ID_HEARTBEAT, mav.MAVLINK_MSG_ID_GLOBAL_POSITION_INT,
+                     mav.MAVLINK_MSG_ID_SYS_STATUS, mav.MAVLINK_MSG_ID_MISSION_CURRENT,
+                     mav.MAVLINK_MSG_ID_EXTENDED_SYS_STATE),  # no SYSTEM_TIME unless asked
+    keeps_mission_complete=True, hold_after_mission=True, forwards_unknown_ids=False,
 )
 
 FLAVOURS = {"ardupilot": ARDUPILOT, "px4": PX4}

@@ -24,6 +24,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from pymavlink.dialects.v20 import common as _common
+
 from uavloc_gcs.dialect import mavlink as mav
 from uavloc_gcs.dialect.signing import verify_signature_first
 from uavloc_gcs.errors import LinkError
@@ -36,6 +38,7 @@ from .mission_server import Peer, Reply
 from .vehicle import FakeVehicle, VehicleConfig
 
 log = logging.getLogger(__name__)
+COMMON_MESSAGE_IDS = frozenset(_common.mavlink_map)  # what a PX4 built on common.xml knows
 
 TICK_WALL_S = 0.01
 PEER_TIMEOUT_S = 30.0
@@ -137,7 +140,7 @@ class _VehicleEndpoint(asyncio.DatagramProtocol):
                     self.stats.bad_packets += 1
                 continue
             pc.last_heard_wall_s = wall
-            if self.fleet.route and getattr(msg, "target_system", 0) != self.vehicle.sysid:
+            if self.fleet.route and getattr(msg, "target_system", 0) != self.vehicle.sysid and self._forwards(msg):
                 self._forward(data, addr)
             peer = Peer(addr, msg.get_srcSystem(), msg.get_srcComponent())
             try:
@@ -146,6 +149,11 @@ class _VehicleEndpoint(asyncio.DatagramProtocol):
                 self.stats.bad_packets += 1
                 log.exception("uav%d: error handling %s", self.vehicle.sysid, msg.get_type())
         self.send(replies)
+
+    def _forwards(self, msg) -> bool:
+        v = self.vehicle
+        return (not v.cfg.realistic_forwarding or v.flavour.forwards_unknown_ids
+                or msg.get_msgId() in COMMON_MESSAGE_IDS)
 
     def _forward(self, data: bytes, from_addr) -> None:
         for addr in self._active_addresses():
@@ -208,6 +216,7 @@ class FakeFleet:
         companion_heartbeat: bool = False,
         route: bool = False,
         peer_timeout_s: float = PEER_TIMEOUT_S,
+        vehicle_options: dict | None = None,
     ):
         if signing_key is not None and len(signing_key) != 32:
             raise ValueError(f"signing_key must be 32 bytes, got {len(signing_key)}")
@@ -234,7 +243,7 @@ class FakeFleet:
                 max_accel_m_s2=f.max_acceleration_m_s2, energy_budget_j=f.energy_budget_j,
                 power=scenario.power_model, slot_s=scenario.channel.slot_s,
                 epoch_unix_s=self.clock.epoch_unix_s, rssi=onboard_rssi,
-                companion_heartbeat=companion_heartbeat), world)
+                companion_heartbeat=companion_heartbeat, **(vehicle_options or {})), world)
             for i in range(1, f.vehicles + 1)
         ]
         seeds = np.random.SeedSequence(self.seed, spawn_key=(7,)).spawn(len(self.vehicles))

@@ -45,6 +45,7 @@ LOCATION_ALT_MAX_M = 83000.0
 _AP_FRAMES = frozenset({0, 2, 3, 5, 6, 10, 11})
 _PX4_GLOBAL = frozenset({0, 3, 5, 6})
 _AP_DOWNLOAD_FRAME = {5: 0, 6: 3, 11: 10}
+_INT_FRAME = {0: 5, 3: 6, 10: 11}
 
 SEVERITY_WARNING = mav.MAV_SEVERITY_WARNING
 SEVERITY_INFO = mav.MAV_SEVERITY_INFO
@@ -323,6 +324,11 @@ class MissionServer:
             items[0] = self.home_item()
         if self.flavour.name == "ardupilot":
             items = [replace(it, frame=_AP_DOWNLOAD_FRAME.get(it.frame, it.frame), current=0) for it in items]
+        if self.flavour.positionless_download_frame0:
+            items = [it if it.command in POSITIONAL else replace(it, frame=0, x=0, y=0) for it in items]
+        if self.flavour.download_int_frames:
+            items = [replace(it, frame=_INT_FRAME.get(it.frame, it.frame)) if it.command in POSITIONAL else it
+                     for it in items]
         return [replace(it, seq=i) for i, it in enumerate(items)]
 
     def _on_clear(self, msg, peer: Peer, wall_s: float) -> list[Reply]:

@@ -27,6 +27,8 @@ def default_params(v: "FakeVehicle") -> dict[str, float]:
             "WPNAV_SPEED_UP": c.climb_rate_m_s * 100, "WPNAV_SPEED_DN": c.descent_rate_m_s * 100,
             "RTL_ALT": c.rtl_alt_m * 100, "BATT_CAPACITY": c.energy_budget_j / 3.6 / 16.8,
             "RTL_SPEED": 0.0,  # 0: RTL at WPNAV_SPEED, as ArduCopter
+            # the same two under the names of the 2025-26 ArduCopter master (../shared/sitl), in m/s
+            "WP_SPD": c.cruise_speed_m_s, "RTL_SPEED_MS": 0.0,
             "FS_GCS_ENABLE": 1.0, "FS_GCS_TIMEOUT": 5.0,  # a fleet set up for the field: RTL on link loss
         }
     return {  # PX4 units: m, m/s, m/s^2
@@ -71,5 +73,10 @@ def _apply(v: "FakeVehicle", name: str, value: float) -> None:
     k = 0.01 if v.flavour.name == "ardupilot" else 1.0
     if name in ("WPNAV_SPEED", "MPC_XY_CRUISE") and value > 0:
         v.speed_m_s = value * k
+        if name == "WPNAV_SPEED":
+            v.params["WP_SPD"] = v.speed_m_s
+    elif name == "WP_SPD" and value > 0:
+        v.speed_m_s = value
+        v.params["WPNAV_SPEED"] = value * 100
     elif name in ("WPNAV_ACCEL", "MPC_ACC_HOR") and value > 0:
         v.kin.max_accel_m_s2 = value * k

@@ -38,7 +38,10 @@ class TelemetryMixin:
     def _init_telemetry(self) -> None:
         self._out: list[Reply] = []
         self.intervals_s = dict(DEFAULT_INTERVALS_S)
-        self._next_due = {mid: self.t_s for mid in self.intervals_s}
+        if self.cfg.realistic_streams:  # only what the autopilot streams unasked
+            self.intervals_s = {k: (v if k in self.flavour.default_streams else math.inf)
+                                for k, v in self.intervals_s.items()}
+        self._next_due = {mid: self.t_s if iv < math.inf else math.inf for mid, iv in self.intervals_s.items()}
         self._mission_current_due = True
         self._last_yaw_cdeg = 0
 
@@ -63,7 +66,7 @@ class TelemetryMixin:
                 self._out.extend(self.message_replies(mid))
                 if mid == mav.MAVLINK_MSG_ID_MISSION_CURRENT:
                     self._mission_current_due = False
-        if self._mission_current_due:
+        if self._mission_current_due and self.intervals_s[mav.MAVLINK_MSG_ID_MISSION_CURRENT] < math.inf:
             self._mission_current_due = False
             self._out.append(self.mission_current_reply())
 
@@ -112,7 +115,7 @@ class TelemetryMixin:
         ex = self.executor
         if n_real <= 0:
             state, total = mav.MISSION_STATE_NO_MISSION, 65535
-        elif ex.complete:
+        elif ex.complete or self.stale_complete:
             state, total = mav.MISSION_STATE_COMPLETE, n_real
         elif not ex.started:
             state, total = mav.MISSION_STATE_NOT_STARTED, n_real

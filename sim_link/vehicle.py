@@ -64,6 +64,20 @@ class VehicleConfig:
     # from component 191. Off by default: with it, MAVSDK 4.1 on a lossy link intermittently takes
     # the system for a non-ArduPilot one and NACKs ArduPilot's MISSION_REQUEST (seen in our tests).
     companion_heartbeat: bool = False
+    # Real-autopilot behaviours that need the daemon's side of issue 14 (off until it lands):
+    # stream only the flavour's default_streams until SET_MESSAGE_INTERVAL asks (ArduPilot: none
+    # but HEARTBEAT; PX4: no SYSTEM_TIME; measured on SITL, tests/sitl/test_behaviours.py).
+    realistic_streams: bool = False
+    # PX4's stale "mission complete" after an upload, as issue 14 reports it from a daemon run. NOT
+    # reproduced on SITL so far: after a mission ends in the air PX4 holds (AUTO.LOITER) and a new
+    # upload reports NOT_STARTED, seq 0. Kept as an option for the daemon's tests of that report.
+    stale_mission_complete: bool = False
+    # With FakeFleet(route=True): forward a companion's messages as the autopilot would (PX4 drops
+    # ids outside its dialect). Off until the daemon takes RSSI beside the autopilot (issue 14.5).
+    realistic_forwarding: bool = False
+    # Refuse to arm this long after boot with the flavour's STATUSTEXT; None: the flavour's measured
+    # period. Off by default: MAVSDK and the pymavlink test clients arm at once without retrying.
+    arm_refused_after_boot_s: float | None = 0.0
 
 
 class FakeVehicle(TelemetryMixin):
@@ -97,6 +111,8 @@ class FakeVehicle(TelemetryMixin):
         self.rtl_alt = self.cfg.rtl_alt_m
         self._complete_reported = False
         self._missing_takeoff_reported = False
+        self.auto_held = False
+        self.stale_complete = False
         self.next_slot_t_s = math.ceil(t_s / self.cfg.slot_s - 1e-9) * self.cfg.slot_s
 
     # ---------------------------------------------------------------- state others read
@@ -157,10 +173,20 @@ class FakeVehicle(TelemetryMixin):
         return self.mission.tick(wall_s)
 
     # ---------------------------------------------------------------- actions (commands call these)
+    def arm_refusal(self) -> tuple[int, str] | None:
+        """(MAV_RESULT, STATUSTEXT) while the vehicle is not ready to arm after boot, else None."""
+        wait = self.cfg.arm_refused_after_boot_s
+        wait = self.flavour.arm_refused_after_boot_s if wait is None else wait
+        return self.flavour.arm_refusal if self.t_s - self.boot_t_s < wait else None
+
     def arm(self, force: bool = False) -> bool:
         if self.armed:
             return True
         if self.mode in ("RTL", "LAND") and not force:
+            return False
+        refusal = self.arm_refusal()
+        if refusal is not None and not force:
+            self._out.append(self.text(mav.MAV_SEVERITY_CRITICAL, refusal[1]))
             return False
         self.armed = True
         self.home_xyz_m = np.array([self.kin.pos[0], self.kin.pos[1], 0.0])
@@ -188,7 +214,9 @@ class FakeVehicle(TelemetryMixin):
             if len(items) <= self.executor.first_seq:
                 self._out.append(self.text(mav.MAV_SEVERITY_WARNING, "Mission: no mission"))
                 return False
-            if self.executor.complete or self.executor.current >= len(items):
+            if self.auto_held:  # MISSION_START / AUTO after set-current on a finished mission
+                self.auto_held = False
+            elif self.executor.complete or self.executor.current >= len(items):
                 self.executor.reset()
             self.executor.leg_start_xyz_m = None
             self.executor.started = True
@@ -236,7 +264,11 @@ class FakeVehicle(TelemetryMixin):
             return False
         if reset:
             self.executor.jumps_done.clear()  # MAV_CMD_DO_SET_MISSION_CURRENT param2: reset DO_JUMP counters
+        finished = self.executor.complete
         self.executor.reset(seq)
+        if finished and self.flavour.set_current_on_finished_holds and self.mode == "AUTO":
+            self.auto_held = True  # ArduPilot: AUTO holds here until MISSION_START
+            self.hold_xyz_m = self.kin.pos.copy()
         return True
 
     def _on_mission_changed(self, mission_type: int) -> None:
@@ -245,8 +277,14 @@ class FakeVehicle(TelemetryMixin):
         n = len(self.mission.stores[0])
         if self.flavour.name == "px4":
             self.executor.jumps_done.clear()  # PX4 stores every uploaded DO_JUMP with its count at 0
+        self.stale_complete = (self.cfg.stale_mission_complete and self.flavour.keeps_mission_complete
+                               and self.executor.complete)
         if self.flavour.name == "px4" and not self.mission.busy():
             self.executor.reset()  # PX4 starts a new plan from its first item
+        elif self.flavour.upload_restarts_leg and self.mode == "AUTO" and not self.landed:
+            self.executor.leg_start_xyz_m = None  # ArduPilot re-flies the leg it is on from here
+            if self.executor.current >= n:
+                self.executor.complete = self.executor.started
         elif self.executor.current >= n:
             self.executor.complete = self.executor.started
         self._mission_current_due = True
@@ -339,6 +377,11 @@ class FakeVehicle(TelemetryMixin):
 
     def _auto(self, dt: float) -> None:
         ex = self.executor
+        if self.auto_held:
+            if not self.landed:
+                self._fly(dt, self.hold_xyz_m, stop=True)
+            return
+        self.stale_complete = False
         items = self.mission.mission()
         ex.advance_instant_items(items, self._set_speed)
         tgt: Target = ex.target(items, self.kin.pos)
@@ -426,6 +469,9 @@ class FakeVehicle(TelemetryMixin):
             self._complete_reported = True
             self.hold_xyz_m = self.kin.pos.copy()
             self._out.append(self.text(mav.MAV_SEVERITY_INFO, "Mission complete"))
+            if self.flavour.hold_after_mission and not self.landed:
+                self.mode = "LOITER"  # PX4 switches to Hold at the end of a mission in the air
+                self._out.append(self.heartbeat_reply())
 
     def _set_speed(self, speed_m_s: float) -> None:
         self.speed_m_s = speed_m_s

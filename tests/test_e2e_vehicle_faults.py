@@ -49,3 +49,25 @@ def test_lost_acks_nacks_and_a_refusing_vehicle_each_on_one_of_four(tmp_path, au
     assert set(out.vehicles_home + out.vehicles_returning) >= {1, 2, 4}, out.statement
     assert out.vehicles_lost == ()
     assert out.people, out.statement
+
+
+def test_a_vehicle_that_never_answers_does_not_stop_the_others(tmp_path):
+    sc = small_scenario("px4", speedup=25.0)
+    fleet = start_fleet_process(sc.replace(fleet={"vehicles": 1}), speedup=sc.simulation.speedup,
+                                seed=sc.simulation.seed, base_port=0)
+    try:
+        (_n, conn), = fleet.endpoints
+        dead = "udpout:127.0.0.1:9"  # nothing answers there
+        opts = DaemonOptions(store_path=tmp_path / "search.sqlite", tlog_dir=tmp_path, resume=False,
+                             connect_timeout_s=3.0)
+        result = run_search(sc, [(1, conn), (2, dead)], opts, tmp_path)
+    finally:
+        fleet.stop()
+    with StoreReader(tmp_path / "search.sqlite") as rd:
+        events = rd.events()
+    assert any(e.kind == "lost" and e.vehicle == 2 and "searching without it" in e.text for e in events)
+    assert {e.vehicle for e in events if e.kind == "start"} == {1}
+    out = result.outcome
+    assert out.vehicles_lost == (2,) and "Lost contact with vehicle(s) 2" in out.statement
+    assert 1 in out.vehicles_home + out.vehicles_returning, out.statement
+    assert out.people, "vehicle 1 heard someone on its part of the scan"

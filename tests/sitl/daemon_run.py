@@ -44,6 +44,7 @@ energy_budget_j = 400000.0
 required_accuracy_m = 15.0
 [planner]
 time_limit_s = 0.2
+{scan}
 [simulation]
 people = 3
 seed = {seed}
@@ -66,6 +67,10 @@ class Vehicle:
     companion_url: str  # where the companion emulator talks to the autopilot
     rssi_url: str | None = None  # where the companion sends RSSI beside the autopilot (its udpout)
     daemon_rssi: str = ""  # what the daemon listens on for that RSSI
+    connection: str = ""  # the daemon's connection to the autopilot (default: the harness's)
+
+    def __post_init__(self):
+        self.connection = self.connection or self.sitl.connection
 
 
 def start_arducopter(sitl_factory, sysid: int = 1) -> Vehicle:
@@ -82,11 +87,13 @@ def start_px4(sitl_factory) -> Vehicle:
                    f"udpin:127.0.0.1:{rport}")
 
 
-def scenario_text(name: str, autopilot: str, vehicles: list[Vehicle], seed: int = 3) -> str:
+def scenario_text(name: str, autopilot: str, vehicles: list[Vehicle], seed: int = 3, scan: str = "") -> str:
+    """``scan``: extra TOML, e.g. a sparser scan (``[scan]\nlane_spacing_m = 150``) that leaves
+    people for the look phase."""
     lat, lon = vehicles[0].sitl.home[:2]
     q = lambda xs: "[" + ", ".join(f'"{x}"' for x in xs) + "]"  # noqa: E731
     return SCENARIO.format(name=name, lat=lat, lon=lon, n=len(vehicles), autopilot=autopilot, speed=SPEED_M_S,
-                           seed=seed, connections=q(v.sitl.connection for v in vehicles),
+                           seed=seed, scan=scan, connections=q(v.connection for v in vehicles),
                            rssi=q(v.daemon_rssi for v in vehicles))
 
 
@@ -192,7 +199,7 @@ def landed_and_disarmed(vehicle: Vehicle, timeout_s: float = 60.0) -> tuple[bool
     end = time.monotonic() + timeout_s
     state = None
     while time.monotonic() < end:
-        state = asyncio.run(_vehicle_state(s.connection, s.sysid, 10.0))
+        state = asyncio.run(_vehicle_state(vehicle.connection, s.sysid, 10.0))
         armed, alt, lat, lon = state
         e, n = LocalFrame(s.home[0], s.home[1]).to_local(lat, lon)
         if not armed and alt < 1.0 and math.hypot(e, n) < 10.0:

@@ -18,13 +18,19 @@ MAX_UPLOADS_PER_VEHICLE = 6  # the scan, then a handful of look missions (issue 
 
 
 def _check(run, scenario, vehicles):
+    (run.out / "daemon-output.txt").write_text(run.output)
     assert run.code == 0, run.output[-3000:]
     rows = dr.truth_check(scenario, run.people)
+    print("  (person, true error m, 95 % radius m, located):", [(e, round(err, 1), round(r, 1), ok)
+                                                              for e, err, r, ok in rows])
+    print("  " + "\n  ".join(line for line in run.output.splitlines()
+                               if "per vehicle" in line or "speed" in line.lower() or "people heard" in line))
     assert rows, "nobody was heard"
     inside = [r for r in rows if r[3] and r[1] <= r[2]]
     assert len(inside) == len(rows), f"(person, true error, 95 % radius, located): {rows}\n{run.output[-2000:]}"
     m = re.search(r"per vehicle \(plans for it, uploads incl\. the scan, plans not uploaded\): (.*)", run.output)
-    if m:  # the outcome event is printed on the live view
+    assert m, "the daemon reports its plans and uploads per vehicle"
+    if m:
         uploads = [int(x.split("/")[1]) for x in re.findall(r"\d+: (\d+/\d+/\d+)", m.group(1))]
         assert all(u <= MAX_UPLOADS_PER_VEHICLE for u in uploads), m.group(0)
     for v in vehicles:
@@ -48,6 +54,25 @@ def test_two_arducopters_together(sitl, tmp_path):
         run = dr.run_daemon(tmp_path / "mission.toml", tmp_path / "out")
     print(f"two ArduCopters: {run.wall_s:.0f} s wall")
     _check(run, sc, vs)
+
+
+SPARSE_SCAN = "[scan]\nlane_spacing_m = 220.0\ncoverage = \"single\""  # two lanes: people are left for looks
+
+
+@pytest.mark.parametrize("kind", ["ardupilot", pytest.param("px4", marks=pytest.mark.xfail(
+    strict=False, reason="flaky, measured 2026-11-23: passed once (3/3, 1 look mission); once, beside a full "
+    "test suite, one of 3 people stayed unlocated after 4 look missions (95 % radius 93 m; 5 uploads, no "
+    "churn); not understood yet"))])
+def test_a_search_with_looks_replans_without_churn(sitl, tmp_path, kind):
+    """A sparse scan leaves people unlocated, so the look phase runs on the real autopilot: the
+    daemon replans and uploads looks in flight; a handful of uploads per vehicle at most."""
+    v = dr.start_px4(sitl) if kind == "px4" else dr.start_arducopter(sitl)
+    sc = dr.load(dr.scenario_text(f"{kind}-looks", kind, [v], scan=SPARSE_SCAN), tmp_path / "mission.toml")
+    with dr.Companions(sc, [v]):
+        run = dr.run_daemon(tmp_path / "mission.toml", tmp_path / "out")
+    print(f"{kind} with looks: {run.wall_s:.0f} s wall")
+    _check(run, sc, [v])
+    assert re.search(r"replans [1-9]", run.output), "the look phase ran"
 
 
 def test_one_px4_whole_search_with_rssi_beside_the_autopilot(sitl, tmp_path):

@@ -70,7 +70,7 @@ def test_cli_upload_download_verify(autopilot, tmp_path):
     out = tmp_path / "back.plan"
     r = uavloc("download", "--from", sitl.connection, "--out", str(out))
     assert r.returncode == 0, r.stderr
-    sent, back = plan_file.read(plans / "uav1.waypoints"), plan_file.read(out)
+    sent, back = plan_file.read(plans / "uav1.plan"), plan_file.read(out)
     assert [it.command for it in back.items] == [it.command for it in sent.items]
     # what QGC writes: altitude-relative positions in frame 3, non-positional items in frame 2,
     # the vehicle's home (HOME_POSITION) as the planned home
@@ -102,8 +102,8 @@ async def _fly(sitl, kind: str, plan_path: Path) -> None:
         accepted = await request_streams(link, system, flavour)
         assert accepted["GLOBAL_POSITION_INT"] and accepted["SYSTEM_TIME"], accepted
         await watch.until("GLOBAL_POSITION_INT, MISSION_CURRENT and SYSTEM_TIME streams",
-                          lambda: all(k in watch.last for k in ("GLOBAL_POSITION_INT", "MISSION_CURRENT",
-                                                                "SYSTEM_TIME")), 30)
+                          lambda: all(k in watch.last for k in ("HEARTBEAT", "GLOBAL_POSITION_INT",
+                                                                "MISSION_CURRENT", "SYSTEM_TIME")), 30)
         home = watch.latlon
         scan = to_wire(plan_file.read(plan_path), kind)
         await upload_mission(link, system, 1, scan, verify=True, autopilot=flavour)

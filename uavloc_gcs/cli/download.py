@@ -37,14 +37,19 @@ async def _download(args: argparse.Namespace) -> int:
     from mission_io import plan as plan_file
     from mission_io import waypoints as waypoints_file
 
-    from ..link import download_mission
+    import dataclasses
+
+    from ..link import download_mission, home_position, qgc_form
     from ..mission import from_wire
 
     link, system, component, flavour = await connect(args)
     async with link:
         started = time.monotonic()
         items = await download_mission(link, system, component, progress=Progress())
-    plan = from_wire(items, encoding_for(flavour))
+        home = await home_position(link, system, component)
+    plan = from_wire(qgc_form(items), encoding_for(flavour))
+    if home is not None:  # QGC's planned home is the vehicle's home
+        plan = dataclasses.replace(plan, home_lat_deg=home[0], home_lon_deg=home[1], home_alt_m=home[2])
     writer = plan_file if Path(args.out).suffix.lower() == ".plan" else waypoints_file
     writer.write(args.out, plan)
     print(f"Downloaded {len(plan.items)} mission items ({len(items)} on the wire) from vehicle {system} "

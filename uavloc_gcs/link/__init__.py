@@ -12,7 +12,7 @@ from .command import (arm, command_long, disarm, return_to_launch, set_current_i
 from .connection import Link, LinkStats, Subscription, open_link, parse_signing_key
 from .telemetry import StatusText, VehicleState, VehicleTracker
 from .mission_clear import clear_mission
-from .mission_download import download_mission
+from .mission_download import download_mission, home_position, qgc_form
 from .mission_upload import UploadResult, upload_mission
 from .mission_control import (DEFAULT_STREAMS, StatusWatch, arm_when_ready, request_streams, return_home, set_current,
                               start_mission_from, switch_mission)
@@ -24,7 +24,7 @@ __all__ = [
     "arm", "command_long", "disarm", "return_to_launch", "set_current_item", "set_message_interval", "set_mode",
     "start_mission", "takeoff",
     "Link", "LinkStats", "Subscription", "open_link", "parse_signing_key",
-    "clear_mission", "download_mission", "UploadResult", "upload_mission",
+    "clear_mission", "download_mission", "home_position", "qgc_form", "UploadResult", "upload_mission",
     "TlogWriter", "iter_tlog", "parse_connection",
     "StatusText", "VehicleState", "VehicleTracker",
     "DEFAULT_STREAMS", "StatusWatch", "arm_when_ready", "request_streams", "return_home", "set_current",

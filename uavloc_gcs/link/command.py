@@ -147,7 +147,8 @@ async def set_current_item(link: Link, target_system: int, target_component: int
     except CommandError as err:
         if getattr(err, "result", None) != MAV_RESULT_UNSUPPORTED:
             raise
-    with link.subscribe("MISSION_CURRENT", source_system=target_system, predicate=lambda m: m.seq == seq) as cur:
+    # PX4 passes a DO_CHANGE_SPEED at once: reaching the item or a later one confirms it
+    with link.subscribe("MISSION_CURRENT", source_system=target_system, predicate=lambda m: m.seq >= seq) as cur:
         for _ in range(COMMAND_RETRIES + 1):
             await link.send(link.mav.mission_set_current_encode(target_system, target_component, seq))
             try:

@@ -235,8 +235,22 @@ class Link:
                                          source_system=source_system, timeout_s=timeout_s)
         except TimeoutError:
             who = f"system {source_system}" if source_system is not None else "any vehicle"
-            raise LinkError(f"no heartbeat from {who} on {self.description} within {timeout_s:g} s",
-                            operation="connect") from None
+            raise LinkError(f"no heartbeat from {who} on {self.description} within {timeout_s:g} s"
+                            f"{self.signing_diagnosis()}", operation="connect") from None
+
+    def signing_diagnosis(self) -> str:
+        """Why nothing useful arrived, when signing is the reason (else ""): a vehicle that does
+        not sign, or signs with another key, is dropped packet by packet and looks silent."""
+        s = self.stats
+        if self.mav.signing.secret_key is None or not (s.unsigned_dropped or s.bad_signature_dropped):
+            return ""
+        if s.unsigned_dropped and not s.bad_signature_dropped:  # (RADIO_STATUS may pass unsigned)
+            return (f"; heard only unsigned packets ({s.unsigned_dropped} dropped): the vehicle does not sign "
+                    f"on this link (set its signing key, or connect without --signing-key)")
+        if s.bad_signature_dropped and not s.rx_packets:
+            return (f"; heard only packets signed with another key ({s.bad_signature_dropped} dropped"
+                    f"{f', and {s.unsigned_dropped} unsigned' if s.unsigned_dropped else ''}): check the signing key")
+        return (f"; {s.unsigned_dropped} unsigned and {s.bad_signature_dropped} wrongly signed packets were dropped")
 
     # -- sending --------------------------------------------------------------------------
 

@@ -25,8 +25,7 @@ from typing import Mapping
 from ..dialect import mavlink
 from ..errors import CommandError
 from .autopilots import Flavour
-from .command import (COMMAND_TIMEOUT_S, MAV_RESULT_ACCEPTED, MAV_RESULT_UNSUPPORTED, arm, command_long,
-                      return_to_launch, set_mode, start_mission)
+from .command import MAV_RESULT_UNSUPPORTED, arm, command_long, return_to_launch, set_mode, start_mission
 from .connection import Link
 
 log = logging.getLogger(__name__)
@@ -43,6 +42,7 @@ ARM_REFUSALS = (mavlink.MAV_RESULT_FAILED, mavlink.MAV_RESULT_DENIED, mavlink.MA
 MISSION_STATE_COMPLETED = 5  # MISSION_STATE_COMPLETE in MISSION_CURRENT.mission_state
 AP_DATA_STREAM_HZ = 4  # REQUEST_DATA_STREAM fallback: every ArduPilot stream group at this rate
 SET_CURRENT_CONFIRM_S = 3.0
+MISSION_VALID_TIMEOUT_S = 15.0  # wall seconds to keep repeating a refused MISSION_START
 
 
 async def request_streams(link: Link, system: int, flavour: Flavour,
@@ -153,6 +153,29 @@ async def set_current(link: Link, system: int, component: int, flavour: Flavour,
                        vehicle=str(system), operation="set current item")
 
 
+async def start_when_valid(link: Link, system: int, component: int, first_seq: int = 0, *,
+                           timeout_s: float = MISSION_VALID_TIMEOUT_S) -> None:
+    """MISSION_START, repeated while the vehicle refuses it for a short while: PX4 checks a new
+    mission in the background and DENIES the start until then ("Mission start denied! No valid
+    mission", seen on SITL right after an upload). The final error names the STATUSTEXT reason."""
+    deadline = time.monotonic() + timeout_s
+    attempt = 0
+    with StatusWatch(link, system) as watch:
+        while True:
+            try:
+                await start_mission(link, system, component, first_seq, 0)
+                return
+            except CommandError as err:
+                if getattr(err, "result", None) not in ARM_REFUSALS or time.monotonic() >= deadline:
+                    reason = watch.reason()
+                    if reason:
+                        err.args = (f"{err.args[0]} ({reason})",)
+                        err.reason = reason
+                    raise
+                attempt += 1
+                await asyncio.sleep(ARM_BACKOFF_S[min(attempt - 1, len(ARM_BACKOFF_S) - 1)])
+
+
 async def start_mission_from(link: Link, system: int, component: int, flavour: Flavour, first_seq: int, *,
                              armed: bool, mode: str) -> None:
     """Arm on the ground (when not ``armed``) and fly the uploaded mission from ``first_seq``."""
@@ -161,11 +184,11 @@ async def start_mission_from(link: Link, system: int, component: int, flavour: F
     if not armed:
         await arm_when_ready(link, system, component)
     if flavour.mission_start_takes_first_item:
-        await start_mission(link, system, component, first_seq, 0)
+        await start_when_valid(link, system, component, first_seq)
         return
     if first_seq != flavour.first_mission_seq:
         await set_current(link, system, component, flavour, first_seq)
-    await start_mission(link, system, component, 0, 0)
+    await start_when_valid(link, system, component, 0)
 
 
 async def switch_mission(link: Link, system: int, component: int, flavour: Flavour, first_seq: int, *,
@@ -175,9 +198,10 @@ async def switch_mission(link: Link, system: int, component: int, flavour: Flavo
         return  # the upload itself restarted it from its first item
     await set_current(link, system, component, flavour, first_seq)
     finished = mission_state == MISSION_STATE_COMPLETED
-    if not in_mission_mode or (finished and flavour.finished_mission_needs_start):
-        await start_mission(link, system, component, *((first_seq, 0) if flavour.mission_start_takes_first_item
-                                                       else (0, 0)))
+    # ArduPilot ignores MISSION_START(0, 0) while its mission runs and resumes from the current
+    # item when it does not, so it is always sent there: the state we last heard may be stale.
+    if not in_mission_mode or finished or flavour.finished_mission_needs_start:
+        await start_when_valid(link, system, component, first_seq if flavour.mission_start_takes_first_item else 0)
 
 
 async def return_home(link: Link, system: int, component: int = 1) -> None:
@@ -186,4 +210,4 @@ async def return_home(link: Link, system: int, component: int = 1) -> None:
 
 
 __all__ = ["DEFAULT_STREAMS", "StatusWatch", "arm_when_ready", "request_streams", "return_home", "set_current",
-           "start_mission_from", "switch_mission", "COMMAND_TIMEOUT_S", "MAV_RESULT_ACCEPTED"]
+           "start_mission_from", "start_when_valid", "switch_mission"]

@@ -11,10 +11,12 @@ from __future__ import annotations
 
 import logging
 import time
+from dataclasses import replace
 from typing import Callable
 
-from ..errors import MissionTransferError
-from ..mission import MISSION_TYPE_MISSION, WireItem
+from ..dialect import mavlink
+from ..errors import MissionTransferError, UavlocError
+from ..mission import FRAME_MISSION, MISSION_TYPE_MISSION, POSITIONAL_COMMANDS, WireItem
 from .connection import Link, Subscription
 from .mission_wire import (ACCEPTED, DEFAULT_TIMEOUT_S, GENERIC_ERROR, GIVE_UP_S, INVALID_SEQUENCE, ITEM_TIMEOUT_S,
                            MAX_RETRIES, OPERATION_CANCELLED, for_us, item_from_message, result_name)
@@ -106,3 +108,45 @@ async def _exchange(link: Link, replies: Subscription, request, wanted: Callable
             continue
         if wanted(msg):
             return msg
+
+
+# ---------------------------------------------------------------------------------------------
+# What a downloaded mission looks like once saved: the form QGroundControl writes
+
+_INT_FRAMES = {5: 0, 6: 3, 11: 10}  # MAV_FRAME_GLOBAL_INT / _RELATIVE_ALT_INT / _TERRAIN_ALT_INT
+HOME_TIMEOUT_S = 3.0
+
+
+def qgc_form(items: list[WireItem]) -> list[WireItem]:
+    """The items as QGC saves a downloaded mission: the ``_INT`` frames PX4 answers with become
+    their plain twins (6 -> 3), and items without a location (DO_CHANGE_SPEED, RTL, ... which
+    ArduPilot returns in frame 0) use MAV_FRAME_MISSION with zero x/y/z."""
+    out = []
+    for it in items:
+        frame = _INT_FRAMES.get(it.frame, it.frame)
+        changes = {"frame": frame}
+        if it.command not in POSITIONAL_COMMANDS:
+            changes.update(frame=FRAME_MISSION, x=0, y=0, z=0.0)
+        out.append(replace(it, **changes))
+    return out
+
+
+async def home_position(link: Link, target_system: int, target_component: int = 1, *,
+                        timeout_s: float = HOME_TIMEOUT_S) -> tuple[float, float, float] | None:
+    """The vehicle's home (lat, lon in degrees, altitude AMSL in metres) from HOME_POSITION, asked
+    for with MAV_CMD_REQUEST_MESSAGE; None when the vehicle does not say within ``timeout_s``."""
+    from .command import command_long  # command.py imports this package's siblings
+
+    with link.subscribe("HOME_POSITION", source_system=target_system) as homes:
+        try:
+            await command_long(link, target_system, target_component, mavlink.MAV_CMD_REQUEST_MESSAGE,
+                               (mavlink.MAVLINK_MSG_ID_HOME_POSITION,), retries=1)
+        except MissionTransferError:
+            raise
+        except UavlocError as err:
+            log.info("vehicle %d: %s", target_system, err)
+        try:
+            msg = await homes.get(timeout_s)
+        except TimeoutError:
+            return None
+    return msg.latitude / 1e7, msg.longitude / 1e7, msg.altitude / 1000.0

@@ -87,14 +87,29 @@ def _positive(x: float | None, scale: float) -> float | None:
     return x * scale if x is not None and math.isfinite(x) and x > 0 else None
 
 
+async def _first(link: Link, sysid: int, compid: int, names: tuple[tuple[str, float], ...]):
+    """(name, value in m/s) of the first of ``names`` (name, scale to m/s) the vehicle has."""
+    for name, scale in names:
+        value = await read_param(link, sysid, compid, name)
+        if value is not None:
+            return name, value, value * scale
+    return None, None, None
+
+
+# ArduCopter renamed its speed parameters (2025-26 master, as in ../shared/sitl: WP_SPD and
+# RTL_SPEED_MS in m/s); older versions have WPNAV_SPEED and RTL_SPEED in cm/s. Newest first.
+AP_WP_SPEED = (("WP_SPD", 1.0), ("WPNAV_SPEED", 0.01))
+AP_RTL_SPEED = (("RTL_SPEED_MS", 1.0), ("RTL_SPEED", 0.01))
+
+
 async def speed_limits(link: Link, sysid: int, flavour: Flavour, compid: int = 1) -> SpeedLimits:
     """Read the speed parameters of ``flavour`` (see the module docstring)."""
     if flavour.name == "ardupilot":
-        wpnav = await read_param(link, sysid, compid, "WPNAV_SPEED")
-        rtl = await read_param(link, sysid, compid, "RTL_SPEED")
-        mx = _positive(wpnav, 0.01)
-        rtl_m_s = _positive(rtl, 0.01) or mx  # RTL_SPEED 0 means WPNAV_SPEED
-        return SpeedLimits(mx, rtl_m_s, f"WPNAV_SPEED={wpnav} cm/s, RTL_SPEED={rtl} cm/s")
+        wp_name, wp, wp_m_s = await _first(link, sysid, compid, AP_WP_SPEED)
+        rtl_name, rtl, rtl_m_s = await _first(link, sysid, compid, AP_RTL_SPEED)
+        mx = _positive(wp_m_s, 1.0)
+        ret = _positive(rtl_m_s, 1.0) or mx  # 0 means "at the waypoint speed"
+        return SpeedLimits(mx, ret, f"{wp_name or 'WP_SPD/WPNAV_SPEED'}={wp}, {rtl_name or 'RTL_SPEED(_MS)'}={rtl}")
     vmax = await read_param(link, sysid, compid, "MPC_XY_VEL_MAX")
     cruise = await read_param(link, sysid, compid, "MPC_XY_CRUISE")
     mx = _positive(vmax, 1.0)
@@ -106,8 +121,11 @@ async def raise_speed_limits(link: Link, sysid: int, flavour: Flavour, speed_m_s
     """Set the vehicle's mission and return speeds to ``speed_m_s`` (the operator's consent is the
     caller's business) and return the limits read back."""
     if flavour.name == "ardupilot":
-        await set_param(link, sysid, compid, "WPNAV_SPEED", speed_m_s * 100.0)
-        await set_param(link, sysid, compid, "RTL_SPEED", speed_m_s * 100.0)
+        for names in (AP_WP_SPEED, AP_RTL_SPEED):
+            name, _, _ = await _first(link, sysid, compid, names)
+            if name is not None:
+                scale = dict(names)[name]
+                await set_param(link, sysid, compid, name, speed_m_s / scale)
     else:
         vmax = await read_param(link, sysid, compid, "MPC_XY_VEL_MAX")
         if vmax is None or vmax < speed_m_s:

@@ -21,10 +21,13 @@ from dataclasses import dataclass
 import numpy as np
 
 # Flight seconds an upload + switch costs a vehicle flying at 10 m/s: the time of a 300 m leg
-# with a mid-leg upload of its mission minus the same leg without. Measured on the SITL builds in
-# ../shared/sitl with `python -m benchmarks.upload_cost` (docs/readme/daemon.md).
-UPLOAD_COST_S = {"ardupilot": 5.0, "px4": 5.0}
-DEFAULT_UPLOAD_COST_S = 5.0
+# with the daemon's mid-leg upload and switch minus the same leg without. Measured on the SITL
+# builds in ../shared/sitl (speed-up 5) with `python -m benchmarks.upload_cost ardupilot px4`:
+# ArduCopter legs 32.6/32.7 s without, 35.6 s with (it restarts the leg: brakes and accelerates
+# again); PX4 legs 38.0/37.2 s without, 37.8 s with (it restarts the mission at the speed item
+# and flies on to the same waypoint). Other autopilots: the larger one.
+UPLOAD_COST_S = {"ardupilot": 3.0, "px4": 0.2}
+DEFAULT_UPLOAD_COST_S = 3.0
 
 
 @dataclass(frozen=True)

@@ -21,6 +21,7 @@ loss window).
 from __future__ import annotations
 
 import asyncio
+import functools
 import logging
 import math
 import time
@@ -49,6 +50,8 @@ REPLAN_BACKOFF_S = 10.0  # mission seconds before planning again after the plann
 LAND_WAIT_S = 300.0  # mission seconds to wait at most for the fleet to land after sending it home
 LANDING_MARGIN_S = 30.0  # beyond the flight home and the descent at LANDING_RATE_M_S
 LANDING_RATE_M_S = 1.0
+JOB_WAIT_S = 3.0  # wall seconds the brain waits for a vehicle's exchanges before leaving them to it
+START_WAIT_S = 10.0  # the same for the scan starts
 STOP_WAIT_S = 15.0  # wall seconds to send everyone home when stopped
 HOMING_MODES = ("RTL", "SMART_RTL", "LAND", "AUTO.RTL", "AUTO.LAND")  # ArduPilot, PX4
 
@@ -101,6 +104,8 @@ class _Vehicle:
     deferred: bool = False  # a newer plan was not uploaded (at most one upload between two looks)
     hold_seq: int = 0  # seq of the scan's closing hold (scan done once the vehicle is there)
     unusable: str = ""  # why the vehicle cannot be commanded ("" = usable)
+    job: asyncio.Task | None = None  # the exchange under way with this vehicle (its own task)
+    job_late: bool = False  # the brain stopped waiting for it: replan when it ends
     odd_moves: list = field(default_factory=list)  # moves outside lifecycle.NEXT (logged, kept)
 
     @property
@@ -160,6 +165,7 @@ class Daemon:
         self._rssi_links: list = []
         self.on_mission_acked: Callable[[int, str], None] | None = None
         self.stop_report: list[str] = []  # what each vehicle does, when the daemon was stopped
+        self._job_crash: BaseException | None = None  # a vehicle task's unexpected error, for the brain
 
     # -- clock ---------------------------------------------------------------------------------
     def now_s(self) -> float:
@@ -202,11 +208,17 @@ class Daemon:
             self.store.set_meta("on_stop", self.opt.on_stop)
             await self._connect_all()
             try:
+                # the monitor follows every vehicle from the start: one vehicle's slow start must
+                # not hide another's scan finishing
+                monitor = asyncio.create_task(self._monitor(), name="monitor")
                 try:
-                    await self._prepare_all(resumed)
-                    async with asyncio.TaskGroup() as tg:
-                        tg.create_task(self._monitor(), name="monitor")
-                        tg.create_task(self._brain(), name="brain")
+                    try:
+                        await self._prepare_all(resumed)
+                        await self._brain()
+                    finally:
+                        self._stop.set()
+                        await self._cancel_jobs()
+                        await monitor  # ends at the next tick (raises what broke it, if anything)
                 except asyncio.CancelledError:  # stopped by the operator (Ctrl-C, SIGTERM)
                     self.stop_report = await self._stopping()
                     raise
@@ -471,7 +483,52 @@ class Daemon:
             self._event("operator", "scan missions uploaded; start each vehicle's mission from your "
                         "ground station (arm + AUTO); the search follows")
             return
-        await self._each(self._start, to_start)
+        await self._jobs([(v, self._start(v)) for v in to_start], START_WAIT_S)
+
+    # -- each vehicle's exchanges run in its own task; the brain waits for them only so long -------
+    def _launch(self, v: _Vehicle, coro) -> asyncio.Task:
+        task = asyncio.ensure_future(coro)
+        v.job, v.job_late = task, False
+        task.add_done_callback(functools.partial(self._job_done, v))
+        return task
+
+    def _job_done(self, v: _Vehicle, task: asyncio.Task) -> None:
+        if v.job is task:
+            v.job = None
+        if task.cancelled():
+            return
+        exc = task.exception()
+        if isinstance(exc, LinkError):
+            self._mark_unusable(v, exc)  # the fleet changed: the next tick replans without it
+        elif isinstance(exc, UavlocError):
+            self._event("error", str(exc), v.id)
+        elif exc is not None:
+            self._job_crash = exc
+            return
+        if v.job_late:
+            self._replan_due = True  # it ended after the brain moved on: plan with what it does now
+
+    async def _jobs(self, pairs: list, wait_s: float = JOB_WAIT_S) -> None:
+        """Start each (vehicle, exchange) in the vehicle's own task and wait at most ``wait_s`` for
+        them: a vehicle whose exchange is slow (retries, judgement) keeps it, the others go on."""
+        tasks = [self._launch(v, coro) for v, coro in pairs]
+        if tasks:
+            _done, pending = await asyncio.wait(tasks, timeout=wait_s)
+            for v, _ in pairs:
+                if v.job is not None and v.job in pending:
+                    v.job_late = True
+        self._raise_job_crash()
+
+    def _raise_job_crash(self) -> None:
+        if self._job_crash is not None:
+            crash, self._job_crash = self._job_crash, None
+            raise crash
+
+    async def _cancel_jobs(self) -> None:
+        tasks = [v.job for v in self.vehicles.values() if v.job is not None]
+        for t in tasks:
+            t.cancel()
+        await asyncio.gather(*tasks, return_exceptions=True)
 
     async def _each(self, job, vehicles: list[_Vehicle]) -> None:
         """Run ``job(v)`` for every vehicle concurrently; a vehicle whose job fails with a link
@@ -653,6 +710,7 @@ class Daemon:
         try:
             while True:
                 await asyncio.sleep(self.opt.tick_s)
+                self._raise_job_crash()
                 t = self.now_s()
                 if self._slots_in:
                     batches, self._slots_in = self._slots_in, []
@@ -707,6 +765,10 @@ class Daemon:
         if t > self.opt.max_mission_s:
             self._event("end", f"mission time limit {self.opt.max_mission_s:g} s reached")
             return True
+        starting = [v for v in active if v.job is not None and v.phase in ("starting", "uploading scan")]
+        active = [v for v in active if v not in starting]  # planned for once started (replan then)
+        if not active:
+            return False
         if not all(v.scan_done or v.home for v in active):
             return False
         if self.policy.done(t):
@@ -765,6 +827,8 @@ class Daemon:
         for task in plan.tasks:
             v = self.vehicles[int(task.vehicle_id)]
             pts = np.asarray(task.waypoints_xy_m, dtype=float).reshape(-1, 2)[:-1]  # last row is home
+            if v.job is not None:
+                continue  # still busy with an earlier exchange; planned again when it ends
             if len(pts) == 0:
                 if not v.phase.startswith("returning") and not v.home:
                     jobs.append((v, self._send_home(v)))
@@ -781,15 +845,7 @@ class Daemon:
             if decision.reason != "first look mission":  # it replaces looks in flight: a restarted leg
                 v.uploads_since_look += 1
             jobs.append((v, self._upload_look(v, pts, tuple(task.target_ids))))
-        if jobs:
-            results = await asyncio.gather(*(j for _, j in jobs), return_exceptions=True)
-            for (v, _), r in zip(jobs, results):
-                if isinstance(r, LinkError):
-                    self._mark_unusable(v, r)  # the fleet changed: the next tick replans without it
-                elif isinstance(r, UavlocError):
-                    self._event("error", str(r))
-                elif isinstance(r, BaseException):
-                    raise r
+        await self._jobs(jobs)
 
     def _worth_uploading(self, v: _Vehicle, pts: np.ndarray, targets: tuple):
         """Whether the new looks ``pts``/``targets`` are worth an upload to ``v`` (search/uploads.py)."""
@@ -838,11 +894,10 @@ class Daemon:
             self._finishing_since = self.now_s()
             self._event("done", "every person heard is located or given up: all vehicles return home")
             going = [v for v in active if not v.home and not v.phase.startswith("returning")]
-            for v, r in zip(going, await asyncio.gather(*(self._send_home(v) for v in going), return_exceptions=True)):
-                if isinstance(r, LinkError):
-                    self._mark_unusable(v, r)
-                elif isinstance(r, UavlocError):
-                    self._event("error", str(r))
+            for v in going:
+                if v.job is not None:
+                    v.job.cancel()  # home instead of whatever it was being told
+            await self._jobs([(v, self._send_home(v)) for v in going])
         now = self.now_s()
         if all(v.home or (v.phase == "returning" and now > v.home_by_s) for v in self._active()):
             return True  # landed, or returning and overdue: report them as returning

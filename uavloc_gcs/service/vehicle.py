@@ -76,6 +76,7 @@ class VehicleAgent:
         self.rssi_messages = 0
         self.upload_opaque_id = 0  # the plan id of our last upload's MISSION_ACK (0: not given)
         self._acked_wall_s: float | None = None  # when our last upload was acknowledged
+        self._time_anchor: tuple[float, int] | None = None  # (unix s, time_boot_ms) of the first SYSTEM_TIME
         self._sub = link.subscribe(None, source_system=vehicle, callback=self._on_message)
         self._rssi_subs: list = []
 
@@ -104,6 +105,7 @@ class VehicleAgent:
             self.rssi_messages += 1
             self._rssi(msg)
         elif kind == "GLOBAL_POSITION_INT":
+            self._clock(int(msg.time_boot_ms))
             t.lat_deg, t.lon_deg = msg.lat / 1e7, msg.lon / 1e7
             t.rel_alt_m = msg.relative_alt / 1000.0
             t.ground_speed_m_s = math.hypot(msg.vx, msg.vy) / 100.0
@@ -127,8 +129,9 @@ class VehicleAgent:
                 t.mission_ours = self._new_mission_started(t.mission_state, t.wall_s)
         elif kind == "SYSTEM_TIME":
             if msg.time_unix_usec > 0:
-                t.unix_s = msg.time_unix_usec / 1e6
-                t.unix_wall_s = t.wall_s
+                if self._time_anchor is None or msg.time_boot_ms < self._time_anchor[1]:  # first, or rebooted
+                    self._time_anchor = (msg.time_unix_usec / 1e6, int(msg.time_boot_ms))
+                self._clock(int(msg.time_boot_ms))
         elif kind == "STATUSTEXT" and self._on_status_text is not None:
             self._on_status_text(self.vehicle, str(msg.text).rstrip("\x00"))
 
@@ -147,6 +150,17 @@ class VehicleAgent:
         batch = decode_rssi_batch(msg, self.frame, vehicle=self.vehicle, epoch_unix_s=epoch)
         if len(batch) and self._on_slots is not None:
             self._on_slots(batch)
+
+    def _clock(self, time_boot_ms: int) -> None:
+        """The vehicle's clock: UNIX time anchored once at its first SYSTEM_TIME, then advanced by
+        its boot clock. PX4 SIH under a speed-up sends time_unix_usec at the host's (wall) rate but
+        time_boot_ms at the simulation's: re-reading the UNIX time would slow the mission clock
+        down by the speed-up (measured 10.2 s of UNIX time for 49 s of boot time at 5x)."""
+        if self._time_anchor is None:
+            return
+        unix0, boot0 = self._time_anchor
+        self.tel.unix_s = unix0 + (time_boot_ms - boot0) / 1000.0
+        self.tel.unix_wall_s = self.tel.wall_s
 
     def _new_mission_started(self, state: int | None, wall_s: float) -> bool:
         """Whether a MISSION_CURRENT received after our upload was acknowledged describes our mission.

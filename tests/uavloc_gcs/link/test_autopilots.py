@@ -66,3 +66,37 @@ def test_px4_may_round_positions_back_by_one_unit_but_no_more():
     assert PX4.stored_equal(WP, dataclasses.replace(WP, x=WP.x - 1, y=WP.y + 1))
     assert not PX4.stored_equal(WP, dataclasses.replace(WP, x=WP.x - 2))
     assert not ARDUPILOT.stored_equal(WP, dataclasses.replace(WP, x=WP.x - 1, param4=0.0))
+
+
+def test_mode_tables_are_complete_where_uavloc_meets_them():
+    # ArduCopter mode.h up to TURTLE; 27 is what a Copter reports in AUTO_RTL (DO_LAND_START return)
+    assert ARDUCOPTER_MODES["AUTO_RTL"] == 27 and ARDUPILOT.mode_name(27) == "AUTO_RTL"
+    assert sorted(ARDUCOPTER_MODES.values()) == [0, 1, 2, 3, 4, 5, 6, 7, 9, 11, 13] + list(range(14, 29))
+    assert ARDUPILOT.mode_name(26, M.MAV_TYPE_FIXED_WING) == "AUTOLAND"
+    assert sorted(ARDUPLANE_MODES.values()) == [0, 1, 2, 3, 4, 5, 6, 7, 8] + list(range(10, 27))
+    # PX4 sub-modes are told apart, and an unknown POSCTL sub-mode still reads as POSCTL
+    orbit = (3 << 16) | (1 << 24)
+    assert PX4.mode_name(orbit) == "POSCTL.ORBIT"
+    assert PX4.mode_name((3 << 16) | (7 << 24)) == "POSCTL"
+    assert PX4.mode_name((4 << 16) | (12 << 24)) == "AUTO.EXTERNAL2"
+    assert PX4.mode_name((4 << 16) | (7 << 24)) == "PX4(4.7)"
+
+
+def test_ardupilot_returns_items_without_a_location_in_frame_0():
+    speed = WireItem(2, 2, 178, 0, 1, 1.0, 10.0, -1.0, 0.0, 0, 0, 0.0)
+    held = dataclasses.replace(speed, frame=0)
+    assert ARDUPILOT.stored_equal(speed, held)
+    assert not PX4.stored_equal(speed, held)  # PX4 returns frame 2 as sent
+    assert not ARDUPILOT.stored_equal(speed, dataclasses.replace(held, param2=12.0))
+    # a waypoint in frame 0 is a different (absolute) altitude: still a difference
+    assert not ARDUPILOT.stored_equal(WP, dataclasses.replace(WP, frame=0))
+
+
+def test_downloads_are_saved_in_qgc_form():
+    from uavloc_gcs.link import qgc_form
+    px4 = [WireItem(0, 6, 22, 0, 1, 0.0, 0.0, 0.0, math.nan, 1, 2, 30.0),
+           WireItem(1, 2, 178, 0, 1, 1.0, 10.0, -1.0, 0.0, 0, 0, 0.0)]
+    ap = [WireItem(0, 0, 16, 0, 1, 0.0, 0.0, 0.0, 0.0, 1, 2, 900.0),
+          WireItem(1, 0, 20, 0, 1, 0.0, 0.0, 0.0, 0.0, 0, 0, 0.0), dataclasses.replace(WP, seq=2)]
+    assert [it.frame for it in qgc_form(px4)] == [3, 2]
+    assert [it.frame for it in qgc_form(ap)] == [0, 2, 3]  # home stays absolute

@@ -249,3 +249,30 @@ def test_tcp_client_reconnects_when_the_vehicle_restarts(monkeypatch):
 
     sysid, sent = run(go())
     assert sysid == 255 and sent > 5
+
+
+@pytest.mark.parametrize("sender_key,expected", [(None, "heard only unsigned packets"),
+                                                 (OTHER_KEY, "heard only packets signed with another key")])
+def test_signing_mismatch_is_named_when_no_heartbeat_arrives(sender_key, expected):
+    """A vehicle that does not sign (or signs with another key) looks silent on a signed link:
+    the error says why instead of only 'no heartbeat'."""
+
+    async def go():
+        async with await open_link("udpin:127.0.0.1:0", signing_key=KEY, heartbeat_interval_s=None) as link:
+            vehicle = _vehicle_codec(sender_key)
+            with _udp_sender() as out:
+                for _ in range(4):
+                    out.sendto(_heartbeat(vehicle), link.local_address)
+                await asyncio.sleep(0.2)
+                await link.wait_heartbeat(timeout_s=0.3)
+    with pytest.raises(LinkError, match=expected):
+        run(go())
+
+
+def test_no_signing_diagnosis_without_a_key():
+    async def go():
+        async with await open_link("udpin:127.0.0.1:0", heartbeat_interval_s=None) as link:
+            await link.wait_heartbeat(timeout_s=0.2)
+    with pytest.raises(LinkError) as err:
+        run(go())
+    assert "signed" not in str(err.value)

@@ -61,3 +61,17 @@ def test_a_vehicle_without_mission_states_is_believed_a_second_after_the_ack():
     clock[0] = 101.2
     link.feed(_current(3, mav.MISSION_STATE_UNKNOWN))
     assert a.tel.mission_ours
+
+
+def test_the_mission_clock_follows_the_vehicles_boot_clock_from_one_anchor():
+    """PX4 SIH at a 5x speed-up: time_unix_usec advances at the host's rate (10.2 s) while its boot
+    clock advances 49 s (measured); the mission clock must run with the flight, not the host."""
+    link, clock = _Link(), [100.0]
+    a = _agent(link, clock)
+    link.feed(mav.MAVLink_system_time_message(1_800_000_000_000_000, 20_000))
+    assert a.tel.unix_s == 1_800_000_000.0
+    clock[0] = 110.2
+    link.feed(mav.MAVLink_system_time_message(1_800_000_010_200_000, 69_000))
+    assert a.tel.unix_s == 1_800_000_049.0 and a.tel.unix_wall_s == 110.2
+    link.feed(mav.MAVLink_global_position_int_message(69_500, 0, 0, 0, 0, 0, 0, 0, 0))
+    assert a.tel.unix_s == 1_800_000_049.5  # positions carry the boot clock too
