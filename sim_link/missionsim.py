@@ -253,7 +253,7 @@ def simulate_mission(
     max_iter: int | None = None,
     max_time_s: float = DEFAULT_MAX_TIME_S,
     oracle: bool = False,
-    hearing_evidence: bool = False,
+    hearing_evidence: bool = True,
 ) -> MissionResult:
     """Fly one mission with one of :data:`METHODS` and report completion time, run times, errors."""
     if method not in METHODS:

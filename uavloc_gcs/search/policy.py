@@ -167,8 +167,9 @@ class SearchPolicy:
         self.estimator_runtime_s = 0.0
         # where each vehicle listened (ingest_track): the estimator's silences (estimation.evidence)
         self._tracks: dict[int, list[tuple[np.ndarray, np.ndarray]]] = {}
-        # opt-in: measured on missions it did not pay off yet (docs/readme/localization.md)
-        self.hearing_evidence = False
+        # silences of the recorded tracks (ingest_track) go to the estimator; measured on missions
+        # (docs/readme/localization.md): more people located, sooner
+        self.hearing_evidence = math.isfinite(scenario.fleet.comm_range_m)
 
     # -- data in ---------------------------------------------------------------------------
     def ingest(self, slots: SlotBatch) -> None:
