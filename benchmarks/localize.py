@@ -16,10 +16,14 @@ prints, measured in the same run:
   "ratio" = RMSE / BCRB. Because the geometry varies between runs this bound is loose (the inverse
   of an average is below the average of inverses), so "eff" adds the per-run efficiency
   sqrt(mean((e_k / CRB_k)^2)) with e_k the "near" error and CRB_k the bound of run k's own
-  geometry and truth (1.0 = efficient);
+  geometry and truth (1.0 = efficient); "effE" the same with the reported estimate's error (mirror
+  confusions included), "p90E" the 90th percentile of e_k / CRB_k;
 - coverage: the fraction of runs whose truth lies inside the calibrated 95 % radius, and inside
   the paper's annulus bound (an empty ring intersection counts as a miss);
-- the fraction flagged ambiguous, the median radius / RMSE, and the solve time per emitter;
+- the fraction flagged ambiguous, the median radius / RMSE, the median radius / ideal radius
+  ("r/ideal": the ideal is the 95 % circle of the Gaussian with run k's own bound as covariance,
+  what an efficient estimator that knew its own accuracy would report; mirror spans included),
+  and the solve time per emitter;
 
 plus the solve time for exactly 1,000 slots.
 
@@ -52,7 +56,10 @@ from uavloc_gcs.estimation import (
     estimate_emitter,
     position_rmse_bound_m,
     prior_information,
+    radius_of_probability,
+    silence_from_track,
 )
+from uavloc_gcs.estimation.evidence import Silence
 from uavloc_gcs.observations import SlotBatch
 from uavloc_gcs.scenario import load_scenario
 
@@ -119,6 +126,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--runs", type=int, default=60, help="Monte Carlo runs per family (default 60)")
     parser.add_argument("--seed", type=int, default=1, help="base seed (default 1)")
     parser.add_argument("--family", action="append", help="only families whose name contains this text")
+    parser.add_argument("--evidence", choices=("all", "heard", "none"), default="all",
+                        help="hearing as evidence (estimate_emitter(silence=)): 'all' (slots heard and the silences "
+                             "of the legs, the default), 'heard' (the slots heard only), 'none' (off: the "
+                             "estimator's default)")
     parser.add_argument("--scenario", default="paper", metavar="FILE.toml",
                         help="channel and fleet of this scenario (or a shipped one: paper, small; default paper)")
 
@@ -180,7 +191,14 @@ def correlated_information(slots: SlotBatch, channel: ChannelModel, truth, vel, 
     return white.T @ white
 
 
-def run_family(fam: Family, runs: int, seed: int, sc, bar=None) -> dict:
+def _silence(legs, slots: SlotBatch, slot_s: float) -> Silence:
+    """The slots of the legs at which the phone was not heard."""
+    t = np.concatenate([t for t, _ in legs])
+    x = np.vstack([x for _, x in legs])
+    return silence_from_track(t, x, slots.t_s, slot_s=slot_s)
+
+
+def run_family(fam: Family, runs: int, seed: int, sc, evidence: str = "all", bar=None) -> dict:
     sc = sc.replace(simulation={"correlated_shadowing": fam.correlated, "shadowing_decorrelation_m": 20.0,
                                 "tx_power_spread_db": fam.tx_spread_db})
     channel = ChannelModel.from_scenario(sc)
@@ -188,7 +206,7 @@ def run_family(fam: Family, runs: int, seed: int, sc, bar=None) -> dict:
     prior = prior_information(channel, max_speed_m_s=vmax, model_motion=fam.model_motion,
                               estimate_tx_power=fam.estimate_tx)
     rng = np.random.default_rng(seed)
-    err, near, r95, bound, amb, ms, infos, crb2 = [], [], [], [], [], [], [], []
+    err, near, r95, bound, amb, ms, infos, crb2, ideal = [], [], [], [], [], [], [], [], []
     for k in range(runs):
         if bar is not None:
             bar.step(f"{fam.name} run {k + 1}")
@@ -199,12 +217,14 @@ def run_family(fam: Family, runs: int, seed: int, sc, bar=None) -> dict:
             ang, rad = rng.uniform(0, 2 * np.pi), vmax * math.sqrt(rng.uniform())
             vel = rad * np.array([math.cos(ang), math.sin(ang)])
         world = World.with_people(sc, [start], [vel], seed=seed * 100_003 + k)
-        slots = SlotBatch.concat([world.hear_track(1, t, x) for t, x in _legs(fam.geometry, rng, reach, sc)])
+        legs = _legs(fam.geometry, rng, reach, sc)
+        slots = SlotBatch.concat([world.hear_track(1, t, x) for t, x in legs])
         if len(slots) < 3:
             continue
+        quiet = {"all": _silence(legs, slots, sc.channel.slot_s), "heard": Silence.empty()}.get(evidence)
         t0 = time.thread_time()
-        est = estimate_emitter(slots, channel, max_speed_m_s=vmax, model_motion=fam.model_motion,
-                               estimate_tx_power=fam.estimate_tx)
+        est = estimate_emitter(slots, channel, max_speed_m_s=vmax,
+                               model_motion=fam.model_motion, estimate_tx_power=fam.estimate_tx, silence=quiet)
         ms.append(1e3 * (time.thread_time() - t0))
         truth, tvel = world.positions(est.t_ref_s)[0], world.velocities(est.t_ref_s)[0]
         e = float(np.linalg.norm(est.position_xy_m - truth))
@@ -220,16 +240,30 @@ def run_family(fam: Family, runs: int, seed: int, sc, bar=None) -> dict:
                                     estimate_tx_power=fam.estimate_tx)
         infos.append(info)
         crb2.append(position_rmse_bound_m(info + prior) ** 2)
+        ideal.append(_ideal_radius(info + prior))
     err, near, r95, bound = np.array(err), np.array(near), np.array(r95), np.array(bound)
     rmse = float(np.sqrt(np.mean(err**2)))
     vt = position_rmse_bound_m(np.mean(infos, axis=0) + prior)
     return {
         "family": fam.name, "runs": len(err), "rmse": rmse, "rmse_near": float(np.sqrt(np.mean(near**2))),
         "vt": vt, "ratio": rmse / vt, "eff": float(np.sqrt(np.mean(near**2 / np.array(crb2)))),
+        "eff_e": float(np.sqrt(np.mean(err**2 / np.array(crb2)))),
+        "p90_e": float(np.percentile(err / np.sqrt(crb2), 90)),
+        "r_ideal": float(np.median(r95 / np.array(ideal))),
         "cover95": float(np.mean(err <= r95)), "cover_annulus": float(np.mean(np.nan_to_num(bound, nan=-1) >= err)),
         "ambiguous": float(np.mean(amb)), "median_r95_over_rmse": float(np.median(r95) / rmse),
         "ms": float(np.mean(ms)),
     }
+
+
+def _ideal_radius(information: np.ndarray) -> float:
+    """The 95 % radius an efficient estimator would report: the circle holding 95 % of the Gaussian
+    with the run's own bound (inverse information at the truth) as covariance."""
+    try:
+        cov = np.linalg.inv(0.5 * (information + information.T))
+    except np.linalg.LinAlgError:
+        return math.inf
+    return radius_of_probability(cov[:2, :2])
 
 
 def time_1000_slots(sc, repeats: int = 30) -> float:
@@ -247,7 +281,8 @@ def time_1000_slots(sc, repeats: int = 30) -> float:
     return float(np.median(times))
 
 
-def _maneuver_slots(fam: ManeuverFamily, world: World, rng: np.random.Generator, sc, channel, vmax):
+def _maneuver_slots(fam: ManeuverFamily, world: World, rng: np.random.Generator, sc, channel, vmax,
+                    evidence: str = "none"):
     """Slots of one maneuver run: two scan lanes around the person, optionally a look pass."""
     v, slot, alt, reach = sc.fleet.speed_m_s, sc.channel.slot_s, sc.fleet.altitude_m, sc.horizontal_range_m
     t0 = rng.uniform(0.0, 600.0)  # the walk's phase
@@ -258,9 +293,12 @@ def _maneuver_slots(fam: ManeuverFamily, world: World, rng: np.random.Generator,
     t1, x1 = _leg([x0, y1], [x0 + MISSION_LANE_M, y1], t0, v, slot, alt)
     t2, x2 = _leg([x0 + MISSION_LANE_M, y1 + spacing], [x0, y1 + spacing], t1[-1] + TURN_S + spacing / v, v, slot, alt)
     slots = SlotBatch.concat([world.hear_track(1, t1, x1), world.hear_track(1, t2, x2)])
+    tracks = [(1, t1, x1), (1, t2, x2)]
     if fam.stage == "lanes" or len(slots) < 3:
-        return slots
-    first = estimate_emitter(slots, channel, max_speed_m_s=vmax)
+        return slots, tracks
+    first = estimate_emitter(slots, channel, max_speed_m_s=vmax,
+                             silence=_track_silence(tracks, slots, sc.channel.slot_s) if evidence == "all" else
+                             (Silence.empty() if evidence == "heard" else None))
     t_look = float(slots.t_s.max()) + rng.uniform(30.0, 180.0)
     aim, _ = first.predict(t_look)
     psi = rng.uniform(0.0, 2 * np.pi)
@@ -268,10 +306,16 @@ def _maneuver_slots(fam: ManeuverFamily, world: World, rng: np.random.Generator,
     mid = aim + n * rng.uniform(0.0, 0.5 * reach)
     half = reach + 60.0
     t3, x3 = _leg(mid - half * u, mid + half * u, t_look - half / v, v, slot, alt)
-    return SlotBatch.concat([slots, world.hear_track(2, t3, x3)])  # another vehicle looks
+    return SlotBatch.concat([slots, world.hear_track(2, t3, x3)]), tracks + [(2, t3, x3)]  # another vehicle looks
 
 
-def run_maneuver_family(fam: ManeuverFamily, runs: int, seed: int, sc, bar=None) -> dict:
+def _track_silence(tracks, slots: SlotBatch, slot_s: float) -> Silence:
+    """Silences of (vehicle, times, positions) tracks, each vehicle against its own slots heard."""
+    parts = [silence_from_track(t, x, slots.t_s[slots.vehicle == v], slot_s=slot_s) for v, t, x in tracks]
+    return Silence(np.concatenate([p.t_s for p in parts]), np.vstack([p.xyz_m for p in parts]))
+
+
+def run_maneuver_family(fam: ManeuverFamily, runs: int, seed: int, sc, bar=None, evidence: str = "none") -> dict:
     if fam.area_m is not None:
         sc = sc.replace(area={"width_m": fam.area_m[0], "height_m": fam.area_m[1]})
     channel = ChannelModel.from_scenario(sc)
@@ -283,13 +327,14 @@ def run_maneuver_family(fam: ManeuverFamily, runs: int, seed: int, sc, bar=None)
         if bar is not None:
             bar.step(f"{fam.name} run {k + 1}")
         world = World(sc, seed=seed * 100_003 + k, people=1, motion="random_waypoint", horizon_s=1800.0)
-        slots = _maneuver_slots(fam, world, rng, sc, channel, vmax)
+        slots, tracks = _maneuver_slots(fam, world, rng, sc, channel, vmax, evidence)
         if len(slots) < 3:
             continue
+        quiet = {"all": _track_silence(tracks, slots, sc.channel.slot_s), "heard": Silence.empty()}.get(evidence)
         span.append(float(slots.t_s.max() - slots.t_s.min()))
         for key, tm in (("new", None), ("cv", math.inf)):
             opts = {} if tm is None else {"maneuver_time_s": tm}
-            est = estimate_emitter(slots, channel, max_speed_m_s=vmax, **opts)
+            est = estimate_emitter(slots, channel, max_speed_m_s=vmax, silence=quiet, **opts)
             out = [float(np.linalg.norm(est.position_xy_m - world.positions(est.t_ref_s)[0])), est.radius95_m,
                    float(est.ambiguous)]
             for dt in PREDICT_S:
@@ -319,14 +364,16 @@ def main(args: argparse.Namespace) -> int:
           f"h {sc.fleet.altitude_m:g} m, R {sc.horizontal_range_m:.1f} m, v_max {sc.people.max_speed_m_s} m/s")
     if fams:
         head = f"{'family':34s} {'runs':>4s} {'RMSE m':>7s} {'near m':>7s} {'BCRB m':>7s} {'ratio':>6s} " \
-               f"{'eff':>6s} {'cov95':>6s} {'covAnn':>6s} {'ambig':>6s} {'r95/RMSE':>8s} {'ms':>6s}"
+               f"{'eff':>6s} {'effE':>5s} {'p90E':>5s} {'cov95':>6s} {'covAnn':>6s} {'ambig':>6s} " \
+               f"{'r95/RMSE':>8s} {'r/ideal':>7s} {'ms':>6s}"
         print(head)
         print("-" * len(head))
         for fam in fams:
-            r = run_family(fam, args.runs, args.seed + 1000 * FAMILIES.index(fam), sc, bar)
+            r = run_family(fam, args.runs, args.seed + 1000 * FAMILIES.index(fam), sc, args.evidence, bar)
             print(f"{r['family']:34s} {r['runs']:4d} {r['rmse']:7.2f} {r['rmse_near']:7.2f} {r['vt']:7.2f} "
-                  f"{r['ratio']:6.2f} {r['eff']:6.2f} {r['cover95']:6.2f} {r['cover_annulus']:6.2f} {r['ambiguous']:6.2f} "
-                  f"{r['median_r95_over_rmse']:8.2f} {r['ms']:6.1f}")
+                  f"{r['ratio']:6.2f} {r['eff']:6.2f} {r['eff_e']:5.2f} {r['p90_e']:5.2f} "
+                  f"{r['cover95']:6.2f} {r['cover_annulus']:6.2f} {r['ambiguous']:6.2f} "
+                  f"{r['median_r95_over_rmse']:8.2f} {r['r_ideal']:7.2f} {r['ms']:6.1f}")
     if mfams:
         print("\nmaneuvering people (random_waypoint); coverage / median radius [m] at the last slot, "
               "and predicted +30 s, +60 s; 'CV' = pure constant-velocity model")
@@ -336,7 +383,8 @@ def main(args: argparse.Namespace) -> int:
         print(head)
         print("-" * len(head))
         for fam in mfams:
-            r = run_maneuver_family(fam, args.runs, args.seed + 5000 + 1000 * MANEUVER_FAMILIES.index(fam), sc, bar)
+            r = run_maneuver_family(fam, args.runs, args.seed + 5000 + 1000 * MANEUVER_FAMILIES.index(fam), sc, bar,
+                                    args.evidence)
             n, c = r["new"], r["cv"]
             print(f"{r['family']:30s} {r['runs']:4d} {r['span']:6.0f} {n['rmse']:7.2f} {n['median_err']:6.2f} {n['ambiguous']:5.2f} "
                   f"{n['cover'][0]:5.2f} {n['median_r'][0]:6.1f} {n['cover'][1]:5.2f} {n['median_r'][1]:6.1f} "

@@ -68,6 +68,12 @@ def plot_all(rows_a, rows_b, rows_c, out_dir: Path, required_m: float | None = N
                 ax.set_yscale("log")
         else:
             ax.set_ylim(bottom=0.0)
+        if name.startswith("fig_a"):  # the clairvoyant yardstick of the reference method
+            ref = sorted((r["people"], r.get("oracle_completion_time_mean_s", math.nan)) for r in rows
+                         if r["method"] == "MLE-EPSO (M)")
+            if ref and any(math.isfinite(v) for _, v in ref):
+                ax.plot([x for x, _ in ref], [v for _, v in ref], color="k", ls="--", lw=1.2, marker="x",
+                        label="clairvoyant (true tracks after the scan)")
         if name.startswith("fig_c") and required_m:
             ax.axhline(required_m, color="k", lw=0.8, ls="--", label=f"required {required_m:g} m")
         ax.grid(True, alpha=0.3, which="both")

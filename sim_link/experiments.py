@@ -92,7 +92,8 @@ def run_task(cfg: ExperimentConfig, task: Task) -> MissionResult:
     if task.method == RL_METHOD:
         return simulate_rl(cfg.scenario, world, seed=task.world_seed)
     return simulate_mission(cfg.scenario, world, task.method, seed=task.world_seed,
-                            time_limit_s=cfg.planner_time_limit_s, max_iter=cfg.iterations)
+                            time_limit_s=cfg.planner_time_limit_s, max_iter=cfg.iterations,
+                            oracle=task.method == REFERENCE)
 
 
 def _worker(args):
@@ -162,8 +163,15 @@ def table_a(er: ExperimentResult) -> list[dict]:
             mean, ci, k = mean_ci95([r.completion_time_s for r in runs])
             loc, _, _ = mean_ci95([r.located_fraction for r in runs])
             err, _, _ = mean_ci95([r.max_final_error_m for r in runs])
+            oracle, oracle_ci, _ = mean_ci95([r.oracle_completion_time_s for r in runs])
+            heard = sum(p.heard for r in runs for p in r.persons)
+            located = [p for r in runs for p in r.persons if p.located]
             rows.append({"method": m, "people": n, "runs": k, "completion_time_mean_s": mean,
-                         "completion_time_ci95_s": ci, "located_fraction_mean": loc, "max_error_mean_m": err})
+                         "completion_time_ci95_s": ci, "located_fraction_mean": loc, "max_error_mean_m": err,
+                         "located_of_heard": len(located) / heard if heard else math.nan,
+                         "covered_of_located": (sum(p.error_m <= p.claimed_radius_m for p in located) / len(located)
+                                                if located else math.nan),
+                         "oracle_completion_time_mean_s": oracle, "oracle_completion_time_ci95_s": oracle_ci})
     return rows
 
 
@@ -201,6 +209,7 @@ def runs_table(er: ExperimentResult) -> list[dict]:
         rows.append({"method": m, "people": n, "run": r, "world_seed": world_seed(er.config.seed, n, r),
                      "completion_time_s": res.completion_time_s, "scan_time_s": res.scan_time_s,
                      "runtime_s": res.planner_runtime_s, "estimator_runtime_s": res.estimator_runtime_s,
+                     "oracle_completion_time_s": res.oracle_completion_time_s,
                      "replans": res.replans, "located_fraction": res.located_fraction,
                      "max_error_m": res.max_final_error_m,
                      "mean_error_m": float(np.nanmean([p.error_m for p in res.persons])) if res.persons else 0.0,
@@ -252,21 +261,29 @@ def summary_text(er: ExperimentResult, command: str = "") -> str:
               f"iterations per replan (local search {onoff[pl.local_search]}, warm start {onoff[pl.warm_start]}), "
               f"required accuracy {cfg.scenario.people.required_accuracy_m:g} m, "
               f"motion `{cfg.scenario.simulation.motion}`.", ""]
-    lines += ["| method | people | completion time [s] | algorithm run time [s] | located | max error [m] |",
-              "|---|---|---|---|---|---|"]
+    lines += ["| method | people | completion time [s] | clairvoyant [s] | algorithm run time [s] | located | "
+              "located of heard | in radius | max error [m] |",
+              "|---|---|---|---|---|---|---|---|---|"]
     b = {(r["method"], r["people"]): r for r in table_b(er)}
     for r in table_a(er):
         rb = b[(r["method"], r["people"])]
+        oracle = r["oracle_completion_time_mean_s"]
         lines.append(f"| {r['method']} | {r['people']} | {r['completion_time_mean_s']:.1f} ± "
-                     f"{_ci(r['completion_time_ci95_s'])} | {rb['runtime_mean_s']:.2f} ± "
+                     f"{_ci(r['completion_time_ci95_s'])} | "
+                     f"{'-' if not math.isfinite(oracle) else f'{oracle:.1f}'} | {rb['runtime_mean_s']:.2f} ± "
                      f"{_ci(rb['runtime_ci95_s'], 2)} | "
-                     f"{100 * r['located_fraction_mean']:.0f} % | {r['max_error_mean_m']:.1f} |")
+                     f"{100 * r['located_fraction_mean']:.0f} % | {_pct(r['located_of_heard'])} | "
+                     f"{_pct(r['covered_of_located'])} | {r['max_error_mean_m']:.1f} |")
     lines += ["", f"Completion-time reduction of {REFERENCE} (the paper reports "
               f"{100 * PAPER_REDUCTION:.1f} % against its comparison scheme):", ""]
     for m, (overall, per) in reductions(er).items():
         per_txt = ", ".join(f"{n}: {100 * p:+.1f} %" for n, p in zip(sorted(cfg.people), per))
         lines.append(f"- vs {m}: {100 * overall:+.1f} % overall (per people count: {per_txt})")
     return "\n".join(lines) + "\n"
+
+
+def _pct(x: float) -> str:
+    return "-" if not math.isfinite(x) else f"{100 * x:.1f} %"
 
 
 def _ci(x: float, digits: int = 1) -> str:

@@ -18,7 +18,7 @@ vehicle lands (computed exactly from the path, not rounded to the step).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -62,6 +62,8 @@ class MissionResult:
     replans: int
     energy_j: tuple[float, ...]  # per vehicle, used
     persons: tuple[PersonResult, ...]
+    # the clairvoyant yardstick (see oracle_completion_time_s); NaN when not computed
+    oracle_completion_time_s: float = math.nan
     error_times_s: np.ndarray = field(repr=False, default_factory=lambda: np.zeros(0))
     max_error_m: np.ndarray = field(repr=False, default_factory=lambda: np.zeros(0))
 
@@ -153,6 +155,38 @@ class Vehicle:
         return VehicleState(self.id, (float(xy[0]), float(xy[1])), (0.0, 0.0), left)
 
 
+class _Clairvoyant(SearchPolicy):
+    """The policy's planner with every pending person's true track in place of the estimate
+    (same look radii, no mirror, no miss): what the follow-up looks would cost if the estimator
+    knew where everyone is."""
+
+    world: World
+
+    def _targets(self, t_s, vehicles, planned_times, previous=None):
+        out = []
+        index = {int(e): i for i, e in enumerate(self.world.emitter_ids)}
+        pos, vel = self.world.positions(t_s), self.world.velocities(t_s)
+        for tgt in super()._targets(t_s, vehicles, planned_times, previous):
+            i = index[int(tgt.id)]
+            v = vel[i] if self.model_motion else np.zeros(2)
+            out.append(replace(tgt, xy_m=(float(pos[i][0]), float(pos[i][1])), velocity_m_s=(float(v[0]), float(v[1]))))
+        return out
+
+
+def oracle_completion_time_s(policy: SearchPolicy, world: World, vehicles: list["Vehicle"], t_s: float) -> float:
+    """Completion time [s] of the clairvoyant yardstick: at the end of the scan (``t_s``), the same
+    planner plans one look at every person the policy has not located, aimed at the true track
+    with the look radius the real estimate needs, and every vehicle then flies home. A lower
+    bound on what better estimation alone could gain (the real method may need more looks)."""
+    import copy
+
+    oracle = copy.deepcopy(policy)
+    oracle.__class__ = _Clairvoyant
+    oracle.world = world
+    plan = oracle.replan(t_s, [copy.deepcopy(v).state(t_s) for v in vehicles])
+    return float(max((task.eta_s for task in plan.tasks), default=t_s))
+
+
 def slot_times(t_from_s: float, t_to_s: float, slot_s: float) -> np.ndarray:
     """Slot start times k*slot_s in [t_from_s, t_to_s)."""
     k0 = math.ceil(t_from_s / slot_s - 1e-9)
@@ -160,8 +194,9 @@ def slot_times(t_from_s: float, t_to_s: float, slot_s: float) -> np.ndarray:
     return np.arange(k0, k1) * slot_s
 
 
-def hear(world: World, vehicles: list[Vehicle], t_from_s: float, t_to_s: float):
-    """Slots every vehicle hears in [t_from_s, t_to_s) along its current flight."""
+def hear(world: World, vehicles: list[Vehicle], t_from_s: float, t_to_s: float, policy=None):
+    """Slots every vehicle hears in [t_from_s, t_to_s) along its current flight; with ``policy``,
+    where each vehicle listened is recorded too (``SearchPolicy.ingest_track``)."""
     from uavloc_gcs.observations import SlotBatch
 
     sc = world.scenario
@@ -176,6 +211,8 @@ def hear(world: World, vehicles: list[Vehicle], t_from_s: float, t_to_s: float):
         xy = v.flight.position(tt)
         xyz = np.column_stack([xy, np.full(len(tt), sc.fleet.altitude_m)])
         out.append(world.hear_track(v.index, tt, xyz))
+        if policy is not None:
+            policy.ingest_track(v.index, tt, xyz)
     return SlotBatch.concat(out)
 
 
@@ -215,6 +252,8 @@ def simulate_mission(
     time_limit_s: float | None = None,
     max_iter: int | None = None,
     max_time_s: float = DEFAULT_MAX_TIME_S,
+    oracle: bool = False,
+    hearing_evidence: bool = True,
 ) -> MissionResult:
     """Fly one mission with one of :data:`METHODS` and report completion time, run times, errors."""
     if method not in METHODS:
@@ -223,6 +262,7 @@ def simulate_mission(
     policy = SearchPolicy(scenario, model_motion=model_motion, optimizer=optimizer,
                           local_search=scenario.planner.local_search, seed=seed, time_limit_s=time_limit_s,
                           max_iter=max_iter)
+    policy.hearing_evidence = hearing_evidence and math.isfinite(scenario.fleet.comm_range_m)
     scan = plan_scan(scenario)
     m = scenario.fleet.vehicles
     vehicles = [Vehicle(i + 1, scenario) for i in range(m)]
@@ -234,7 +274,7 @@ def simulate_mission(
     t = 0.0
     while t < t_scan:  # the scan: listen, re-estimate now and then for the error curve
         t_next = min(t + scan_update_s, t_scan)
-        policy.ingest(hear(world, vehicles, t, t_next))
+        policy.ingest(hear(world, vehicles, t, t_next, policy))
         policy.update(t_next)
         t = t_next
         err_t.append(t)
@@ -242,6 +282,7 @@ def simulate_mission(
 
     replans = 0
     changed = policy.update(t)
+    t_oracle = oracle_completion_time_s(policy, world, vehicles, t) if oracle else math.nan
     while True:
         for v in vehicles:
             v.land_if_home(t)
@@ -260,7 +301,7 @@ def simulate_mission(
         t_next = t + dt_s
         if policy.done(t):  # nothing left to learn: jump to the last landing
             t_next = max(t_next, max(v.flight.end_t_s for v in vehicles))
-        policy.ingest(hear(world, vehicles, t, t_next))
+        policy.ingest(hear(world, vehicles, t, t_next, policy))
         t = t_next
         changed = policy.update(t)
         err_t.append(t)
@@ -276,5 +317,5 @@ def simulate_mission(
         method=method, people=len(world), seed=seed, completion_time_s=float(t_end), scan_time_s=float(t_scan),
         planner_runtime_s=policy.planner_runtime_s, estimator_runtime_s=policy.estimator_runtime_s,
         replans=replans, energy_j=tuple(v.energy_j for v in vehicles),
-        persons=person_results(world, statuses, t_end),
+        persons=person_results(world, statuses, t_end), oracle_completion_time_s=t_oracle,
         error_times_s=np.asarray(err_t), max_error_m=np.asarray(err_v))

@@ -81,6 +81,14 @@ def test_cli_tiny_run_end_to_end(tmp_path):
     mean = np.mean([float(r["completion_time_s"]) for r in runs if r["method"] == "MLE-GA" and r["people"] == "3"])
     row = next(r for r in fig_a if r["method"] == "MLE-GA" and r["people"] == "3")
     assert float(row["completion_time_mean_s"]) == pytest.approx(mean, rel=1e-5)
+    # the clairvoyant yardstick: computed for the reference method only, never later than it
+    for r in runs:
+        oracle = float(r["oracle_completion_time_s"] or "nan")
+        if r["method"] == "MLE-EPSO (M)":
+            assert float(r["scan_time_s"]) < oracle <= float(r["completion_time_s"]) + 1e-6
+        else:
+            assert math.isnan(oracle)
+    assert "clairvoyant [s]" in (out / "summary.md").read_text()
 
 
 def test_cli_rejects_bad_arguments(tmp_path):

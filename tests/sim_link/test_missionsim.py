@@ -72,3 +72,31 @@ def test_mission_is_deterministic_and_moving_people_are_tracked(small):
     assert [p.error_m for p in a.persons] == [p.error_m for p in b.persons]
     assert a.located_fraction == 1.0
     assert a.max_final_error_m < 2 * small.people.required_accuracy_m
+
+
+def test_clairvoyant_yardstick_and_recorded_silences(small):
+    """The oracle plans the same follow-up looks at the true tracks: it ends after the scan and
+    no later than the real mission (which may need more looks). The policy records where the
+    vehicles listened; with the hearing evidence on, estimates after the scan weigh silences."""
+    import uavloc_gcs.search.policy as policy_module
+
+    seen = []
+    original = policy_module.SearchPolicy._silence
+
+    def spy(self, p):
+        out = original(self, p)
+        seen.append(0 if out is None else len(out))
+        return out
+
+    policy_module.SearchPolicy._silence = spy
+    try:
+        world = World(small, seed=3, people=3, motion="random_waypoint")
+        res = simulate_mission(small, world, "MLE-EPSO (M)", seed=3, time_limit_s=20.0, max_iter=15, oracle=True,
+                               hearing_evidence=True)
+    finally:
+        policy_module.SearchPolicy._silence = original
+    assert res.scan_time_s < res.oracle_completion_time_s <= res.completion_time_s + 1e-6
+    assert seen and max(seen) > 0
+    plain = simulate_mission(small, World(small, seed=3, people=3, motion="random_waypoint"), "MLE-EPSO (M)",
+                             seed=3, time_limit_s=20.0, max_iter=15)
+    assert math.isnan(plain.oracle_completion_time_s)

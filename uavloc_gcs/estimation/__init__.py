@@ -15,4 +15,6 @@ __all__ = ["ChannelModel", "Candidate", "Estimate", "estimate_emitter", "estimat
 from .access import access_radius_m  # noqa: E402  (needs Estimate)
 from .crb import data_information, position_rmse_bound_m, prior_information  # noqa: E402
 
-__all__ += ["access_radius_m", "data_information", "prior_information", "position_rmse_bound_m"]
+from .evidence import Silence, silence_from_track  # noqa: E402
+
+__all__ += ["Silence", "silence_from_track", "access_radius_m", "data_information", "prior_information", "position_rmse_bound_m"]

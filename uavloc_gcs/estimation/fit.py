@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import leastsq
 
+from .evidence import Bounds
 from .maneuver import Passes, offset_jacobian
 from .model import ChannelModel, log_range_jacobian
 
@@ -95,6 +96,7 @@ class Problem:
     max_speed_m_s: float
     tx_sigma_nepers: float
     passes: Passes | None = None  # maneuver offsets per old pass (see .maneuver); None = pure CV
+    bounds: Bounds | None = None  # where the phone was heard / not heard (see .evidence); None = unused
 
     @property
     def base_size(self) -> int:
@@ -154,6 +156,8 @@ class Problem:
         if self.passes is not None:
             off = theta[self.base_size:].reshape(-1, 2)
             parts += [self.passes.whiten @ off[:, 0], self.passes.whiten @ off[:, 1]]
+        if self.bounds is not None:
+            parts.append(self.bounds.residuals(theta[:2], theta[2:4] if self.moving else None, self._bound_shift(theta)))
         return np.concatenate([np.asarray(p, float).ravel() for p in parts])
 
     def jacobian(self, theta: np.ndarray) -> np.ndarray:
@@ -181,7 +185,25 @@ class Problem:
             off[:m, b::2] = self.passes.whiten
             off[m:, b + 1::2] = self.passes.whiten
             rows.append(off)
+        if self.bounds is not None:
+            jb = self.bounds.jacobian(theta[:2], theta[2:4] if self.moving else None, self._bound_shift(theta))
+            row = np.zeros((len(self.bounds), p))
+            row[:, :2] = jb[:, :2]
+            if self.moving:
+                row[:, 2:4] = jb[:, 2:4]
+            if self.passes is not None:
+                k = np.flatnonzero(self.bounds.pass_index >= 0)
+                col = self.base_size + 2 * self.bounds.pass_index[k]
+                row[k, col], row[k, col + 1] = jb[k, 0], jb[k, 1]
+            rows.append(row)
         return np.vstack(rows)
+
+    def _bound_shift(self, theta: np.ndarray) -> np.ndarray | None:
+        """The pass offsets of the bound rows (K, 2); None without maneuver passes."""
+        if self.passes is None:
+            return None
+        off = np.vstack([theta[self.base_size:].reshape(-1, 2), np.zeros((1, 2))])
+        return off[self.bounds.pass_index]
 
     def prior_information(self) -> np.ndarray:
         j = np.zeros((self.size, self.size))

@@ -40,12 +40,13 @@ from . import targets as tg
 
 log = logging.getLogger(__name__)
 
-MAX_LOOKS = 4  # planned looks per person before giving up (the mission must end)
+MAX_LOOKS = 4  # planned looks per person before giving up (the mission must end; see targets.LOOK_SHRINK)
 MAX_MISSES = 2  # looks that heard nothing before giving up
 MATERIAL_SHIFT_FRACTION = 0.5  # estimate moved > this x required accuracy => replan
 LOOK_LATE_S = 180.0  # with look reports: an unreported look counts only this long after its (re-based) time
 ACCESS_TIME_QUANTUM_S = 2.0  # access radii are computed for pass times rounded up to this
 RADIUS_RECHECK_FRACTION = 0.85  # replan once more if a planned radius shrinks below this fraction
+TRACK_STEP_SLOTS = 10  # listening tracks are kept every this many slots (0.25 s, 6 m at 25 m/s)
 
 
 @dataclass(frozen=True)
@@ -164,6 +165,11 @@ class SearchPolicy:
         self._target_t_pass: dict[int, float] = {}  # emitter -> pass time its current radius is for
         self.planner_runtime_s = 0.0  # total over all replans
         self.estimator_runtime_s = 0.0
+        # where each vehicle listened (ingest_track): the estimator's silences (estimation.evidence)
+        self._tracks: dict[int, list[tuple[np.ndarray, np.ndarray]]] = {}
+        # silences of the recorded tracks (ingest_track) go to the estimator; measured on missions
+        # (docs/readme/localization.md): more people located, sooner
+        self.hearing_evidence = math.isfinite(scenario.fleet.comm_range_m)
 
     # -- data in ---------------------------------------------------------------------------
     def ingest(self, slots: SlotBatch) -> None:
@@ -177,6 +183,46 @@ class SearchPolicy:
             p.n_slots += len(part)
             p.last_slot_t_s = max(p.last_slot_t_s, float(np.max(part.t_s)))
             p.dirty = True
+
+    def ingest_track(self, vehicle: int, t_s, xyz_m) -> None:
+        """Record where ``vehicle`` listened: slot times (N,) [s] and positions (N, 3) [m, z = height
+        above the people]; kept every TRACK_STEP_SLOTS-th slot. A phone not heard there is evidence
+        that it was out of range (estimate_emitter's ``silence``)."""
+        t = np.asarray(t_s, float).reshape(-1)
+        if len(t) == 0:
+            return
+        k = np.round(t / self.scenario.channel.slot_s).astype(np.int64) % TRACK_STEP_SLOTS == 0
+        xyz = np.asarray(xyz_m, float).reshape(-1, 3)[k]
+        if not len(xyz):
+            return
+        self._tracks.setdefault(int(vehicle), []).append((t[k], xyz))
+        if not self.hearing_evidence:
+            return
+        for p in self._people.values():  # a silence near a pending candidate may rule it out
+            if p.dirty or p.fix_t_s is not None or p.gave_up or not self._ok(p):
+                continue
+            for c in tg.candidates(p.estimate, p.last_slot_t_s):
+                if float(np.min(np.linalg.norm(xyz[:, :2] - c.xy_m, axis=1))) < self.range_m:
+                    p.dirty = True
+                    break
+
+    def _silence(self, p: "_Person"):
+        """The recorded listening of every vehicle where ``p``'s phone was not heard; None when
+        nothing was recorded or the evidence is off."""
+        from ..estimation import Silence, silence_from_track
+
+        if not self.hearing_evidence or not self._tracks:
+            return None
+        heard = p.batches[0]
+        ts, xs = [], []
+        for v, parts in self._tracks.items():
+            if len(parts) > 1:
+                self._tracks[v] = parts = [(np.concatenate([a for a, _ in parts]), np.vstack([b for _, b in parts]))]
+            t, xyz = parts[0]
+            s = silence_from_track(t, xyz, heard.t_s[heard.vehicle == v], slot_s=self.scenario.channel.slot_s)
+            ts.append(s.t_s)
+            xs.append(s.xyz_m)
+        return Silence(np.concatenate(ts), np.vstack(xs))
 
     def update(self, t_s: float) -> set[int]:
         """Re-estimate emitters with new slots; return the ids whose state changed materially
@@ -195,7 +241,8 @@ class SearchPolicy:
             try:
                 est = estimate_emitter(
                     p.batches[0], self.channel, max_speed_m_s=self.model_speed_m_s,
-                    t_ref_s=p.last_slot_t_s, model_motion=self.model_motion, previous=p.estimate)
+                    t_ref_s=p.last_slot_t_s, model_motion=self.model_motion, previous=p.estimate,
+                    silence=self._silence(p))
                 p.estimate, p.error = est, ""
             except EstimationError as exc:
                 p.error = str(exc)
@@ -379,7 +426,7 @@ class SearchPolicy:
             if speed > vmax_plan:
                 vel = vel * (vmax_plan / speed)
             out.append(Target(str(eid), (float(centre[0]), float(centre[1])),
-                              (float(vel[0]), float(vel[1])), tg.look_radius_m(rho, sep)))
+                              (float(vel[0]), float(vel[1])), tg.look_radius_m(rho, sep, p.looks - p.misses)))
         return out
 
     def _access_radius(self, p: _Person, t_pass_s: float) -> float:

@@ -91,6 +91,12 @@ def test_mirror_candidate_outside_area_is_not_an_ambiguity():
     assert tg.look_radius_m(60.0, 40.0) == pytest.approx(10.0)
     assert tg.look_radius_m(60.0, None) == pytest.approx(60.0)
     assert tg.look_radius_m(float("nan"), None) == 0.0
+    # with a shrink factor, every earlier look that heard the person without locating them
+    # shrinks the radius (off by default: tg.LOOK_SHRINK = 1)
+    assert tg.look_radius_m(60.0, None, 1, shrink=0.5) == pytest.approx(30.0)
+    assert tg.look_radius_m(60.0, 40.0, 2, shrink=0.5) == pytest.approx(2.5)
+    assert tg.look_radius_m(60.0, None, -1, shrink=0.5) == pytest.approx(60.0)
+    assert tg.look_radius_m(60.0, None, 3) == pytest.approx(60.0 * tg.LOOK_SHRINK**3)
 
 
 def test_person_heard_too_little_to_fit_gets_a_look_where_heard(small):

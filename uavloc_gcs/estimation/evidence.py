@@ -1,0 +1,142 @@
+"""The hearing itself as evidence: where a phone was heard, and where it was not.
+
+A phone is heard only within the communication range D (3-D) of a vehicle, so every slot heard
+puts the person within ground range sqrt(D^2 - h^2) of the vehicle then, and every slot a vehicle
+listened without hearing the phone (*silence*) puts the person outside it. The RSSI fit does not
+use this (the likelihood of the slots heard only), and its mirror images often contradict it: the
+mirror of a person between two lanes across one lane lies beyond the other lane's reach, and the
+mirror across a single lane may lie where another vehicle flew over and heard nothing.
+
+:func:`build_bounds` turns both into soft one-sided constraints on the person's track (a hinge
+residual, zero inside, growing linearly with the violation over a softness of
+``TOLERANCE_FLOOR_M`` plus the maneuver deviation since the anchor for silences, or the velocity
+mismatch within a pass for slots heard, whose pass offset carries the maneuver). The estimator
+refits every candidate where they bind, so a mirror that needs the person out of reach of a slot
+heard, or within reach of a silence, moves or loses its posterior mass; the binding rows also add
+(deflated) information to the Laplace covariance (``estimate.BOUNDS_IN_COVARIANCE``, measured there).
+
+Opt-in (``estimate_emitter(..., silence=)``): the simulator's hearing is a hard range gate, which
+this exploits fully; a real phone's detection edge is softer (the softness should then grow).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+TOLERANCE_FLOOR_M = 2.0  # a slot's flight (0.6 m) and the rounding of the range gate, generously
+MAX_HEARD = 400  # heard slots checked (evenly spaced; the constraint varies slowly along a pass)
+MAX_SILENT = 600
+
+
+@dataclass(frozen=True)
+class Silence:
+    """Where vehicles listened without hearing this phone: times (M,) [s] and positions (M, 3)
+    [m, local ENU, z = height above the people]."""
+
+    t_s: np.ndarray
+    xyz_m: np.ndarray
+
+    @staticmethod
+    def empty() -> "Silence":
+        return Silence(np.zeros(0), np.zeros((0, 3)))
+
+    def __len__(self) -> int:
+        return len(self.t_s)
+
+
+def silence_from_track(t_s, xyz_m, heard_t_s, *, slot_s: float) -> Silence:
+    """The slots of a listening track (times (N,), positions (N, 3)) at which this phone was not
+    heard (no heard slot within half a slot)."""
+    t = np.asarray(t_s, float).reshape(-1)
+    xyz = np.asarray(xyz_m, float).reshape(-1, 3)
+    heard = np.sort(np.asarray(heard_t_s, float).reshape(-1))
+    if len(heard) == 0 or len(t) == 0:
+        return Silence(t, xyz)
+    k = np.clip(np.searchsorted(heard, t), 1, len(heard) - 1) if len(heard) > 1 else np.zeros(len(t), int)
+    near = np.minimum(np.abs(heard[k] - t), np.abs(heard[np.maximum(k - 1, 0)] - t))
+    quiet = near > 0.5 * slot_s
+    return Silence(t[quiet], xyz[quiet])
+
+
+@dataclass(frozen=True)
+class Bounds:
+    """Range constraints on the person's CV track, in the fit's time frame: offsets tau_s (K,) from
+    the fit's reference time, vehicle ground positions (K, 2), ground reach (K,), sign (K,) (+1: heard,
+    the person within reach; -1: silent, outside it) and softness sigma_m (K,)."""
+
+    tau_s: np.ndarray
+    a_xy: np.ndarray
+    reach_m: np.ndarray
+    sign: np.ndarray
+    sigma_m: np.ndarray
+    pass_index: np.ndarray  # (K,) the maneuver pass of a heard row (its offset applies); -1: none
+
+    def __len__(self) -> int:
+        return len(self.tau_s)
+
+    def residuals(self, p: np.ndarray, v: np.ndarray | None, shift: np.ndarray | None = None) -> np.ndarray:
+        g = self._offsets(p, v, shift)
+        ground = np.hypot(g[:, 0], g[:, 1])
+        return np.maximum(self.sign * (ground - self.reach_m), 0.0) / self.sigma_m
+
+    def jacobian(self, p: np.ndarray, v: np.ndarray | None, shift: np.ndarray | None = None) -> np.ndarray:
+        """(K, 4) d residual / d (x, y, vx, vy) (the velocity columns zero for the static model); the
+        derivative by a row's pass offset equals its position columns."""
+        g = self._offsets(p, v, shift)
+        ground = np.maximum(np.hypot(g[:, 0], g[:, 1]), 1e-9)
+        active = self.sign * (ground - self.reach_m) > 0
+        u = (g / ground[:, None]) * (active * self.sign / self.sigma_m)[:, None]
+        return np.column_stack([u, u * self.tau_s[:, None]]) if v is not None else np.column_stack([u, 0 * u])
+
+    def _offsets(self, p, v, shift=None):
+        where = p + (np.outer(self.tau_s, v) if v is not None else 0.0)
+        if shift is not None:  # (K, 2) the rows' pass offsets
+            where = where + shift
+        return where - self.a_xy
+
+
+def build_bounds(t_c: float, t_anchor: float, heard_t_s, heard_xyz_m, heard_pass, heard_pass_t_s,
+                 silence: Silence | None,
+                 comm_range_m: float, q_m2_s3: float, near_xy_m: np.ndarray, max_speed_m_s: float,
+                 moving: bool) -> Bounds | None:
+    """The constraints worth fitting: heard slots spread over the data (``MAX_HEARD``) and the
+    silent slots that could bind near any of ``near_xy_m`` (candidate positions at t_c). Softness:
+    ``TOLERANCE_FLOOR_M`` plus the maneuver deviation since the anchor (and for the static model
+    the walk v_max |tau|)."""
+    if not math.isfinite(comm_range_m):
+        return None
+    ht = np.asarray(heard_t_s, float)
+    hx = np.asarray(heard_xyz_m, float)
+    k = _spread(len(ht), MAX_HEARD)
+    t, xyz, sign = [ht[k]], [hx[k]], [np.ones(len(k))]
+    index = [np.asarray(heard_pass, int)[k]]
+    # one offset per pass: within it the true velocity may differ from the fitted one by 2 v_max
+    within = [2.0 * max_speed_m_s * np.abs(ht[k] - np.asarray(heard_pass_t_s, float)[k])]
+    if silence is not None and len(silence):
+        reach = np.sqrt(np.maximum(comm_range_m**2 - silence.xyz_m[:, 2] ** 2, 0.0))
+        slack = max_speed_m_s * np.abs(silence.t_s - t_c) + 30.0
+        d = np.min(np.linalg.norm(silence.xyz_m[None, :, :2] - np.asarray(near_xy_m)[:, None, :], axis=2), axis=0)
+        m = np.flatnonzero(d < reach + slack)
+        m = m[_spread(len(m), MAX_SILENT)]
+        t.append(silence.t_s[m])
+        xyz.append(silence.xyz_m[m])
+        sign.append(-np.ones(len(m)))
+        index.append(np.full(len(m), -1))
+        within.append(np.zeros(len(m)))
+    t, xyz, sign, index = np.concatenate(t), np.vstack(xyz), np.concatenate(sign), np.concatenate(index)
+    if len(t) == 0:
+        return None
+    # a heard row's pass offset carries the maneuver; a silent row has none, so its softness does
+    sigma = TOLERANCE_FLOOR_M + np.concatenate(within) + np.where(
+        index >= 0, 0.0, np.sqrt(q_m2_s3 * np.abs(t - t_anchor) ** 3 / 3.0))
+    if not moving:
+        sigma = sigma + max_speed_m_s * np.abs(t - t_c)
+    reach = np.sqrt(np.maximum(comm_range_m**2 - xyz[:, 2] ** 2, 0.0))
+    return Bounds(t - t_c, xyz[:, :2].copy(), reach, sign, sigma, index)
+
+
+def _spread(n: int, cap: int) -> np.ndarray:
+    return np.arange(n) if n <= cap else np.unique(np.linspace(0, n - 1, cap).astype(int))
