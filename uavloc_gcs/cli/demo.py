@@ -65,7 +65,7 @@ def run(args: argparse.Namespace) -> int:
         for old in [out / "search.sqlite", out / "search.sqlite-wal", out / "search.sqlite-shm",
                     *out.glob("uav*.tlog")]:
             old.unlink(missing_ok=True)
-        return _run(args, sc, key, out)
+        return _run(args, sc, key, out, web)
 
 
 @contextlib.contextmanager
@@ -84,7 +84,7 @@ def _terminate_raises():
         signal.signal(signal.SIGTERM, previous)
 
 
-def _run(args, sc, key, out: Path) -> int:
+def _run(args, sc, key, out: Path, web) -> int:
     import numpy as np
 
     from sim_link.faults import FaultConfig
