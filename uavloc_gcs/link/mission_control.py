@@ -43,6 +43,9 @@ MISSION_STATE_COMPLETED = 5  # MISSION_STATE_COMPLETE in MISSION_CURRENT.mission
 AP_DATA_STREAM_HZ = 4  # REQUEST_DATA_STREAM fallback: every ArduPilot stream group at this rate
 SET_CURRENT_CONFIRM_S = 3.0
 MISSION_VALID_TIMEOUT_S = 15.0  # wall seconds to keep repeating a refused MISSION_START
+POSITION_READY_TIMEOUT_S = 120.0  # wall seconds to wait for a freshly booted vehicle to know where it is
+POSITION_POLL_S = 2.0
+START_CONFIRM_S = 3.0  # wall seconds to wait for a HEARTBEAT after a mission start
 
 
 async def request_streams(link: Link, system: int, flavour: Flavour,
@@ -176,13 +179,77 @@ async def start_when_valid(link: Link, system: int, component: int, first_seq: i
                 await asyncio.sleep(ARM_BACKOFF_S[min(attempt - 1, len(ARM_BACKOFF_S) - 1)])
 
 
+async def wait_until_positioned(link: Link, system: int, component: int = 1, *,
+                                timeout_s: float = POSITION_READY_TIMEOUT_S) -> None:
+    """Wait until the vehicle has set its home, i.e. knows where it is (HOME_POSITION, asked for
+    with MAV_CMD_REQUEST_MESSAGE). Measured on ArduCopter SITL started together with the daemon:
+    it arms before its EKF uses GPS, then refuses AUTO ("Mode change to Auto failed: requires
+    position") until its arming times out and it disarms, so a start that only retried the
+    MISSION_START left it in AUTO on the ground, disarmed, for good."""
+    from .mission_download import home_position  # noqa: PLC0415 - mission_download imports command
+
+    deadline = time.monotonic() + timeout_s
+    with StatusWatch(link, system) as watch:
+        while True:
+            left = deadline - time.monotonic()
+            if await home_position(link, system, component, timeout_s=max(0.1, min(POSITION_POLL_S, left))):
+                return
+            if time.monotonic() >= deadline:
+                reason = watch.reason()
+                raise CommandError(f"no home position after {timeout_s:g} s: the vehicle does not know where it is"
+                                   f"{f' ({reason})' if reason else ''}", vehicle=str(system), operation="start")
+
+
 async def start_mission_from(link: Link, system: int, component: int, flavour: Flavour, first_seq: int, *,
-                             armed: bool, mode: str) -> None:
-    """Arm on the ground (when not ``armed``) and fly the uploaded mission from ``first_seq``."""
-    if flavour.name == "ardupilot" and mode not in flavour.armable_modes:
-        await set_mode(link, system, component, "GUIDED", autopilot=flavour)
+                             armed: bool, mode: str, timeout_s: float = POSITION_READY_TIMEOUT_S) -> None:
+    """Arm on the ground (when not ``armed``) and fly the uploaded mission from ``first_seq``.
+
+    Judged from the vehicle, not only from the ACKs: a start counts once a HEARTBEAT sent after
+    it shows the vehicle armed. Measured on ArduCopter SITL started together with the daemon: it
+    arms before its EKF uses GPS, refuses AUTO ("Mode change to Auto failed: requires position"),
+    disarms by itself after DISARM_DELAY, and a MISSION_START accepted later leaves it in AUTO,
+    disarmed, on the ground for good. Such a start is done again (mode, arm, start) until
+    ``timeout_s``."""
     if not armed:
-        await arm_when_ready(link, system, component)
+        await wait_until_positioned(link, system, component, timeout_s=timeout_s)
+    deadline = time.monotonic() + timeout_s
+    beats: list = []
+    sub = link.subscribe("HEARTBEAT", source_system=system,
+                         callback=lambda m: beats.append(m) if m.autopilot != mavlink.MAV_AUTOPILOT_INVALID else None)
+    try:
+        attempt = 0
+        while True:
+            hb = beats[-1] if beats else None
+            now_armed = armed if hb is None else bool(hb.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED)
+            now_mode = mode if hb is None else flavour.mode_name(hb.custom_mode, hb.type)
+            try:
+                if not now_armed:
+                    if flavour.name == "ardupilot" and now_mode not in flavour.armable_modes:
+                        await set_mode(link, system, component, "GUIDED", autopilot=flavour)
+                    await arm_when_ready(link, system, component)
+                await _start_from(link, system, component, flavour, first_seq)
+            except CommandError:
+                if time.monotonic() >= deadline:
+                    raise
+                attempt += 1
+                await asyncio.sleep(ARM_BACKOFF_S[min(attempt - 1, len(ARM_BACKOFF_S) - 1)])
+                continue
+            started = len(beats)
+            wait_until = time.monotonic() + START_CONFIRM_S
+            while len(beats) == started and time.monotonic() < wait_until:
+                await asyncio.sleep(0.05)
+            if len(beats) == started or beats[-1].base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED:
+                return  # armed after the start (or the vehicle is silent: the daemon judges it)
+            if time.monotonic() >= deadline:
+                raise CommandError("the mission started but the vehicle is disarmed on the ground",
+                                   vehicle=str(system), operation="start")
+            attempt += 1
+            log.info("vehicle %d: mission started while disarmed; arming and starting again", system)
+    finally:
+        sub.close()
+
+
+async def _start_from(link: Link, system: int, component: int, flavour: Flavour, first_seq: int) -> None:
     if flavour.mission_start_takes_first_item:
         await start_when_valid(link, system, component, first_seq)
         return
