@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import asyncio
 import shutil
+import socket
 import subprocess
 import sys
 import threading
@@ -20,7 +21,7 @@ from pathlib import Path
 import pytest
 
 from tests.e2e_helpers import small_scenario
-from tests.test_e2e_daemon import check_everyone_found, free_port
+from tests.test_e2e_daemon import check_everyone_found
 from uavloc_gcs.cli._fleet import start_fleet_process
 from uavloc_gcs.service.daemon import DaemonOptions
 from uavloc_gcs.service.run import run_search
@@ -62,14 +63,21 @@ class QgcStandIn:
         self._thread.join(30)
 
 
+def two_free_ports() -> tuple[int, int]:
+    """Two different free UDP ports for the router's two outputs (both held while choosing:
+    free_port() alone returns the same port twice)."""
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as a, socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as b:
+        a.bind(("127.0.0.1", 0))
+        b.bind(("127.0.0.1", 0))
+        return a.getsockname()[1], b.getsockname()[1]
+
+
 @pytest.mark.skipif(not Path(MAVPROXY).exists(), reason="MAVProxy is not installed (pip install MAVProxy, "
                     "part of the test extra) - it is the real router this test puts between the ground stations")
 def test_search_through_a_router_beside_a_second_ground_station(tmp_path):
     sc = small_scenario("ardupilot", speedup=15.0)
     fleet = start_fleet_process(sc, speedup=sc.simulation.speedup, seed=sc.simulation.seed, base_port=0)
-    daemon_port, qgc_port = free_port(), free_port()
-    while qgc_port == daemon_port:
-        qgc_port = free_port()
+    daemon_port, qgc_port = two_free_ports()
     masters = [f"--master={conn}" for _, conn in fleet.endpoints]
     router = subprocess.Popen(
         [MAVPROXY, *masters, f"--out=udpin:127.0.0.1:{daemon_port}", f"--out=udpin:127.0.0.1:{qgc_port}",
