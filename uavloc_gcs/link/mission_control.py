@@ -228,8 +228,10 @@ async def start_mission_from(link: Link, system: int, component: int, flavour: F
                         await set_mode(link, system, component, "GUIDED", autopilot=flavour)
                     await arm_when_ready(link, system, component)
                 await _start_from(link, system, component, flavour, first_seq)
-            except CommandError:
-                if time.monotonic() >= deadline:
+            except CommandError as err:
+                # only a vehicle that answered "no" is asked again here; a missing ACK goes to the
+                # caller, which judges from the vehicle's telemetry whether it started anyway
+                if getattr(err, "result", None) not in ARM_REFUSALS or time.monotonic() >= deadline:
                     raise
                 attempt += 1
                 await asyncio.sleep(ARM_BACKOFF_S[min(attempt - 1, len(ARM_BACKOFF_S) - 1)])

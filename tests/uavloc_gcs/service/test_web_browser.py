@@ -108,7 +108,10 @@ def test_live_map_shows_vehicles_moving_and_estimates_appearing(tmp_path):
             return any(v in now and abs(now[v][0] - p[0]) + abs(now[v][1] - p[1]) > 30.0 for v, p in first.items())
 
         _wait("a vehicle to move 30 m on the page (no reload)", moved, 90, proc)
-        people = _wait("estimates on the map", lambda: _shown(driver, "svg g.person"), 120, proc)
+        # a person can be drawn for one update before the store has committed its first slot (and
+        # so its label): wait for a labelled one
+        people = _wait("labelled estimates on the map",
+                       lambda: [p for p in _shown(driver, "svg g.person") if p.get("data-label")], 120, proc)
         assert people[0]["data-label"].startswith("P0")
         assert people[0]["data-state"] in ("heard", "located", "given up")
         assert _shown(driver, "svg polygon.area") and _shown(driver, "svg polyline.track")
