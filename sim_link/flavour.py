@@ -70,6 +70,7 @@ class Flavour:
     upload_restarts_leg: bool = False  # AP: a mission uploaded in flight restarts the current leg
     arm_refused_after_boot_s: float = 0.0  # refuses to arm this long after boot (simulated seconds)
     arm_refusal: tuple[int, str] = (mav.MAV_RESULT_FAILED, "Arm: Accels inconsistent")
+    refusal_text_delay_s: float = 0.0  # PX4: the STATUSTEXT saying why comes ~0.6 s after the ACK
     # Options the daemon needs other fixes for (see VehicleConfig.realistic_streams /
     # stale_mission_complete): what the real autopilot does, used only when switched on there.
     default_streams: tuple[int, ...] = ()  # streamed without being asked (realistic_streams)
@@ -122,6 +123,7 @@ PX4 = Flavour(
     modes=PX4_MODES, takeoff_alt_default_m=2.5,
     download_int_frames=True, set_current_command_unsupported=True, arm_refused_after_boot_s=1.0,
     arm_refusal=(mav.MAV_RESULT_TEMPORARILY_REJECTED, "Arming denied: Resolve system health failures first"),
+    refusal_text_delay_s=0.6,
     default_streams=(mav.MAVLINK_MSG_ID_HEARTBEAT, mav.MAVLINK_MSG_ID_GLOBAL_POSITION_INT,
                      mav.MAVLINK_MSG_ID_SYS_STATUS, mav.MAVLINK_MSG_ID_MISSION_CURRENT,
                      mav.MAVLINK_MSG_ID_EXTENDED_SYS_STATE),  # no SYSTEM_TIME unless asked

@@ -37,6 +37,7 @@ class TelemetryMixin:
 
     def _init_telemetry(self) -> None:
         self._out: list[Reply] = []
+        self._later: list[tuple[float, Reply]] = []  # (simulated time due, reply)
         self.intervals_s = dict(DEFAULT_INTERVALS_S)
         if self.cfg.realistic_streams:  # only what the autopilot streams unasked
             self.intervals_s = {k: (v if k in self.flavour.default_streams else math.inf)
@@ -91,7 +92,18 @@ class TelemetryMixin:
         return [Reply(build())] if build else []
 
     def text(self, severity: int, text: str) -> Reply:
-        return Reply(mav.MAVLink_statustext_message(severity, text.encode()[:50]))
+        """One STATUSTEXT; a text longer than 50 bytes is the first of its chunks (see :meth:`texts`)."""
+        return self.texts(severity, text)[0]
+
+    def texts(self, severity: int, text: str) -> list[Reply]:
+        """STATUSTEXT as the autopilots send it: a text longer than 50 bytes goes in chunks sharing
+        a non-zero id, numbered by chunk_seq (PX4 SITL splits its arming refusal in two)."""
+        raw = text.encode()
+        if len(raw) <= 50:
+            return [Reply(mav.MAVLink_statustext_message(severity, raw))]
+        self._text_id = getattr(self, "_text_id", 0) % 0xFFFF + 1
+        return [Reply(mav.MAVLink_statustext_message(severity, raw[i:i + 50], self._text_id, n))
+                for n, i in enumerate(range(0, len(raw), 50))]
 
     @property
     def time_boot_ms(self) -> int:

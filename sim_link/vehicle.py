@@ -186,7 +186,7 @@ class FakeVehicle(TelemetryMixin):
             return False
         refusal = self.arm_refusal()
         if refusal is not None and not force:
-            self._out.append(self.text(mav.MAV_SEVERITY_CRITICAL, refusal[1]))
+            self.say_later(self.flavour.refusal_text_delay_s, mav.MAV_SEVERITY_CRITICAL, refusal[1])
             return False
         self.armed = True
         self.home_xyz_m = np.array([self.kin.pos[0], self.kin.pos[1], 0.0])
@@ -320,8 +320,15 @@ class FakeVehicle(TelemetryMixin):
             self._slots(t0, p0, self.t_s, self.kin.pos, slot_t, slot_xyz)
             self._telemetry_due()
         self._hear(slot_t, slot_xyz)
-        out, self._out = self._out, []
+        due = [r for t, r in self._later if t <= self.t_s]
+        self._later = [(t, r) for t, r in self._later if t > self.t_s]
+        out, self._out = self._out + due, []
         return out
+
+    def say_later(self, delay_s: float, severity: int, text: str) -> None:
+        """A STATUSTEXT (chunked when long) sent ``delay_s`` simulated seconds from now."""
+        for reply in self.texts(severity, text):
+            self._later.append((self.t_s + delay_s, reply))
 
     def _physics(self, dt: float) -> None:
         if self.landed:

@@ -46,6 +46,8 @@ MISSION_VALID_TIMEOUT_S = 15.0  # wall seconds to keep repeating a refused MISSI
 POSITION_READY_TIMEOUT_S = 120.0  # wall seconds to wait for a freshly booted vehicle to know where it is
 POSITION_POLL_S = 2.0
 START_CONFIRM_S = 3.0  # wall seconds to wait for a HEARTBEAT after a mission start
+STATUSTEXT_GRACE_S = 1.5  # wall seconds to wait for the text explaining a refusal (PX4 SITL: 0.6 s after the ACK)
+STATUSTEXT_CHUNK_GAP_S = 0.2
 
 
 async def request_streams(link: Link, system: int, flavour: Flavour,
@@ -76,15 +78,32 @@ async def request_streams(link: Link, system: int, flavour: Flavour,
 
 
 class StatusWatch:
-    """The vehicle's latest STATUSTEXTs while open (to name why a command was refused)."""
+    """The vehicle's latest STATUSTEXTs while open (to name why a command was refused).
+
+    A long text arrives in chunks sharing a non-zero ``id`` (PX4 splits "Arming denied: Resolve
+    system health failures first" in two); chunks are joined. PX4 sends the text about 0.6 s after
+    the refusing COMMAND_ACK (measured on SITL), so :meth:`reason_soon` waits a moment for it."""
 
     def __init__(self, link: Link, system: int):
         self.texts: list[str] = []
+        self._last_id = 0
+        self._arrived = asyncio.Event()
         self._sub = link.subscribe("STATUSTEXT", source_system=system, callback=self._on)
 
     def _on(self, msg) -> None:
-        self.texts.append(str(msg.text).rstrip("\x00"))
+        text = str(msg.text).rstrip("\x00")
+        chunk_id = int(getattr(msg, "id", 0) or 0)
+        if chunk_id and chunk_id == self._last_id and int(getattr(msg, "chunk_seq", 0) or 0) > 0 and self.texts:
+            self.texts[-1] = (self.texts[-1] + text).strip()
+        else:
+            self.texts.append(text.strip())
+        self._last_id = chunk_id
         del self.texts[:-20]
+        self._arrived.set()
+
+    def mark(self) -> None:
+        """Forget that a text arrived (call before sending the command whose refusal to explain)."""
+        self._arrived.clear()
 
     def reason(self) -> str | None:
         """The latest text that explains an arming refusal, else the latest text."""
@@ -93,6 +112,17 @@ class StatusWatch:
             if low.startswith(("prearm", "arm", "preflight", "arming", "disarm")) or "denied" in low:
                 return text
         return self.texts[-1] if self.texts else None
+
+    async def reason_soon(self, wait_s: float = STATUSTEXT_GRACE_S) -> str | None:
+        """:meth:`reason`, after waiting up to ``wait_s`` for a text when none came since :meth:`mark`
+        (and a moment more for the rest of a chunked text)."""
+        if not self._arrived.is_set():
+            try:
+                await asyncio.wait_for(self._arrived.wait(), wait_s)
+                await asyncio.sleep(STATUSTEXT_CHUNK_GAP_S)
+            except TimeoutError:
+                pass
+        return self.reason()
 
     def close(self) -> None:
         self._sub.close()
@@ -113,13 +143,14 @@ async def arm_when_ready(link: Link, system: int, component: int = 1, *,
     attempt = 0
     with StatusWatch(link, system) as watch:
         while True:
+            watch.mark()
             try:
                 await arm(link, system, component)
                 return
             except CommandError as err:
                 result = getattr(err, "result", None)
                 if result not in ARM_REFUSALS or time.monotonic() >= deadline:
-                    reason = watch.reason()
+                    reason = await watch.reason_soon()
                     message = str(err).split(": ", 1)[-1] if err.vehicle else str(err)
                     final = CommandError(f"{message}{f' ({reason})' if reason else ''}"
                                          f"{f' after {attempt + 1} tries' if attempt else ''}",
@@ -165,12 +196,13 @@ async def start_when_valid(link: Link, system: int, component: int, first_seq: i
     attempt = 0
     with StatusWatch(link, system) as watch:
         while True:
+            watch.mark()
             try:
                 await start_mission(link, system, component, first_seq, 0)
                 return
             except CommandError as err:
                 if getattr(err, "result", None) not in ARM_REFUSALS or time.monotonic() >= deadline:
-                    reason = watch.reason()
+                    reason = await watch.reason_soon()
                     if reason:
                         err.args = (f"{err.args[0]} ({reason})",)
                         err.reason = reason

@@ -44,3 +44,29 @@ def test_every_vehicle_gets_its_mission_through_20_percent_loss(autopilot):
         assert mode in ("AUTO", "AUTO.MISSION")
         start = 1 if autopilot == "ardupilot" else 0
         assert identical(stored[start:], missions[i][start:])
+
+
+@pytest.mark.parametrize("autopilot", ["ardupilot", "px4"])
+def test_an_arm_given_up_on_says_the_autopilots_whole_reason(autopilot):
+    """Like the real ones (measured on SITL), the fakes refuse to arm after boot and say why in a
+    STATUSTEXT; PX4's comes about 0.6 s after the refusing ACK and in two chunks. The error names
+    the whole sentence, not a missing or cut reason."""
+    from sim_link.flavour import FLAVOURS
+    from uavloc_gcs.errors import CommandError
+    from uavloc_gcs.link import arm_when_ready
+
+    sc = load_scenario(EXAMPLES / "small.toml").replace(fleet={"autopilot": autopilot, "vehicles": 1})
+    expected = FLAVOURS[autopilot].arm_refusal[1]
+
+    async def go():
+        async with FakeFleet(sc, speedup=1, seed=1, base_port=0,
+                             vehicle_options={"arm_refused_after_boot_s": 600.0}) as fleet:
+            async with await open_link(fleet.endpoints[0][1]) as link:
+                await link.wait_heartbeat(1, timeout_s=10)
+                with pytest.raises(CommandError) as caught:
+                    await arm_when_ready(link, 1, 1, timeout_s=0.3)
+                return caught.value
+
+    err = run(go(), timeout_s=30)
+    assert err.reason == expected
+    assert expected in str(err)
