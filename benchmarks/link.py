@@ -123,8 +123,8 @@ async def _mavsdk(conn: str, items) -> float:
 
 
 async def _measure(args: argparse.Namespace) -> list[Row]:
-    from sim_link.faults import FaultConfig
-    from sim_link.fleet import FakeFleet
+    from sim_link.vehicles.faults import FaultConfig
+    from sim_link.vehicles.fleet import FakeFleet
     from uavloc_gcs.errors import MissionTransferError
     from uavloc_gcs.link import clear_mission, open_link
     from uavloc_gcs.scenario import load_scenario

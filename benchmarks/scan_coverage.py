@@ -1,6 +1,6 @@
 """``python -m benchmarks.scan_coverage``: which initial-scan lane spacing should be the default?
 
-Flies the whole adaptive mission (``sim_link.missionsim.simulate_mission``: scan, MLE, EPSO
+Flies the whole adaptive mission (``sim_link.experiments.missionsim.simulate_mission``: scan, MLE, EPSO
 replanning, return) on the same simulated worlds (paired seeds) with the two scan layouts of
 ``uavloc_gcs.scan``:
 
@@ -37,7 +37,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run_layout(sc, coverage: str, seeds: list[int], time_limit_s: float, bar=None) -> list:
-    from sim_link.missionsim import simulate_mission
+    from sim_link.experiments.missionsim import simulate_mission
     from sim_link.world import World
 
     scx = sc.replace(scan={"coverage": coverage})

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from sim_link.fleet import FakeFleet
+from sim_link.vehicles.fleet import FakeFleet
 from tests.e2e_helpers import SMALL, small_scenario
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -10,7 +10,7 @@ import pytest
 
 from mission_io import plan as plan_file
 from mission_io import waypoints as waypoints_file
-from sim_link.fleet import FakeFleet
+from sim_link.vehicles.fleet import FakeFleet
 from uavloc_gcs.mission import flight_mission
 from uavloc_gcs.scenario import load_scenario
 

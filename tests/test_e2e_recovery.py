@@ -14,7 +14,7 @@ from uavloc_gcs.service.store import StoreReader
 
 
 def test_twenty_percent_packet_loss(tmp_path):
-    from sim_link.faults import FaultConfig
+    from sim_link.vehicles.faults import FaultConfig
 
     # Under loss the protocol timeouts (wall clock) stretch: a lower speed-up keeps them realistic.
     sc, result = run_e2e(tmp_path, "ardupilot", faults=FaultConfig(loss=0.2), speedup=15.0)

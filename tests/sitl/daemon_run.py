@@ -1,5 +1,5 @@
 """A whole ``uavloc daemon`` search against real SITL autopilots, with the companion emulator
-supplying RSSI (sim_link/companion.py) -- shared by tests/sitl/test_daemon_*.py.
+supplying RSSI (sim_link/vehicles/companion.py) -- shared by tests/sitl/test_daemon_*.py.
 
 The scenario is small (300 m x 300 m, 3 static people, 10 m/s) so a search takes a few minutes of
 wall time at the harness's speed-up. The daemon runs as the operator runs it (``python -m
@@ -101,7 +101,7 @@ class Companions:
     """The companion emulators of a fleet, in a thread with its own event loop."""
 
     def __init__(self, scenario, vehicles: list[Vehicle]):
-        from sim_link.companion import CompanionEmulator
+        from sim_link.vehicles.companion import CompanionEmulator
         from sim_link.world import World
 
         world = World(scenario, seed=scenario.simulation.seed)

@@ -3,7 +3,7 @@ vehicle of that flavour (sim_link, always) AND the real SITL (when the builds ar
 fakes must keep doing what the real autopilots do, and uavloc's link layer must cope with both.
 
 The fake runs with its realistic options on (``REALISTIC``); the fast suite's default fakes keep
-the ones the daemon cannot handle yet off (see sim_link/vehicle.py VehicleConfig).
+the ones the daemon cannot handle yet off (see sim_link/vehicles/vehicle.py VehicleConfig).
 """
 
 from __future__ import annotations
@@ -36,7 +36,7 @@ class Target:
     def __init__(self, backend: str, kind: str, sitl_factory, *, fresh: bool = False):
         self.backend, self.kind, self.fleet = backend, kind, None
         if backend == "fake":
-            from sim_link.fleet import FakeFleet
+            from sim_link.vehicles.fleet import FakeFleet
             lat, lon = harness.HOME[:2]
             sc = load_scenario(ROOT / "examples" / "small.toml")
             sc = sc.replace(fleet={"autopilot": kind, "vehicles": 1},
@@ -249,7 +249,7 @@ def test_companion_messages_forwarded_only_if_known(backend, kind, sitl):
     fleet = None
     try:
         if backend == "fake":
-            from sim_link.fleet import FakeFleet
+            from sim_link.vehicles.fleet import FakeFleet
             sc = load_scenario(ROOT / "examples" / "small.toml").replace(fleet={"autopilot": kind, "vehicles": 1})
             fleet = FakeFleet(sc, speedup=FAKE_SPEEDUP, seed=1, base_port=0, route=True,
                               vehicle_options={"realistic_forwarding": True}).start_in_thread()
@@ -300,3 +300,38 @@ def test_companion_messages_forwarded_only_if_known(backend, kind, sitl):
         assert got["UAVLOC_RSSI_BATCH"] == 0, got
     else:
         assert got["UAVLOC_RSSI_BATCH"] > 0, got
+
+
+def test_new_mission_uploaded_while_flying_home_in_the_old_one(target):
+    """The look phase uploads the next look while the vehicle flies the previous look's closing RTL
+    item. Measured on PX4 SITL in a whole search: the vehicle flew on home and each new look was
+    never flown (the daemon believed PX4 restarts an uploaded mission by itself). switch_mission
+    must make both autopilots fly the new mission's waypoint."""
+    async def go():
+        link, flavour = await _connect(target)
+        async with link:
+            watch = Watch(link, target.sysid)
+            first = _mission(target.kind, rtl=True, n=1)
+            await _airborne(link, target, flavour, watch, first)
+            last = len(first) - 1
+            await watch.until("the first mission's RTL item", lambda: watch.mission_seq == last, 120)
+            import asyncio
+            await asyncio.sleep(2.0)
+            lat, lon = harness.HOME[:2]
+            second = to_wire(flight_mission([(lat - 0.0006, lon + 0.0006)], alt_m=ALT_M, speed_m_s=8.0,
+                                            autopilot=target.kind, home_latlon_deg=(lat, lon),
+                                            include_takeoff=False, return_home=True), target.kind)
+            before = (watch.mission_state, watch.mission_seq, watch.mode)
+            await upload_mission(link, target.sysid, 1, second, verify=False, autopilot=flavour)
+            await asyncio.sleep(2.0)
+            after_upload = (watch.mission_state, watch.mission_seq, watch.mode)
+            await switch_mission(link, target.sysid, 1, flavour, flavour.first_mission_seq,
+                                 in_mission_mode=watch.mode in ("AUTO", "AUTO.MISSION"),
+                                 mission_state=watch.mission_state)
+            wp = next(it for it in second if it.command == NAV_WAYPOINT and it.seq >= flavour.first_mission_seq)
+            await watch.until("the new mission's waypoint",
+                              lambda: math.dist((wp.x / 1e7, wp.y / 1e7), watch.latlon) * 111_000 < 8, 120)
+            await watch.until("landing at home", lambda: not watch.armed, 150)
+            return before, after_upload
+    before, after_upload = harness.run(go(), 420)
+    print(f"{target.backend}-{target.kind}: flying home (state, seq, mode) {before}; after the upload {after_upload}")

@@ -55,7 +55,7 @@ def _child(scenario, kwargs: dict, queue, stop, commands, parent_pid: int) -> No
     # Ctrl-C in the terminal reaches the whole process group: the parent decides when the fleet
     # stops (after sending it home); and if the parent dies without stopping it, the fleet ends.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    from sim_link.fleet import FakeFleet
+    from sim_link.vehicles.fleet import FakeFleet
 
     async def main() -> None:
         fleet = FakeFleet(scenario, **kwargs)
@@ -77,7 +77,7 @@ def _child(scenario, kwargs: dict, queue, stop, commands, parent_pid: int) -> No
 
 
 def start_fleet_process(scenario, **kwargs) -> FleetProcess:
-    """Start ``sim_link.fleet.FakeFleet(scenario, **kwargs)`` in a child process."""
+    """Start ``sim_link.vehicles.fleet.FakeFleet(scenario, **kwargs)`` in a child process."""
     ctx = mp.get_context("spawn")
     queue, stop, commands = ctx.Queue(), ctx.Event(), ctx.Queue()
     proc = ctx.Process(target=_child, args=(scenario, kwargs, queue, stop, commands, os.getpid()),

@@ -87,7 +87,7 @@ def _terminate_raises():
 def _run(args, sc, key, out: Path, web) -> int:
     import numpy as np
 
-    from sim_link.faults import FaultConfig
+    from sim_link.vehicles.faults import FaultConfig
     from sim_link.world import World
 
     from ..service.daemon import DaemonOptions

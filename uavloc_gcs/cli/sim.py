@@ -99,8 +99,8 @@ def run(args) -> int:
 
 
 async def _run_companion(args, scenario, key, stop) -> None:
-    from sim_link.companion import CompanionEmulator
-    from sim_link.connection import parse_url
+    from sim_link.vehicles.companion import CompanionEmulator
+    from sim_link.vehicles.connection import parse_url
 
     parse_url(args.autopilot)
     if args.rssi_to is not None:
@@ -115,8 +115,8 @@ async def _run_companion(args, scenario, key, stop) -> None:
 async def _run_fleet(args, scenario, key, stop) -> None:
     import asyncio
 
-    from sim_link.faults import FaultConfig
-    from sim_link.fleet import FakeFleet
+    from sim_link.vehicles.faults import FaultConfig
+    from sim_link.vehicles.fleet import FakeFleet
 
     faults = FaultConfig(loss=args.loss, latency_s=args.latency_ms / 1000.0)
     fleet = FakeFleet(scenario, speedup=args.speedup, seed=args.seed, base_port=args.base_port, host=args.host,

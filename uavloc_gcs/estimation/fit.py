@@ -14,7 +14,7 @@ the disk |v| <= v_max gives 0.5 v_max, but that Gaussian shrinks fast walkers to
 most of its mass near the rim): coverage of the 95 % radius for two parallel legs was 0.91 in
 ``uavloc bench localize``. 1/sqrt(2) (E|v|^2 = v_max^2) gave 0.94 but lets a static person's
 velocity wander, so follow-up looks converge more slowly (a 3-person mission of
-tests/sim_link/test_missionsim.py no longer located everyone). 0.6 gives 0.93-0.95 and keeps that.
+tests/sim_link/experiments/test_missionsim.py no longer located everyone). 0.6 gives 0.93-0.95 and keeps that.
 """
 
 from __future__ import annotations

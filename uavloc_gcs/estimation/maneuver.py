@@ -25,7 +25,7 @@ real process is a jump process with heavier tails than this Gaussian, so a sharp
 speed right after the scan can still mislead the fix (the old lanes pick the wrong mirror of a
 single later look pass in 3 of 6 seeds of the turn test); 300 s covers more, but then old data
 decay so fast that short look passes no longer bring a static person below 15 m
-(tests/sim_link/test_missionsim.py). ``maneuver_time_s = inf`` gives the pure CV model.
+(tests/sim_link/experiments/test_missionsim.py). ``maneuver_time_s = inf`` gives the pure CV model.
 """
 
 from __future__ import annotations

@@ -99,7 +99,7 @@ def boundary_distance_m(area_xy_m: np.ndarray, xy_m: np.ndarray) -> float:
 
 
 # Factor on the look radius per earlier look that heard the person without locating them; 1 = off.
-# Measured (sim_link.missionsim, paper scenario, 20 random-waypoint people, 12 runs, MLE-EPSO (M)):
+# Measured (sim_link.experiments.missionsim, paper scenario, 20 random-waypoint people, 12 runs, MLE-EPSO (M)):
 # 0.5 with MAX_LOOKS 8 located 240 of 240 people heard instead of 236, but the mean completion
 # time rose from 172 s to 181.5 s (four runs 19-48 s longer), so it is off by default.
 LOOK_SHRINK = 1.0

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sim_link.people import Tracks
+from sim_link.world.people import Tracks
 from sim_link.world import World
 from uavloc_gcs.estimation import ChannelModel, estimate_emitter
 from uavloc_gcs.estimation.maneuver import (

@@ -6,8 +6,8 @@ from pathlib import Path
 
 import pytest
 
-from sim_link.faults import FaultConfig
-from sim_link.fleet import FakeFleet
+from sim_link.vehicles.faults import FaultConfig
+from sim_link.vehicles.fleet import FakeFleet
 from uavloc_gcs.link import VehicleTracker, open_link, set_mode, upload_mission
 from uavloc_gcs.scenario import load_scenario
 
@@ -51,7 +51,7 @@ def test_an_arm_given_up_on_says_the_autopilots_whole_reason(autopilot):
     """Like the real ones (measured on SITL), the fakes refuse to arm after boot and say why in a
     STATUSTEXT; PX4's comes about 0.6 s after the refusing ACK and in two chunks. The error names
     the whole sentence, not a missing or cut reason."""
-    from sim_link.flavour import FLAVOURS
+    from sim_link.vehicles.flavour import FLAVOURS
     from uavloc_gcs.errors import CommandError
     from uavloc_gcs.link import arm_when_ready
 

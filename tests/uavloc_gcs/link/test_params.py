@@ -5,7 +5,7 @@ from pathlib import Path
 
 import pytest
 
-from sim_link.fleet import FakeFleet
+from sim_link.vehicles.fleet import FakeFleet
 from uavloc_gcs.link import flavour_named, open_link
 from uavloc_gcs.link.params import SpeedLimits, raise_speed_limits, read_param, speed_limits
 

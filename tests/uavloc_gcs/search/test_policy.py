@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from sim_link.missionsim import Flight, hear
+from sim_link.experiments.missionsim import Flight, hear
 from sim_link.world import World
 from uavloc_gcs.planning import VehicleState
 from uavloc_gcs.scan import plan_scan

@@ -3,7 +3,7 @@ vehicle gives its time, and the speed the fleet is planned at."""
 
 import asyncio
 
-from sim_link.fleet import FakeFleet
+from sim_link.vehicles.fleet import FakeFleet
 from tests.e2e_helpers import small_scenario
 from uavloc_gcs.service import setup
 from uavloc_gcs.service.daemon import Daemon, DaemonOptions

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from sim_link.fleet import FakeFleet
+from sim_link.vehicles.fleet import FakeFleet
 from uavloc_gcs.errors import CommandError
 from uavloc_gcs.link import open_link
 from uavloc_gcs.scenario import load_scenario

@@ -274,7 +274,8 @@ def test_web_keep_serves_the_final_result_as_the_files_say_until_ctrl_c(tmp_path
         assert set(shown) == set(rows) and rows
         for label, row in rows.items():
             assert shown[label]["state"] == row["state"]
-            assert shown[label]["radius95_m"] == round(float(row["radius95_m"]), 1)
+            # the page shows 0.1 m and the CSV 0.01 m of the same radius (11.7499 -> 11.7 and 11.75)
+            assert abs(shown[label]["radius95_m"] - float(row["radius95_m"])) <= 0.05 + 1e-6
         proc.send_signal(signal.SIGINT)
         assert proc.wait(timeout=60) == 0
     finally:

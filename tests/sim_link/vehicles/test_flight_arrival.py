@@ -7,7 +7,7 @@ so RTL at 25 m/s to a home inside the 125 m turn circle circled home for ever.
 import numpy as np
 import pytest
 
-from sim_link.flight import Kinematics
+from sim_link.vehicles.flight import Kinematics
 
 
 @pytest.mark.parametrize("target", [(0.0, 50.0), (0.0, 10.0), (-30.0, 5.0), (200.0, 100.0), (-5.0, -60.0)])

@@ -6,11 +6,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sim_link.missionsim import METHODS, Flight, Vehicle, simulate_mission, slot_times
+from sim_link.experiments.missionsim import METHODS, Flight, Vehicle, simulate_mission, slot_times
 from sim_link.world import World
 from uavloc_gcs.scenario import load_scenario
 
-EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
+EXAMPLES = Path(__file__).resolve().parents[3] / "examples"
 
 
 @pytest.fixture(scope="module")

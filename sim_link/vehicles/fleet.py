@@ -230,7 +230,7 @@ class FakeFleet:
         self.route = route
         self.peer_timeout_s = peer_timeout_s
         if world is None:
-            from .world import World
+            from ..world import World
 
             world = World(scenario, seed=self.seed)
         self.world = world

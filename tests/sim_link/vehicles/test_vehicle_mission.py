@@ -8,8 +8,8 @@ import pytest
 
 from uavloc_gcs.dialect import mavlink as mav
 from uavloc_gcs.mission import WireItem, flight_mission, to_wire
-from sim_link.flavour import ARDUPILOT, PX4
-from sim_link.mission_server import MissionServer, Peer
+from sim_link.vehicles.flavour import ARDUPILOT, PX4
+from sim_link.vehicles.mission_server import MissionServer, Peer
 
 GCS = Peer(("127.0.0.1", 1), 255, 190)
 OTHER = Peer(("127.0.0.1", 2), 254, 190)

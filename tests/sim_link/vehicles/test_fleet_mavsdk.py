@@ -11,8 +11,8 @@ import pytest
 from uavloc_gcs.link import flavour_named
 from uavloc_gcs.mission import WireItem, flight_mission, to_wire
 from uavloc_gcs.scenario import load_scenario
-from sim_link.faults import FaultConfig
-from sim_link.fleet import FakeFleet
+from sim_link.vehicles.faults import FaultConfig
+from sim_link.vehicles.fleet import FakeFleet
 
 mavsdk = pytest.importorskip("mavsdk", reason="MAVSDK is the independent ground station for this test")
 from mavsdk.asyncio import ComponentType, Configuration, Mavsdk  # noqa: E402

@@ -61,7 +61,7 @@ class CompanionEmulator:
                  epoch_unix_s: float | None = None, signing_key: bytes | None = None, max_gap_s: float = MAX_GAP_S,
                  rssi_url: str | None = None):
         if world is None:
-            from .world import World
+            from ..world import World
 
             world = World(scenario, seed=scenario.simulation.seed if seed is None else seed)
         self.scenario = scenario

@@ -10,10 +10,10 @@ from uavloc_gcs.dialect.rssi import decode_rssi_batches
 from uavloc_gcs.mission import to_wire
 from uavloc_gcs.scan import plan_scan, scan_missions
 from uavloc_gcs.scenario import load_scenario
-from sim_link.executor import corner
-from sim_link.flavour import FLAVOURS
-from sim_link.mission_server import Peer
-from sim_link.vehicle import PHYSICS_DT_S, FakeVehicle, VehicleConfig
+from sim_link.vehicles.executor import corner
+from sim_link.vehicles.flavour import FLAVOURS
+from sim_link.vehicles.mission_server import Peer
+from sim_link.vehicles.vehicle import PHYSICS_DT_S, FakeVehicle, VehicleConfig
 from sim_link.world import World
 
 PAPER = load_scenario("examples/paper.toml")

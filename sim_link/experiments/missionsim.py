@@ -26,7 +26,7 @@ from uavloc_gcs.scan import plan_scan
 from uavloc_gcs.scenario import Scenario
 from uavloc_gcs.search import SearchPolicy
 
-from .world import World
+from ..world import World
 
 METHODS = {
     # name: (model_motion, optimizer)

@@ -2,12 +2,12 @@
 
 :class:`FakeVehicle` is transport-free: :meth:`FakeVehicle.handle` takes a decoded MAVLink message
 (with its sender and the wall-clock time) and :meth:`FakeVehicle.advance` moves the simulation to a
-new mission time; both return :class:`~sim_link.mission_server.Reply` objects for the caller
-(:mod:`sim_link.fleet`) to encode and send. Physics runs in fixed steps of simulated time, so a
+new mission time; both return :class:`~sim_link.vehicles.mission_server.Reply` objects for the caller
+(:mod:`sim_link.vehicles.fleet`) to encode and send. Physics runs in fixed steps of simulated time, so a
 vehicle is deterministic given its seed and the (simulated) times commands arrive.
 
 Modes are named the ArduPilot way (GUIDED, AUTO, RTL, LAND, LOITER, STABILIZE; TAKEOFF is PX4's
-own) and encoded per flavour in HEARTBEAT.custom_mode (:mod:`sim_link.flavour`).
+own) and encoded per flavour in HEARTBEAT.custom_mode (:mod:`sim_link.vehicles.flavour`).
 """
 
 from __future__ import annotations

@@ -12,7 +12,7 @@ companion), so the autopilot's radio carries only the telemetry and the RSSI lin
 companion's messages (component 191). A router on the companion that merges both onto one radio
 costs the same bytes as ``through``.
 
-    python -m sim_link.budget examples/paper.toml [--seed 1] [--signed] [--path through|beside]
+    python -m sim_link.vehicles.budget examples/paper.toml [--seed 1] [--signed] [--path through|beside]
 """
 
 from __future__ import annotations
@@ -52,7 +52,7 @@ def measure(scenario: Scenario, *, seed: int | None = None, signed: bool = False
             vehicles: list[int] | None = None) -> list[VehicleBudget]:
     """Fly each vehicle's scan mission (or only ``vehicles``, 1-based) and count its downlink
     bytes per simulated second."""
-    from .world import World
+    from ..world import World
 
     world = World(scenario, seed=seed)
     f = scenario.fleet
@@ -128,7 +128,7 @@ def _report_beside(budgets: list[VehicleBudget]) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="python -m sim_link.budget", description=__doc__,
+    p = argparse.ArgumentParser(prog="python -m sim_link.vehicles.budget", description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("scenario")
     p.add_argument("--seed", type=int, default=None)

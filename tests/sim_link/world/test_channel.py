@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from sim_link.channel import ChannelParams, ShadowingState, _ar1, draw_shadowing_db
+from sim_link.world.channel import ChannelParams, ShadowingState, _ar1, draw_shadowing_db
 
 
 def test_closed_form_ar1_equals_the_loop_over_many_blocks():

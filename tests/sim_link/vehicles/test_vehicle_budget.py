@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from uavloc_gcs.scenario import load_scenario
-from sim_link.budget import RADIO_BYTES_S, measure, report
+from sim_link.vehicles.budget import RADIO_BYTES_S, measure, report
 
 
 def test_paper_scan_telemetry_fits_a_57k6_radio_with_margin():

@@ -12,9 +12,9 @@ from uavloc_gcs.dialect import mavlink as mav
 from uavloc_gcs.dialect.rssi import decode_rssi_batches
 from uavloc_gcs.errors import ConfigError
 from uavloc_gcs.scenario import load_scenario
-from sim_link.companion import CompanionEmulator
-from sim_link.connection import parse_url
-from sim_link.fleet import FakeFleet
+from sim_link.vehicles.companion import CompanionEmulator
+from sim_link.vehicles.connection import parse_url
+from sim_link.vehicles.fleet import FakeFleet
 from sim_link.world import World
 
 from .mavclient import MavClient

@@ -29,7 +29,7 @@ from .missionsim import METHODS as MLE_METHODS
 from .missionsim import MissionResult, simulate_mission
 from .rl_baseline import METHOD as RL_METHOD
 from .rl_baseline import simulate_rl
-from .world import World
+from ..world import World
 
 ALL_METHODS = (*MLE_METHODS, RL_METHOD)
 REFERENCE = "MLE-EPSO (M)"
@@ -292,7 +292,7 @@ def _ci(x: float, digits: int = 1) -> str:
 
 def write_outputs(er: ExperimentResult, out_dir: Path, command: str = "") -> list[Path]:
     """CSV per figure, raw runs, PNG figures and summary.md into ``out_dir``."""
-    from . import experiment_plots
+    from . import plots as experiment_plots
 
     out_dir = Path(out_dir)
     files = {

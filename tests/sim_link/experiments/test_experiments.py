@@ -20,7 +20,7 @@ from sim_link.experiments import (
 )
 from uavloc_gcs.scenario import load_scenario
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 SMALL = ROOT / "examples" / "small.toml"
 
 

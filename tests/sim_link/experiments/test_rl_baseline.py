@@ -6,12 +6,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sim_link import rl_annuli as an
-from sim_link.rl_baseline import RLConfig, make_grid, scan_cells, simulate_rl, strips
+from sim_link.experiments import rl_annuli as an
+from sim_link.experiments.rl_baseline import RLConfig, make_grid, scan_cells, simulate_rl, strips
 from sim_link.world import World
 from uavloc_gcs.scenario import load_scenario
 
-EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
+EXAMPLES = Path(__file__).resolve().parents[3] / "examples"
 
 
 def test_paper_grid_is_22_by_12_cells_of_about_51_by_53_m():

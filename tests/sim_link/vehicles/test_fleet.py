@@ -12,7 +12,7 @@ from uavloc_gcs.dialect import mavlink as mav
 from uavloc_gcs.dialect.rssi import decode_rssi_batch
 from uavloc_gcs.mission import flight_mission, to_wire
 from uavloc_gcs.scenario import load_scenario
-from sim_link.fleet import FakeFleet
+from sim_link.vehicles.fleet import FakeFleet
 
 from .mavclient import MavClient
 

@@ -13,7 +13,7 @@ from uavloc_gcs.dialect.rssi import decode_rssi_batches
 from uavloc_gcs.mission import to_wire
 from uavloc_gcs.scan import plan_scan, scan_missions
 from uavloc_gcs.scenario import load_scenario
-from sim_link.fleet import FakeFleet
+from sim_link.vehicles.fleet import FakeFleet
 
 from .mavclient import MavClient
 

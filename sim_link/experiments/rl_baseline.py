@@ -9,7 +9,7 @@ A simplified multi-vehicle version of Ebrahimi, Sharafeddine, Ho, Assi (IEEE TMC
   number of cells.
 - **Measurements** only while hovering ``hover_s`` (5 s) over a cell centre: every phone in range
   gives one annulus from the ML range of all its samples (static-person assumption: the annuli of
-  different hovers are intersected as if nobody moved; see :mod:`sim_link.rl_annuli`).
+  different hovers are intersected as if nobody moved; see :mod:`sim_link.experiments.rl_annuli`).
 - **Phase 1** (scan): the staggered coverage waypoints of the paper's Alg. 1 inside the strip,
   nearest-neighbour order, Q updated online. **Training**: episodes on the model built from the
   phase-1 estimates (expected annuli, no flying). **Phase 2**: greedy on Q, Q still updated online.
@@ -38,7 +38,7 @@ from uavloc_gcs.search.targets import inside_area
 
 from . import rl_annuli as an
 from .missionsim import MissionResult, PersonResult
-from .world import World
+from ..world import World
 
 METHOD = "RL-NM"
 _MOVES = [(-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1)]
