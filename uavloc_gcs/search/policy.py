@@ -46,6 +46,11 @@ MATERIAL_SHIFT_FRACTION = 0.5  # estimate moved > this x required accuracy => re
 LOOK_LATE_S = 180.0  # with look reports: an unreported look counts only this long after its (re-based) time
 ACCESS_TIME_QUANTUM_S = 2.0  # access radii are computed for pass times rounded up to this
 RADIUS_RECHECK_FRACTION = 0.85  # replan once more if a planned radius shrinks below this fraction
+# A repeated look whose vehicle is already inside the look radius would be planned at the
+# vehicle's own position: a look of zero length that adds nothing (measured on PX4 SITL: three
+# such looks while the vehicle flew home, radius 15.8 -> 40.8 m, given up). Its radius is cut to
+# this fraction of that vehicle's distance, so the look flies towards the person.
+INSIDE_LOOK_FRACTION = 0.5
 TRACK_STEP_SLOTS = 10  # listening tracks are kept every this many slots (0.25 s, 6 m at 25 m/s)
 
 
@@ -407,13 +412,13 @@ class SearchPolicy:
                 out.append(Target(str(eid), (float(xy[0]), float(xy[1])), (0.0, 0.0), 0.0))
                 continue
             centre = cand.at(t_s)
+            near = float(np.min(np.linalg.norm(starts - centre, axis=1))) if len(starts) else math.inf
             if planned_times is not None and eid in planned_times:
                 t_pass = planned_times[eid]
             elif eid in self._awaiting and self._awaiting[eid] > t_s:
                 t_pass = self._awaiting[eid]  # the last plan's pass time: a warm start keeps most
             else:
-                near = float(np.min(np.linalg.norm(starts - centre, axis=1))) if len(starts) else 0.0
-                t_pass = t_s + near / self.speed_m_s
+                t_pass = t_s + (near if math.isfinite(near) else 0.0) / self.speed_m_s
             old = before.get(str(eid))
             if old is not None and t_pass <= self._target_t_pass.get(eid, -math.inf):
                 out.append(old)
@@ -425,8 +430,11 @@ class SearchPolicy:
             speed = float(np.hypot(*vel))
             if speed > vmax_plan:
                 vel = vel * (vmax_plan / speed)
+            radius = tg.look_radius_m(rho, sep, p.looks - p.misses)
+            if p.looks - p.misses > 0 and INSIDE_LOOK_FRACTION is not None and near < radius:
+                radius = INSIDE_LOOK_FRACTION * near
             out.append(Target(str(eid), (float(centre[0]), float(centre[1])),
-                              (float(vel[0]), float(vel[1])), tg.look_radius_m(rho, sep, p.looks - p.misses)))
+                              (float(vel[0]), float(vel[1])), radius))
         return out
 
     def _access_radius(self, p: _Person, t_pass_s: float) -> float:

@@ -285,3 +285,31 @@ def test_unplanned_people_wait_for_new_data_instead_of_a_replan_every_tick(small
     policy._unplanned = {victim}
     assert not policy.needs_replan(t_end + 1.0, set())
     assert policy.needs_replan(t_end + 1.0, {victim})  # new data about them: plan again
+
+
+def test_a_repeated_look_from_inside_the_look_radius_flies_towards_the_person(small):
+    """Measured on PX4 SITL: after a first look that did not locate a person, the vehicle flying
+    home was still inside the look radius, so each new look was planned at the vehicle's own
+    position (three looks of zero length, then given up). A repeated look from inside the radius
+    now has its radius cut to half the vehicle's distance; a first look keeps its radius."""
+    from uavloc_gcs.search import policy as pol
+
+    sc = small.replace(people={"required_accuracy_m": 8.0})
+    world = World(sc, seed=3, people=3, motion="static")
+    policy, _, t_end, states = _scan_policy(sc, world)
+    eid = next(int(t.id) for t in policy._targets(t_end, states, None) if t.radius_m > 20.0)
+    p = policy._people[eid]
+    centre = policy._candidate(p).at(t_end)
+
+    def radius_with_vehicle_at(offset_m):
+        where = (float(centre[0] + offset_m), float(centre[1]))
+        vs = [VehicleState("1", where, (0.0, 0.0), sc.usable_energy_j)]
+        (target,) = [t for t in policy._targets(t_end, vs, None) if t.id == str(eid)]
+        return target.radius_m
+
+    first = radius_with_vehicle_at(1.0)
+    assert first > 20.0  # a first look: the whole look radius, vehicle inside it or not
+    p.looks, p.misses = 1, 0
+    assert radius_with_vehicle_at(10.0) == pytest.approx(pol.INSIDE_LOOK_FRACTION * 10.0)
+    far = radius_with_vehicle_at(10.0 * first)
+    assert far > 20.0  # from outside the radius: the look radius, not a cut one
