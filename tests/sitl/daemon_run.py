@@ -73,15 +73,17 @@ class Vehicle:
         self.connection = self.connection or self.sitl.connection
 
 
-def start_arducopter(sitl_factory, sysid: int = 1) -> Vehicle:
+def start_arducopter(sitl_factory, sysid: int = 1, **kw) -> Vehicle:
+    """``kw``: passed to the harness (``wait="heartbeat"`` for a freshly booted vehicle)."""
     port = harness.free_udp_port()
-    proc = sitl_factory("ardupilot", sysid=sysid, serial1=f"udpclient:127.0.0.1:{port}", params=AP_COMPANION_PARAMS)
+    proc = sitl_factory("ardupilot", sysid=sysid, serial1=f"udpclient:127.0.0.1:{port}", params=AP_COMPANION_PARAMS,
+                        **kw)
     return Vehicle(proc, f"udpin:127.0.0.1:{port}")
 
 
-def start_px4(sitl_factory) -> Vehicle:
+def start_px4(sitl_factory, **kw) -> Vehicle:
     """PX4 drops the RSSI message, so its companion sends it beside the autopilot."""
-    proc = sitl_factory("px4")
+    proc = sitl_factory("px4", **kw)
     rport = harness.free_udp_port()
     return Vehicle(proc, f"udpin:127.0.0.1:{14540 + proc.instance}", f"udpout:127.0.0.1:{rport}",
                    f"udpin:127.0.0.1:{rport}")

@@ -60,9 +60,10 @@ SPARSE_SCAN = "[scan]\nlane_spacing_m = 220.0\ncoverage = \"single\""  # two lan
 
 
 @pytest.mark.parametrize("kind", ["ardupilot", pytest.param("px4", marks=pytest.mark.xfail(
-    strict=False, reason="flaky, measured 2026-11-23: passed once (3/3, 1 look mission); once, beside a full "
-    "test suite, one of 3 people stayed unlocated after 4 look missions (95 % radius 93 m; 5 uploads, no "
-    "churn); not understood yet"))])
+    strict=False, reason="estimator, not link (issue 12), measured 2026-11-24 in 3 runs: the person 38 m off "
+    "the lane is fitted a spurious 0.3 m/s velocity after its look and extrapolated 16 m from the truth with "
+    "a 95 % radius of 11 m (2 of 3 runs; the third 8 m inside 14 m). The earlier failure (three looks of zero "
+    "length, then given up) is fixed by INSIDE_LOOK_FRACTION"))])
 def test_a_search_with_looks_replans_without_churn(sitl, tmp_path, kind):
     """A sparse scan leaves people unlocated, so the look phase runs on the real autopilot: the
     daemon replans and uploads looks in flight; a handful of uploads per vehicle at most."""
@@ -96,3 +97,19 @@ def test_a_previously_flown_vehicle_searches_again(sitl, tmp_path, kind):
             run = dr.run_daemon(tmp_path / f"m{k}.toml", tmp_path / f"out{k}")
         print(f"{kind} search {k + 1}: {run.wall_s:.0f} s wall")
         _check(run, sc, [v])
+
+
+@pytest.mark.parametrize("kind", ["ardupilot", "px4"])
+def test_a_freshly_booted_vehicle_searches(sitl, tmp_path, kind):
+    """The daemon started as soon as the autopilot sends its first heartbeat (not when it is ready
+    to fly): ArduCopter refuses to arm for a while and PX4 reports health failures, so the start
+    must wait, arm when ready and take off; the search then runs to its end like any other. (The
+    suite's usual people, seed 3. With seed 5 a person 12 m from the launch point stayed mirror-
+    ambiguous: every look flew a line through home, see the closing note of issue 12.)"""
+    wait = "heartbeat" if kind == "ardupilot" else "none"
+    v = dr.start_px4(sitl, wait=wait) if kind == "px4" else dr.start_arducopter(sitl, wait=wait)
+    sc = dr.load(dr.scenario_text(f"{kind}-fresh", kind, [v]), tmp_path / "mission.toml")
+    with dr.Companions(sc, [v]):
+        run = dr.run_daemon(tmp_path / "mission.toml", tmp_path / "out")
+    print(f"{kind} freshly booted: {run.wall_s:.0f} s wall")
+    _check(run, sc, [v])
