@@ -81,6 +81,7 @@ def test_demo_and_experiment_run_from_anywhere(installed):
     ["plan", "--families", "mtsp", "--size", "5", "--seeds", "1", "--time-limit", "0.1", "--no-anchors",
      "--no-baselines"],
     ["scan_coverage", "--runs", "1", "--scenario", "small", "--time-limit", "0.1"],
+    ["looks", "--runs", "1", "--scenario", "small", "--people", "2", "--variants", "default,no-inside-cut", "--jobs", "1"],
     ["link", "--no-mavsdk", "--runs-clean", "1", "--loss", "0", "--items", "20", "--no-service"],
 ])
 def test_every_bench_runs_from_anywhere(installed, bench):

@@ -32,6 +32,20 @@ def pytest_runtest_makereport(item, call):
             rep.sections.append((f"{s.kind} SITL instance {s.instance} output (end; {s.workdir})", s.log_tail(60)))
 
 
+def pytest_terminal_summary(terminalreporter, exitstatus, config):
+    """The 95 % circles over every whole search of the run: the coverage a single search of three
+    people cannot show (each search only bounds it; see test_daemon_search.py)."""
+    from . import daemon_run
+
+    rows = daemon_run.COVERAGE
+    if rows:
+        inside = sum(1 for _, err, r95 in rows if err <= r95)
+        worst = max(err / r95 for _, err, r95 in rows if r95 > 0)
+        terminalreporter.write_line(
+            f"SITL searches: {inside} of {len(rows)} people inside their 95 % circle ({100 * inside / len(rows):.0f} %), "
+            f"worst true error {worst:.2f} x its 95 % radius")
+
+
 def require(kind: str) -> None:
     """Skip the calling test when the ``kind`` build is absent (one sentence says how to enable)."""
     reason = harness.skip_reason(kind)

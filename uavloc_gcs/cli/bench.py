@@ -16,6 +16,7 @@ BENCHMARKS = {
     "plan": "route planner vs OR-Tools, PyVRP and the lower bound (makespan ratios, runtimes)",
     "link": "mission upload vs MAVSDK, replanning latency, RSSI ingestion rate",
     "scan_coverage": "full adaptive mission with double vs single lane coverage (time, accuracy)",
+    "looks": "look-planning rules on and off on paired worlds (located, inside radius, time vs clairvoyant)",
 }
 
 

@@ -1,0 +1,103 @@
+"""``uavloc bench looks``: the look-planning rules, switched on and off on the same worlds.
+
+Flies the paper's MLE-EPSO (M) mission (``sim_link.experiments.run_task``: scan, MLE, EPSO
+replanning, return) on paired worlds with each variant of the rules that place a look:
+
+- ``default``: as shipped;
+- ``no-inside-cut``: a repeated look from a vehicle already inside the look radius keeps the whole
+  radius (``search.policy.INSIDE_LOOK_FRACTION = None``), so it may be planned at the vehicle's own
+  position -- seen on PX4 SITL as three looks of zero length and a person given up;
+- ``shrink``: every look that heard a person without locating them halves the next look radius
+  (``search.targets.LOOK_SHRINK = 0.5``, off by default).
+
+Printed per variant: people heard and located, located inside their own 95 % radius, mean
+completion time with its 95 % CI, and the ratio to the clairvoyant plan's completion time (the
+anchor: the same planner told every person's true position after the scan), plus the paired
+difference of completion times against ``default``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from concurrent.futures import ProcessPoolExecutor
+
+import numpy as np
+
+from ._progress import Progress
+
+VARIANTS = ("default", "no-inside-cut", "shrink")
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--runs", type=int, default=10, help="paired worlds per variant (default 10; 40 for the README)")
+    parser.add_argument("--people", type=int, default=20, help="people per world (default 20)")
+    parser.add_argument("--seed", type=int, default=0, help="experiment seed (default 0, as `uavloc experiment`)")
+    parser.add_argument("--scenario", default="paper",
+                        help="scenario file, or a shipped one by name: paper, small (default paper)")
+    parser.add_argument("--variants", default=",".join(VARIANTS), help=f"comma-separated, of {', '.join(VARIANTS)}")
+    parser.add_argument("--jobs", type=int, default=2, help="worker processes (default 2)")
+
+
+def _fly(job):
+    """One mission under one variant (in a worker process: the switches are module globals)."""
+    variant, scenario_file, people, seed, run = job
+    from sim_link.experiments.paper import REFERENCE, ExperimentConfig, Task, run_task, world_seed
+    from uavloc_gcs.scenario import load_scenario
+    from uavloc_gcs.search import policy, targets
+
+    policy.INSIDE_LOOK_FRACTION = None if variant == "no-inside-cut" else 0.5
+    targets.LOOK_SHRINK = 0.5 if variant == "shrink" else 1.0
+    cfg = ExperimentConfig(load_scenario(scenario_file), people=(people,), runs=run + 1, seed=seed,
+                           methods=(REFERENCE,), error_people=0)
+    res = run_task(cfg, Task(REFERENCE, people, run, world_seed(seed, people, run)))
+    heard = [p for p in res.persons if p.heard]
+    located = [p for p in heard if p.located]
+    inside = [p for p in located if p.error_m <= p.claimed_radius_m]
+    return variant, run, len(heard), len(located), len(inside), res.completion_time_s, res.oracle_completion_time_s
+
+
+def main(args: argparse.Namespace) -> int:
+    from sim_link.experiments import mean_ci95
+    from uavloc_gcs.examples import scenario_path
+
+    variants = [v.strip() for v in args.variants.split(",") if v.strip()]
+    bad = [v for v in variants if v not in VARIANTS]
+    if bad:
+        print(f"uavloc bench looks: unknown variant {bad[0]!r}; expected one of {', '.join(VARIANTS)}",
+              file=sys.stderr)
+        return 2
+    scenario_file = str(scenario_path(args.scenario))
+    jobs = [(v, scenario_file, args.people, args.seed, r) for v in variants for r in range(args.runs)]
+    bar = Progress(len(jobs))
+    rows = []
+    with ProcessPoolExecutor(max(1, args.jobs)) as pool:
+        for row in pool.map(_fly, jobs):
+            rows.append(row)
+            bar.step(f"{row[0]} run {row[1]}")
+    print(f"look rules on '{args.scenario}', MLE-EPSO (M), {args.people} people, {args.runs} paired worlds (seed {args.seed})")
+    head = (f"{'variant':14s} {'located/heard':>14s} {'inside r95':>11s} {'completion s':>15s} "
+            f"{'/ clairvoyant':>13s} {'vs default s':>14s}")
+    print(head)
+    print("-" * len(head))
+    by = {v: sorted((r for r in rows if r[0] == v), key=lambda r: r[1]) for v in variants}
+    for v in variants:
+        rs = by[v]
+        heard, located, inside = (sum(r[k] for r in rs) for k in (2, 3, 4))
+        m, ci, _ = mean_ci95([r[5] for r in rs])
+        oracle = [r[6] for r in rs if math.isfinite(r[6])]
+        ratio = m / float(np.mean(oracle)) if oracle else math.nan
+        paired = ""
+        if v != "default" and "default" in by:
+            d, dci, _ = mean_ci95([a[5] - b[5] for a, b in zip(rs, by["default"])])
+            paired = f"{d:+7.1f} ± {dci:4.1f}"
+        print(f"{v:14s} {located:6d}/{heard:<7d} {inside / max(located, 1):11.3f} {m:8.1f} ± {ci:4.1f} "
+              f"{ratio:13.3f} {paired:>14s}")
+    return 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    add_arguments(p)
+    raise SystemExit(main(p.parse_args()))
