@@ -39,8 +39,8 @@ def pytest_terminal_summary(terminalreporter, exitstatus, config):
 
     rows = daemon_run.COVERAGE
     if rows:
-        inside = sum(1 for _, err, r95 in rows if err <= r95)
-        worst = max(err / r95 for _, err, r95 in rows if r95 > 0)
+        inside = sum(1 for err, r95 in rows if err <= r95)
+        worst = max((err / r95 for err, r95 in rows if r95 > 0), default=float("nan"))
         terminalreporter.write_line(
             f"SITL searches: {inside} of {len(rows)} people inside their 95 % circle ({100 * inside / len(rows):.0f} %), "
             f"worst true error {worst:.2f} x its 95 % radius")

@@ -160,7 +160,7 @@ def run_daemon(config: Path, out: Path, timeout_s: float = 900.0, extra: tuple =
     return SearchRun(proc.returncode, proc.stdout + proc.stderr, wall, people, out)
 
 
-COVERAGE: list[tuple[str, float, float]] = []  # (test, true error m, 95 % radius m) of every search
+COVERAGE: list[tuple[float, float]] = []  # (true error m, 95 % radius m) of every person of every search
 
 
 def truth_check(scenario, people: list[dict]) -> list[tuple[int, float, float, bool]]:

@@ -192,6 +192,17 @@ async def _airborne(link, t: Target, flavour, watch: Watch, mission):
     await watch.until("take-off", lambda: watch.rel_alt_m > ALT_M - 5, 90)
 
 
+async def _switch_fly_and_land(link, t: Target, flavour, watch: Watch, mission) -> None:
+    """switch_mission to the just-uploaded ``mission`` in flight; the vehicle must reach its first
+    waypoint, then fly home and land (the mission ends in RTL)."""
+    await switch_mission(link, t.sysid, 1, flavour, flavour.first_mission_seq,
+                         in_mission_mode=watch.mode in ("AUTO", "AUTO.MISSION"), mission_state=watch.mission_state)
+    wp = next(it for it in mission if it.command == NAV_WAYPOINT and it.seq >= flavour.first_mission_seq)
+    await watch.until("the new mission's first waypoint",
+                      lambda: math.dist((wp.x / 1e7, wp.y / 1e7), watch.latlon) * 111_000 < 8, 120)
+    await watch.until("landing at home", lambda: not watch.armed, 150)
+
+
 def test_in_flight_upload_and_finished_mission(target):
     """A mission without RTL is flown to its end (state complete, vehicle hovering); then
     * PX4 has switched to AUTO.LOITER (Hold): a new mission does not start by itself (measured:
@@ -218,13 +229,7 @@ def test_in_flight_upload_and_finished_mission(target):
                 await asyncio.sleep(3.0)
                 moved = math.dist(here, watch.latlon) * 111_000
                 held = moved < 3.0
-            await switch_mission(link, target.sysid, 1, flavour, flavour.first_mission_seq,
-                                 in_mission_mode=watch.mode in ("AUTO", "AUTO.MISSION"),
-                                 mission_state=watch.mission_state)
-            wp = next(it for it in second if it.command == NAV_WAYPOINT and it.seq >= flavour.first_mission_seq)
-            await watch.until("the new mission's first waypoint",
-                              lambda: math.dist((wp.x / 1e7, wp.y / 1e7), watch.latlon) * 111_000 < 8, 120)
-            await watch.until("landing at home", lambda: not watch.armed, 150)
+            await _switch_fly_and_land(link, target, flavour, watch, second)
             return seq_done, after_upload, held
     seq_done, (state, seq, mode), held = harness.run(go(), 420)
     print(f"{target.backend}-{target.kind}: finished at seq {seq_done}; after upload: state {state} seq {seq} "
@@ -325,13 +330,7 @@ def test_new_mission_uploaded_while_flying_home_in_the_old_one(target):
             await upload_mission(link, target.sysid, 1, second, verify=False, autopilot=flavour)
             await asyncio.sleep(2.0)
             after_upload = (watch.mission_state, watch.mission_seq, watch.mode)
-            await switch_mission(link, target.sysid, 1, flavour, flavour.first_mission_seq,
-                                 in_mission_mode=watch.mode in ("AUTO", "AUTO.MISSION"),
-                                 mission_state=watch.mission_state)
-            wp = next(it for it in second if it.command == NAV_WAYPOINT and it.seq >= flavour.first_mission_seq)
-            await watch.until("the new mission's waypoint",
-                              lambda: math.dist((wp.x / 1e7, wp.y / 1e7), watch.latlon) * 111_000 < 8, 120)
-            await watch.until("landing at home", lambda: not watch.armed, 150)
+            await _switch_fly_and_land(link, target, flavour, watch, second)
             return before, after_upload
     before, after_upload = harness.run(go(), 420)
     print(f"{target.backend}-{target.kind}: flying home (state, seq, mode) {before}; after the upload {after_upload}")

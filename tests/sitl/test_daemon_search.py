@@ -9,7 +9,6 @@ landed and disarmed at home. Durations are in docs/readme/sitl.md.
 from __future__ import annotations
 
 import math
-import os
 import re
 
 import pytest
@@ -35,8 +34,7 @@ def _check(run, scenario, vehicles):
     print("  " + "\n  ".join(line for line in run.output.splitlines()
                                if "per vehicle" in line or "speed" in line.lower() or "people heard" in line))
     assert rows, "nobody was heard"
-    dr.COVERAGE.extend((os.environ.get("PYTEST_CURRENT_TEST", "?").split(" ")[0], err, r95)
-                       for _, err, r95, _ in rows)
+    dr.COVERAGE.extend((err, r95) for _, err, r95, _ in rows)
     why = f"(person, true error, 95 % radius, located): {rows}\n{run.output[-2000:]}"
     assert all(r[3] for r in rows), "someone heard was not located " + why
     assert sum(1 for r in rows if not r[1] <= r[2]) <= MAX_OUTSIDE_95, "too many outside their 95 % circle " + why
