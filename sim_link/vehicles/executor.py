@@ -75,10 +75,16 @@ class MissionExecutor:
     started: bool = False
     complete: bool = False
     came_from: int | None = None  # seq of the item reached just before the current one
+    flying: WireItem | None = None  # the navigation item being flown (target's last answer)
+    # ArduPilot: a mission uploaded in flight that ends before the current index leaves the item
+    # being flown running (measured on SITL: flying the RTL at seq 4, a 4-item upload -> still
+    # active at seq 4, flying home); it is kept here until reached.
+    carried: WireItem | None = None
 
     def reset(self, seq: int | None = None) -> None:
         self.current = self.first_seq if seq is None else seq
         self.came_from = None
+        self.carried = None
         self.leg_start_xyz_m = None
         self.hold_until_s = None
         self.complete = False
@@ -96,7 +102,7 @@ class MissionExecutor:
         """Execute DO_* items at the current index until a navigation command is current."""
         for _ in range(len(items) + 1):
             if self.current >= len(items):
-                self.complete = True
+                self.complete = self.carried is None
                 return
             it = items[self.current]
             if it.command in NAV_COMMANDS:
@@ -124,10 +130,11 @@ class MissionExecutor:
 
     def target(self, items: list[WireItem], here_xyz_m: np.ndarray) -> Target:
         """Target for the current item (call :meth:`advance_instant_items` first)."""
-        if self.complete or self.current >= len(items):
+        if self.complete or (self.current >= len(items) and self.carried is None):
             self.complete = True
             return Target("done")
-        it = items[self.current]
+        it = items[self.current] if self.current < len(items) else self.carried
+        self.flying = it
         if self.leg_start_xyz_m is None:
             self.leg_start_xyz_m = here_xyz_m.copy()
         if it.command == TAKEOFF:
@@ -187,6 +194,7 @@ class MissionExecutor:
         """Mark the current item reached; returns its seq."""
         seq = self.current
         self.came_from = seq
+        self.carried = None
         self.current += 1
         self.leg_start_xyz_m = None
         self.hold_until_s = None

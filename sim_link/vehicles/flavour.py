@@ -76,6 +76,12 @@ class Flavour:
     default_streams: tuple[int, ...] = ()  # streamed without being asked (realistic_streams)
     keeps_mission_complete: bool = False  # PX4: "complete" stays until the next mission starts
     hold_after_mission: bool = False  # PX4: AUTO.LOITER (Hold) when a mission ends in the air
+    # PX4: a mission's RTL item ends the mission (MISSION_CURRENT complete at that item) and the
+    # vehicle flies home in AUTO.RTL; an upload then reports not started, seq 0, and does not
+    # start by itself. Measured on SITL: (complete, 3, AUTO.RTL) -> (not started, 0, AUTO.RTL).
+    # ArduPilot flies the RTL item inside AUTO.
+    rtl_item_leaves_mission: bool = False
+    mission_done_text: str = "Mission complete"  # PX4 SITL says "Mission finished, loitering"
     # Routing a companion's messages to the ground (VehicleConfig.realistic_forwarding): PX4 drops
     # ids its dialect does not know (UAVLOC_RSSI_BATCH); ArduPilot forwards them when MAVn_OPTIONS
     # bit 3 is set on the companion's port, which the fake assumes.
@@ -127,7 +133,8 @@ PX4 = Flavour(
     default_streams=(mav.MAVLINK_MSG_ID_HEARTBEAT, mav.MAVLINK_MSG_ID_GLOBAL_POSITION_INT,
                      mav.MAVLINK_MSG_ID_SYS_STATUS, mav.MAVLINK_MSG_ID_MISSION_CURRENT,
                      mav.MAVLINK_MSG_ID_EXTENDED_SYS_STATE),  # no SYSTEM_TIME unless asked
-    keeps_mission_complete=True, hold_after_mission=True, forwards_unknown_ids=False,
+    keeps_mission_complete=True, hold_after_mission=True, rtl_item_leaves_mission=True,
+    mission_done_text="Mission finished, loitering", forwards_unknown_ids=False,
 )
 
 FLAVOURS = {"ardupilot": ARDUPILOT, "px4": PX4}

@@ -135,7 +135,7 @@ class TelemetryMixin:
             state = mav.MISSION_STATE_ACTIVE if self.mode == "AUTO" else mav.MISSION_STATE_PAUSED
             total = n_real
         mission_mode = 1 if self.mode == "AUTO" else (2 if ex.started and not ex.complete else 0)
-        seq = min(ex.current, max(len(items) - 1, 0))
+        seq = ex.current if ex.carried is not None else min(ex.current, max(len(items) - 1, 0))
         return Reply(mav.MAVLink_mission_current_message(seq, total, state, mission_mode))
 
     def _global_position_int(self):

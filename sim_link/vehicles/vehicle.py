@@ -281,10 +281,15 @@ class FakeVehicle(TelemetryMixin):
                                and self.executor.complete)
         if self.flavour.name == "px4" and not self.mission.busy():
             self.executor.reset()  # PX4 starts a new plan from its first item
+            # ... when it is flying a mission; otherwise the new plan waits for a start
+            self.executor.started = self.mode == "AUTO"
         elif self.flavour.upload_restarts_leg and self.mode == "AUTO" and not self.landed:
             self.executor.leg_start_xyz_m = None  # ArduPilot re-flies the leg it is on from here
-            if self.executor.current >= n:
-                self.executor.complete = self.executor.started
+            if self.executor.current >= n:  # ... or flies on the item it was flying
+                ex = self.executor
+                running = ex.started and not ex.complete and ex.flying is not None and ex.flying.seq == ex.current
+                ex.carried = ex.flying if running else None
+                ex.complete = ex.started and ex.carried is None
         elif self.executor.current >= n:
             self.executor.complete = self.executor.started
         self._mission_current_due = True
@@ -346,9 +351,11 @@ class FakeVehicle(TelemetryMixin):
             return
         if self.mode == "AUTO":
             self._auto(dt)
-        elif self.mode == "RTL":
-            if self._rtl(dt):
-                self.mode = "LAND"
+        elif self.mode == "RTL":  # both autopilots land at home inside RTL (the mode stays RTL)
+            if self.rtl_phase == "land":
+                self._land(dt)
+            elif self._rtl(dt):
+                self.rtl_phase = "land"
         elif self.mode == "LAND":
             self._land(dt)
         else:
@@ -396,7 +403,7 @@ class FakeVehicle(TelemetryMixin):
             if not self._complete_reported:
                 self._complete_reported = True
                 self.hold_xyz_m = self.kin.pos.copy()
-                self._out.append(self.text(mav.MAV_SEVERITY_INFO, "Mission complete"))
+                self._out.append(self.text(mav.MAV_SEVERITY_INFO, self.flavour.mission_done_text))
                 self._mission_current_due = True
             if not self.landed:
                 self._fly(dt, self.hold_xyz_m, stop=True)
@@ -419,6 +426,16 @@ class FakeVehicle(TelemetryMixin):
             self._fly(dt, tgt.xyz_m, stop=True)
             if self.kin.pos[2] >= tgt.xyz_m[2] - 0.5:
                 self._item_done()
+        elif tgt.kind == "rtl" and self.flavour.rtl_item_leaves_mission:
+            # PX4 (measured on SITL): the RTL item is reported reached, the mission complete at
+            # its seq, and the vehicle returns in AUTO.RTL
+            self.executor.complete = True
+            self._complete_reported = True
+            self._mission_current_due = True
+            self._out.append(Reply(mav.MAVLink_mission_item_reached_message(self.executor.current)))
+            self._out.append(self.text(mav.MAV_SEVERITY_INFO, self.flavour.mission_done_text))
+            self._out.append(self.text(mav.MAV_SEVERITY_INFO, "Returning to launch"))
+            self.set_mode("RTL")
         elif tgt.kind == "rtl":
             if self.rtl_phase not in ("return", "land"):
                 self.rtl_phase = "climb"
@@ -475,7 +492,7 @@ class FakeVehicle(TelemetryMixin):
             self.executor.complete = True
             self._complete_reported = True
             self.hold_xyz_m = self.kin.pos.copy()
-            self._out.append(self.text(mav.MAV_SEVERITY_INFO, "Mission complete"))
+            self._out.append(self.text(mav.MAV_SEVERITY_INFO, self.flavour.mission_done_text))
             if self.flavour.hold_after_mission and not self.landed:
                 self.mode = "LOITER"  # PX4 switches to Hold at the end of a mission in the air
                 self._out.append(self.heartbeat_reply())

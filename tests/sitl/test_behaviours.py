@@ -331,6 +331,16 @@ def test_new_mission_uploaded_while_flying_home_in_the_old_one(target):
             await asyncio.sleep(2.0)
             after_upload = (watch.mission_state, watch.mission_seq, watch.mode)
             await _switch_fly_and_land(link, target, flavour, watch, second)
-            return before, after_upload
-    before, after_upload = harness.run(go(), 420)
+            return before, after_upload, last
+    before, after_upload, last = harness.run(go(), 420)
     print(f"{target.backend}-{target.kind}: flying home (state, seq, mode) {before}; after the upload {after_upload}")
+    # measured on SITL 2026-11-24 (fakes copy it): PX4 leaves the mission at its RTL item -- state
+    # complete at that seq, AUTO.RTL -- and the upload waits for a start (not started, seq 0);
+    # ArduPilot flies the RTL item inside AUTO and, the new mission being shorter, flies on home
+    # with the old index (active, seq 4 of a 4-item mission)
+    if target.kind == "px4":
+        assert before == (mavlink.MISSION_STATE_COMPLETE, last, "AUTO.RTL"), before
+        assert after_upload == (mavlink.MISSION_STATE_NOT_STARTED, 0, "AUTO.RTL"), after_upload
+    else:
+        assert before == (mavlink.MISSION_STATE_ACTIVE, last, "AUTO"), before
+        assert after_upload == (mavlink.MISSION_STATE_ACTIVE, last, "AUTO"), after_upload

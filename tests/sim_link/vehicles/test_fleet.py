@@ -77,6 +77,13 @@ def test_pymavlink_client_uploads_and_flies_a_mission(autopilot):
             first = 1 if autopilot == "ardupilot" else 0
             assert reached == [w.seq for w in items if w.command in (16, 20, 22) and w.seq >= first]
             v = fleet.vehicle(1)
+            if autopilot == "px4":  # PX4 ends the mission at its RTL item and returns in AUTO.RTL
+                assert v.mode == "RTL" and not v.landed
+                for _ in range(200):
+                    if v.landed:
+                        break
+                    await asyncio.sleep(0.05)
+                assert v.mode == "RTL"
             assert v.landed and not v.armed
             rssi_sources = {(m.get_srcSystem(), m.get_srcComponent()) for m in c.log
                             if m.get_type() == "UAVLOC_RSSI_BATCH"}

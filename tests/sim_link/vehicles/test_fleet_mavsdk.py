@@ -170,6 +170,10 @@ def test_mavsdk_arms_starts_and_follows_the_mission_to_the_end(autopilot):
                     mr.destroy()
                     action.destroy()
             v = fleet.vehicle(1)
+            for _ in range(200):  # PX4 ends the mission at its RTL item and lands in AUTO.RTL
+                if v.landed:
+                    break
+                await asyncio.sleep(0.05)
             return v
 
     v = asyncio.run(asyncio.wait_for(main(), 60))

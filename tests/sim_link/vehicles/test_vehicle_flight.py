@@ -62,7 +62,7 @@ def test_scan_reaches_every_item_in_order_and_lands(scan_flight):
     assert v.landed and not v.armed
     assert np.linalg.norm(v.position_xyz_m[:2]) < 2.0  # RTL came home
     texts = [r.msg.text for _, r in msgs if r.msg.get_type() == "STATUSTEXT"]
-    assert "Mission complete" in texts
+    assert v.flavour.mission_done_text in texts
 
 
 def test_scan_flies_through_waypoints_without_stopping_and_within_the_acceleration_bound(scan_flight):
@@ -280,7 +280,7 @@ def test_auto_without_takeoff_item_px4_climbs_ardupilot_refuses():
         samples, msgs = _fly(v, _wps(sc, [[100, 0], [100, 100]], ap, takeoff=False), t_end_s=120.0)
         texts = [r.msg.text for _, r in msgs if r.msg.get_type() == "STATUSTEXT"]
         if ap == "px4":
-            assert samples[:, 3].max() > 39.0 and "Mission complete" in texts
+            assert samples[:, 3].max() > 39.0 and "Mission finished, loitering" in texts
         else:
             assert samples[:, 3].max() == 0.0 and "Auto: Missing Takeoff Cmd" in texts
 
