@@ -7,8 +7,12 @@ replanning, return) on paired worlds with each variant of the rules that place a
 - ``no-inside-cut``: a repeated look from a vehicle already inside the look radius keeps the whole
   radius (``search.policy.INSIDE_LOOK_FRACTION = None``), so it may be planned at the vehicle's own
   position -- seen on PX4 SITL as three looks of zero length and a person given up;
-- ``shrink``: every look that heard a person without locating them halves the next look radius
-  (``search.targets.LOOK_SHRINK = 0.5``, off by default).
+- ``no-shrink``: every look keeps the whole look radius, even after looks that heard a person
+  without locating them (``search.targets.LOOK_SHRINK = 1``; by default each such look halves
+  the next radius);
+- ``no-settle``: a person who was mirror-ambiguous is located as soon as the estimator stops
+  calling it ambiguous (mirror under 5 %), not when the mirror holds under 1 %
+  (``search.policy.AMBIGUITY_SETTLED_MASS = None``).
 
 Printed per variant: people heard and located, located inside their own 95 % radius, mean
 completion time with its 95 % CI, and the ratio to the clairvoyant plan's completion time (the
@@ -27,7 +31,7 @@ import numpy as np
 
 from ._progress import Progress
 
-VARIANTS = ("default", "no-inside-cut", "shrink")
+VARIANTS = ("default", "no-inside-cut", "no-shrink", "no-settle")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -48,7 +52,8 @@ def _fly(job):
     from uavloc_gcs.search import policy, targets
 
     policy.INSIDE_LOOK_FRACTION = None if variant == "no-inside-cut" else 0.5
-    targets.LOOK_SHRINK = 0.5 if variant == "shrink" else 1.0
+    targets.LOOK_SHRINK = 1.0 if variant == "no-shrink" else 0.5
+    policy.AMBIGUITY_SETTLED_MASS = None if variant == "no-settle" else 0.01
     cfg = ExperimentConfig(load_scenario(scenario_file), people=(people,), runs=run + 1, seed=seed,
                            methods=(REFERENCE,), error_people=0)
     res = run_task(cfg, Task(REFERENCE, people, run, world_seed(seed, people, run)))

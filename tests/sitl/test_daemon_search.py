@@ -71,10 +71,10 @@ SPARSE_SCAN = "[scan]\nlane_spacing_m = 220.0\ncoverage = \"single\""  # two lan
 
 
 @pytest.mark.parametrize("kind", ["ardupilot", pytest.param("px4", marks=pytest.mark.xfail(
-    strict=False, reason="estimator, not link (issue 12), measured 2026-11-24 in 3 runs: the person 38 m off "
-    "the lane is fitted a spurious 0.3 m/s velocity after its look and extrapolated 16 m from the truth with "
-    "a 95 % radius of 11 m (2 of 3 runs: 1.4-1.5x the radius, at the 99.9 % limit; the third 8 m inside 14 m). "
-    "The earlier failure (three looks of zero length, then given up) is fixed by INSIDE_LOOK_FRACTION"))])
+    strict=False, reason="look geometry, not the link (issue 12), measured 2026-11-24: 4 of 5 runs pass (that "
+    "person 6.0-11.8 m off inside 12.0-14.1 m); in the fifth the person 38 m off the lane was given up after 4 looks at "
+    "radius 18-35 m, each flown from home out to the near edge of its disk and back along the same line. "
+    "Before AMBIGUITY_SETTLED_MASS and LOOK_SHRINK: 2 of 3 runs placed that person 16 m off inside 11 m"))])
 def test_a_search_with_looks_replans_without_churn(sitl, tmp_path, kind):
     """A sparse scan leaves people unlocated, so the look phase runs on the real autopilot: the
     daemon replans and uploads looks in flight; a handful of uploads per vehicle at most."""
@@ -111,9 +111,9 @@ def test_a_previously_flown_vehicle_searches_again(sitl, tmp_path, kind):
 
 
 @pytest.mark.parametrize("kind", ["ardupilot", pytest.param("px4", marks=pytest.mark.xfail(
-    strict=False, reason="look geometry, not the start (issue 12), measured 2026-11-24: PX4 started from boot, "
-    "flew and landed, but one run in two leaves a person (seed 3's P02) mirror-ambiguous after 4 looks at 5.8-24 m "
-    "radius: each look line ran from the vehicle to the estimate and on home, along the mirror axis"))])
+    strict=False, reason="look geometry, not the start (issue 12): on 2026-11-24 one run in two left a person "
+    "(seed 3's P02) mirror-ambiguous after 4 looks flown along its mirror axis (vehicle -> estimate -> home); "
+    "later that day 7 of 7 runs passed (5 with AMBIGUITY_SETTLED_MASS and LOOK_SHRINK); xfail until looks cross that line"))])
 def test_a_freshly_booted_vehicle_searches(sitl, tmp_path, kind):
     """The daemon started as soon as the autopilot sends its first heartbeat (not when it is ready
     to fly): ArduCopter refuses to arm for a while and PX4 reports health failures, so the start

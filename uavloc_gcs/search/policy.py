@@ -29,7 +29,7 @@ from __future__ import annotations
 import logging
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -51,6 +51,13 @@ RADIUS_RECHECK_FRACTION = 0.85  # replan once more if a planned radius shrinks b
 # such looks while the vehicle flew home, radius 15.8 -> 40.8 m, given up). Its radius is cut to
 # this fraction of that vehicle's distance, so the look flies towards the person.
 INSIDE_LOOK_FRACTION = 0.5
+# Once a person has been mirror-ambiguous, the ambiguity counts as settled only when the mirror
+# holds less than this share of the posterior (the estimator calls it ambiguous above 5 %). The
+# mirror's share from distant data is volatile: measured (same run) 52 %, 26 %, 34 %, 3.7 % on
+# consecutive estimates while the vehicle flew away 100 m off; the 3.7 % one was the wrong mirror
+# (89 m off, 9 m radius) and was declared located; six seconds later the data gave the right one
+# with 0 %. None turns the hysteresis off.
+AMBIGUITY_SETTLED_MASS = 0.01
 TRACK_STEP_SLOTS = 10  # listening tracks are kept every this many slots (0.25 s, 6 m at 25 m/s)
 
 
@@ -117,6 +124,7 @@ class _Person:
     fix_estimate: object = None
     fix_radius95_m: float = math.inf
     fix_candidate: tg.Candidate | None = None  # the believed candidate at the fix
+    was_ambiguous: bool = False  # some estimate of this person was mirror-ambiguous
 
 
 class SearchPolicy:
@@ -248,7 +256,7 @@ class SearchPolicy:
                     p.batches[0], self.channel, max_speed_m_s=self.model_speed_m_s,
                     t_ref_s=p.last_slot_t_s, model_motion=self.model_motion, previous=p.estimate,
                     silence=self._silence(p))
-                p.estimate, p.error = est, ""
+                p.estimate, p.error = self._unsettled(p, est), ""
             except EstimationError as exc:
                 p.error = str(exc)
             self.estimator_runtime_s += time.perf_counter() - t0
@@ -517,6 +525,23 @@ class SearchPolicy:
             return None
         a, b = tg.candidates(p.estimate, p.last_slot_t_s)
         return float(np.linalg.norm(a.xy_m - b.xy_m))
+
+    def _unsettled(self, p: _Person, est):
+        """``est`` as the policy believes it: still ambiguous (radius over both candidates) when
+        this person was ambiguous before and the mirror, outside the estimate's own 95 % circle,
+        keeps AMBIGUITY_SETTLED_MASS or more."""
+        if getattr(est, "ambiguous", False):
+            p.was_ambiguous = True
+            return est
+        mirror = getattr(est, "mirror", None)
+        if (AMBIGUITY_SETTLED_MASS is None or not p.was_ambiguous or mirror is None
+                or str(getattr(est, "status", "ok")) != "ok"):
+            return est
+        rel = float(mirror.relative_likelihood)
+        reach = float(np.linalg.norm(np.asarray(mirror.position_xy_m) - np.asarray(est.position_xy_m)))
+        if rel / (1.0 + rel) < AMBIGUITY_SETTLED_MASS or reach <= float(getattr(est, "mode_radius95_m", 0.0)):
+            return est  # settled, or a second optimum inside the estimate's own circle: no alternative
+        return replace(est, ambiguous=True, radius95_m=max(float(est.radius95_m), reach + float(mirror.radius95_m)))
 
     def _ok(self, p: _Person) -> bool:
         est = p.estimate

@@ -99,10 +99,13 @@ def boundary_distance_m(area_xy_m: np.ndarray, xy_m: np.ndarray) -> float:
 
 
 # Factor on the look radius per earlier look that heard the person without locating them; 1 = off.
-# Measured (sim_link.experiments.missionsim, paper scenario, 20 random-waypoint people, 12 runs, MLE-EPSO (M)):
-# 0.5 with MAX_LOOKS 8 located 240 of 240 people heard instead of 236, but the mean completion
-# time rose from 172 s to 181.5 s (four runs 19-48 s longer), so it is off by default.
-LOOK_SHRINK = 1.0
+# The access radius assumes a whole pass at that offset, but a look flies through one point of the
+# disk, so a look at the edge of range can add almost nothing and the same look is planned again.
+# Measured with `uavloc bench looks` (MLE-EPSO (M), paired worlds, 2026-11-24): on the SITL suite's
+# sparse-scan scenario (benchmarks/scenarios/sitl_sparse_scan.toml, 3 static people, 40 worlds)
+# 120/120 located against 115/120 with 1.0, 152.8 s against 159.8 s; on the paper scenario (20
+# walkers, 20 worlds) 395/400 against 394/400, +1.1 +- 1.4 s.
+LOOK_SHRINK = 0.5
 
 
 def look_radius_m(access_radius_m: float, separation_m: float | None, unresolved_looks: int = 0,
@@ -115,8 +118,8 @@ def look_radius_m(access_radius_m: float, separation_m: float | None, unresolved
     *through* the access point, often as the end of a short hop from a vehicle already near it,
     so at the edge of range a look can add almost nothing (measured: a vehicle crept along a
     walker's 110 m ring, four looks, radius 91 -> 96 m, given up). Shrinking the radius brings
-    the next pass closer, where it is informative whatever its length (off by default: see
-    LOOK_SHRINK).
+    the next pass closer, where it is informative whatever its length (on by default, measured:
+    see LOOK_SHRINK).
     """
     r = access_radius_m if math.isfinite(access_radius_m) and access_radius_m > 0 else 0.0
     if separation_m is not None:
