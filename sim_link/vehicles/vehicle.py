@@ -224,8 +224,8 @@ class FakeVehicle(TelemetryMixin):
             return False
         elif mode in ("GUIDED", "LOITER", "STABILIZE"):
             self.hold_xyz_m = self.kin.pos.copy()
-        if mode == "RTL":
-            self.rtl_phase = "climb"
+        if mode == "RTL" or (mode == "AUTO" and self.mode != "AUTO"):  # a return cut short by a
+            self.rtl_phase = "climb"  # mode change starts afresh next time
         log.debug("uav%d: mode %s -> %s", self.sysid, self.mode, mode)
         self.mode = mode
         self._out.append(self.heartbeat_reply())
@@ -353,7 +353,8 @@ class FakeVehicle(TelemetryMixin):
             self._auto(dt)
         elif self.mode == "RTL":  # both autopilots land at home inside RTL (the mode stays RTL)
             if self.rtl_phase == "land":
-                self._land(dt)
+                if self._land(dt):
+                    self.rtl_phase = "climb"  # the next RTL (mode or mission item) starts afresh
             elif self._rtl(dt):
                 self.rtl_phase = "land"
         elif self.mode == "LAND":

@@ -328,3 +328,23 @@ def test_hovering_after_takeoff_draws_hover_power():
     assert _cmd(v, mav.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, 20) == 0
     v.advance(100.0)  # 4 s climbing, then hovering
     assert v.energy_used_j == pytest.approx(PAPER.power_model.power_w(0.0) * 100.0, rel=0.01)
+
+
+@pytest.mark.parametrize("ap", ["ardupilot", "px4"])
+def test_rtl_lands_in_rtl_and_the_next_missions_rtl_item_flies_home_again(ap):
+    """Both autopilots land at home inside RTL mode (measured on SITL: the mode stays RTL). A return
+    that ended (or was cut short) must not leave the next mission's RTL item landing where it is."""
+    sc = PAPER.replace(fleet={"autopilot": ap})
+    v = _vehicle(sc)
+    _fly(v, _wps(sc, [[100, 0], [100, 60]], ap, rtl=False), t_end_s=120.0)
+    assert not v.landed
+    assert v.set_mode("RTL")
+    t = v.t_s
+    while not (v.landed and not v.armed) and t < v.t_s + 300:
+        t += 0.5
+        v.advance(t)
+    assert v.landed and v.mode == "RTL" and np.linalg.norm(v.position_xyz_m[:2]) < 2.0
+    v.set_mode("GUIDED" if ap == "ardupilot" else "LOITER")
+    samples, _ = _fly(v, _wps(sc, [[100, 0]], ap, rtl=True), t_end_s=v.t_s + 300.0)
+    assert samples[:, 1].max() > 90.0  # flew out to the waypoint
+    assert v.landed and not v.armed and np.linalg.norm(v.position_xyz_m[:2]) < 2.0
