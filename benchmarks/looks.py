@@ -12,7 +12,10 @@ replanning, return) on paired worlds with each variant of the rules that place a
   the next radius);
 - ``no-settle``: a person who was mirror-ambiguous is located as soon as the estimator stops
   calling it ambiguous (mirror under 5 %), not when the mirror holds under 1 %
-  (``search.policy.AMBIGUITY_SETTLED_MASS = None``).
+  (``search.policy.AMBIGUITY_SETTLED_MASS = None``);
+- ``radial``: a repeated look is planned about the estimate itself, so a vehicle near home flies
+  out to the near edge of its disk and back along one line (``search.policy.SIDEWAYS_LOOK_FRACTION
+  = None``; by default it goes beside the person, across that line).
 
 Printed per variant: people heard and located, located inside their own 95 % radius, mean
 completion time with its 95 % CI, and the ratio to the clairvoyant plan's completion time (the
@@ -31,7 +34,7 @@ import numpy as np
 
 from ._progress import Progress
 
-VARIANTS = ("default", "no-inside-cut", "no-shrink", "no-settle")
+VARIANTS = ("default", "no-inside-cut", "no-shrink", "no-settle", "radial")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -54,6 +57,7 @@ def _fly(job):
     policy.INSIDE_LOOK_FRACTION = None if variant == "no-inside-cut" else 0.5
     targets.LOOK_SHRINK = 1.0 if variant == "no-shrink" else 0.5
     policy.AMBIGUITY_SETTLED_MASS = None if variant == "no-settle" else 0.01
+    policy.SIDEWAYS_LOOK_FRACTION = None if variant == "radial" else 0.25
     cfg = ExperimentConfig(load_scenario(scenario_file), people=(people,), runs=run + 1, seed=seed,
                            methods=(REFERENCE,), error_people=0)
     res = run_task(cfg, Task(REFERENCE, people, run, world_seed(seed, people, run)))

@@ -312,8 +312,44 @@ def test_a_repeated_look_from_inside_the_look_radius_flies_towards_the_person(sm
     assert first > 20.0  # a first look: the whole look radius, vehicle inside it or not
     p.looks, p.misses = 1, 0
     assert radius_with_vehicle_at(10.0) == pytest.approx(pol.INSIDE_LOOK_FRACTION * 10.0)
-    far = radius_with_vehicle_at(10.0 * first)
+    pol_sideways, pol.SIDEWAYS_LOOK_FRACTION = pol.SIDEWAYS_LOOK_FRACTION, None
+    try:
+        far = radius_with_vehicle_at(10.0 * first)
+    finally:
+        pol.SIDEWAYS_LOOK_FRACTION = pol_sideways
     assert far > 20.0  # from outside the radius: the look radius, not a cut one
+
+
+def test_a_repeated_look_goes_beside_the_person_across_the_line_it_came_along(small):
+    """Measured on PX4 SITL: four looks flown from near home out to the near edge of the disk and
+    straight back, all on one line, and the person was given up. A repeated look's disk is moved
+    one look radius beside the estimate, perpendicular to the line from the vehicle, alternating
+    sides, with SIDEWAYS_LOOK_FRACTION of the radius; a first look stays about the estimate."""
+    sc = small.replace(people={"required_accuracy_m": 8.0})
+    world = World(sc, seed=3, people=3, motion="static")
+    policy, _, t_end, states = _scan_policy(sc, world)
+    eid = next(int(t.id) for t in policy._targets(t_end, states, None) if t.radius_m > 20.0)
+    p = policy._people[eid]
+    centre = policy._candidate(p).at(t_end)
+    where = centre + np.array([300.0, 0.0])  # the vehicle due east of the person, far outside
+    vs = [VehicleState("1", (float(where[0]), float(where[1])), (0.0, 0.0), sc.usable_energy_j)]
+
+    def target():
+        (t,) = [t for t in policy._targets(t_end, vs, None) if t.id == str(eid)]
+        return np.array(t.xy_m), t.radius_m
+
+    xy0, r0 = target()
+    assert np.allclose(xy0, centre)
+    looks = []
+    for n in (1, 2):
+        p.looks, p.misses = n, 0
+        looks.append(target())
+    for n, (xy, r) in enumerate(looks, start=1):
+        plain = tg.look_radius_m(r0, None, n)
+        off = xy - centre
+        assert abs(off[0]) < 1e-6 and abs(off[1]) == pytest.approx(plain)  # across the east-west line
+        assert r == pytest.approx(pol.SIDEWAYS_LOOK_FRACTION * plain)
+    assert np.sign(looks[0][0][1] - centre[1]) == -np.sign(looks[1][0][1] - centre[1])  # alternating
 
 
 def _sequence_of_estimates(small, monkeypatch, estimates):
