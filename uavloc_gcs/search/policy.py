@@ -18,7 +18,10 @@ A *look* is a pass of a vehicle within the person's access radius (``access_radi
 predicted position; the vehicle flies through the access point without stopping. When a person is
 mirror-ambiguous the look goes to the more likely candidate with a radius small enough to keep
 the pass off the mirror line; if the pass hears nothing, the next look goes to the other candidate.
-Mirror candidates well outside the search area are discarded (people are inside it). Looks are
+Mirror candidates well outside the search area are discarded (people are inside it); once a person
+has been ambiguous, the mirror must fall under AMBIGUITY_SETTLED_MASS before a fix. A repeated look
+(the last one heard the person without locating them) has half the radius (targets.LOOK_SHRINK)
+and goes beside the person, across the line from the vehicle (SIDEWAYS_LOOK_FRACTION). Looks are
 capped per person (:data:`MAX_LOOKS`) so a mission always ends. A look is judged R/V after its
 planned time, or -- when the caller reports flown looks (``look_reports``, ``look_flown``, as the
 daemon does) -- R/V after the vehicle really passed it.

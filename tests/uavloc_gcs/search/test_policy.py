@@ -288,6 +288,17 @@ def test_unplanned_people_wait_for_new_data_instead_of_a_replan_every_tick(small
     assert policy.needs_replan(t_end + 1.0, {victim})  # new data about them: plan again
 
 
+def _a_person_needing_a_look(small):
+    """After a scan of the small scenario (3 static people, 8 m accuracy): a person whose look
+    radius is over 20 m, with the policy, the time and where the person is believed to be."""
+    sc = small.replace(people={"required_accuracy_m": 8.0})
+    world = World(sc, seed=3, people=3, motion="static")
+    policy, _, t_end, states = _scan_policy(sc, world)
+    eid = next(int(t.id) for t in policy._targets(t_end, states, None) if t.radius_m > 20.0)
+    p = policy._people[eid]
+    return sc, policy, t_end, eid, p, policy._candidate(p).at(t_end)
+
+
 def test_a_repeated_look_from_inside_the_look_radius_flies_towards_the_person(small):
     """Measured on PX4 SITL: after a first look that did not locate a person, the vehicle flying
     home was still inside the look radius, so each new look was planned at the vehicle's own
@@ -295,12 +306,7 @@ def test_a_repeated_look_from_inside_the_look_radius_flies_towards_the_person(sm
     now has its radius cut to half the vehicle's distance; a first look keeps its radius."""
     from uavloc_gcs.search import policy as pol
 
-    sc = small.replace(people={"required_accuracy_m": 8.0})
-    world = World(sc, seed=3, people=3, motion="static")
-    policy, _, t_end, states = _scan_policy(sc, world)
-    eid = next(int(t.id) for t in policy._targets(t_end, states, None) if t.radius_m > 20.0)
-    p = policy._people[eid]
-    centre = policy._candidate(p).at(t_end)
+    sc, policy, t_end, eid, p, centre = _a_person_needing_a_look(small)
 
     def radius_with_vehicle_at(offset_m):
         where = (float(centre[0] + offset_m), float(centre[1]))
@@ -325,12 +331,7 @@ def test_a_repeated_look_goes_beside_the_person_across_the_line_it_came_along(sm
     straight back, all on one line, and the person was given up. A repeated look's disk is moved
     one look radius beside the estimate, perpendicular to the line from the vehicle, alternating
     sides, with SIDEWAYS_LOOK_FRACTION of the radius; a first look stays about the estimate."""
-    sc = small.replace(people={"required_accuracy_m": 8.0})
-    world = World(sc, seed=3, people=3, motion="static")
-    policy, _, t_end, states = _scan_policy(sc, world)
-    eid = next(int(t.id) for t in policy._targets(t_end, states, None) if t.radius_m > 20.0)
-    p = policy._people[eid]
-    centre = policy._candidate(p).at(t_end)
+    sc, policy, t_end, eid, p, centre = _a_person_needing_a_look(small)
     where = centre + np.array([300.0, 0.0])  # the vehicle due east of the person, far outside
     vs = [VehicleState("1", (float(where[0]), float(where[1])), (0.0, 0.0), sc.usable_energy_j)]
 
