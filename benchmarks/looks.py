@@ -34,8 +34,6 @@ import numpy as np
 
 from ._progress import Progress
 
-VARIANTS = ("default", "no-inside-cut", "no-shrink", "no-settle", "radial")
-
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--runs", type=int, default=10, help="paired worlds per variant (default 10; 40 for the README)")
@@ -47,17 +45,33 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--jobs", type=int, default=2, help="worker processes (default 2)")
 
 
+# variant -> (module, switch, value when the rule is off); "default" changes nothing
+SWITCHES = {
+    "no-inside-cut": ("policy", "INSIDE_LOOK_FRACTION", None),
+    "no-shrink": ("targets", "LOOK_SHRINK", 1.0),
+    "no-settle": ("policy", "AMBIGUITY_SETTLED_MASS", None),
+    "radial": ("policy", "SIDEWAYS_LOOK_FRACTION", None),
+}
+VARIANTS = ("default", *SWITCHES)
+_SHIPPED: dict = {}  # the switches' shipped values, read once per worker before any change
+
+
 def _fly(job):
-    """One mission under one variant (in a worker process: the switches are module globals)."""
+    """One mission under one variant (in a worker process: the switches are module globals, so
+    each job first puts back the shipped values, then turns its own rule off)."""
     variant, scenario_file, people, seed, run = job
     from sim_link.experiments.paper import REFERENCE, ExperimentConfig, Task, run_task, world_seed
     from uavloc_gcs.scenario import load_scenario
     from uavloc_gcs.search import policy, targets
 
-    policy.INSIDE_LOOK_FRACTION = None if variant == "no-inside-cut" else 0.5
-    targets.LOOK_SHRINK = 1.0 if variant == "no-shrink" else 0.5
-    policy.AMBIGUITY_SETTLED_MASS = None if variant == "no-settle" else 0.01
-    policy.SIDEWAYS_LOOK_FRACTION = None if variant == "radial" else 0.25
+    modules = {"policy": policy, "targets": targets}
+    if not _SHIPPED:
+        _SHIPPED.update({(m, name): getattr(modules[m], name) for m, name, _ in SWITCHES.values()})
+    for (m, name), value in _SHIPPED.items():
+        setattr(modules[m], name, value)
+    if variant in SWITCHES:
+        m, name, off = SWITCHES[variant]
+        setattr(modules[m], name, off)
     cfg = ExperimentConfig(load_scenario(scenario_file), people=(people,), runs=run + 1, seed=seed,
                            methods=(REFERENCE,), error_people=0)
     res = run_task(cfg, Task(REFERENCE, people, run, world_seed(seed, people, run)))

@@ -2,8 +2,8 @@
 
 Each: the companion emulator supplies the RSSI of 3 simulated static people in a 300 m x 300 m
 area; the daemon runs as a child process to its end. Checked: exit 0, every person heard located,
-at most one of them outside their 95 % circle and none outside their 99.9 % circle, a handful of uploads per vehicle, every vehicle
-landed and disarmed at home. Durations are in docs/readme/sitl.md.
+at most one of them outside their 95 % circle and none outside their 99.9 % circle, a handful of
+uploads per vehicle, every vehicle landed and disarmed at home. Durations are in docs/readme/sitl.md.
 """
 
 from __future__ import annotations
