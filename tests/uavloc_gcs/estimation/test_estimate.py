@@ -1,5 +1,6 @@
 """The estimator against known answers from the simulated world (issue 3, item 4)."""
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -233,3 +234,31 @@ def test_a_pass_at_the_access_radius_meets_the_required_accuracy(sc, channel):
         after = estimate_emitter(SlotBatch.concat([first, world.hear_track(1, t, xyz)]), channel, max_speed_m_s=1.5)
         assert after.mode_radius95_m <= 10.0 * 1.1
         assert err(after, world) <= after.radius95_m
+
+
+def test_a_pass_at_the_access_radius_is_within_range_of_the_whole_predicted_circle(sc, channel, monkeypatch):
+    """A person needing only a little more information could be looked at from the very edge of
+    the range -- which hears nothing if they are a few metres further off than predicted. The
+    offset leaves room for the whole predicted 95 % circle inside the range."""
+    from uavloc_gcs.estimation import access, access_radius_m
+    from uavloc_gcs.estimation.maneuver import state_noise
+
+    world = World.with_people(sc, [P], [[0.6, -0.4]], seed=500)
+    est = estimate_emitter(fly(world, [east_leg(P[1] - 30)]), channel, max_speed_m_s=1.5)
+    reach = math.sqrt(150.0**2 - 100.0**2)
+    for dt in (20.0, 90.0):
+        kw = dict(t_pass_s=est.t_ref_s + dt, altitude_m=100.0, speed_m_s=25.0, channel=channel,
+                  required_accuracy_m=0.95 * est.mode_radius95_m, comm_range_m=150.0)
+        a = np.eye(4)
+        a[0, 2] = a[1, 3] = dt
+        cov = (a @ est.covariance @ a.T + state_noise(est.process_noise_m2_s3, dt))[:2, :2]
+        r_pred = access.K95 * math.sqrt(np.linalg.eigvalsh(cov)[-1])
+        rho = access_radius_m(est, **kw)
+        if r_pred < reach:
+            assert 0.0 < rho <= reach - r_pred
+        else:  # the circle is wider than the range (a walker 90 s on): pass over the prediction
+            assert rho == 0.0
+        monkeypatch.setattr(access, "REACH_WHOLE_CIRCLE", False)
+        assert access_radius_m(est, **kw) > reach - r_pred  # the edge of the range, without the rule
+        monkeypatch.setattr(access, "REACH_WHOLE_CIRCLE", True)
+    assert r_pred > reach  # both cases were exercised (20 s: inside the range)
