@@ -239,6 +239,26 @@ def test_a_flown_look_is_still_judged_after_a_replan_and_later_looks_are_re_base
     assert {p.emitter_id: p.looks for p in policy.people(0.0)}[first] == 1  # judged despite the replan
 
 
+def test_without_look_reports_a_look_past_its_time_is_judged_even_if_a_replan_follows(small):
+    """The simulator replans whenever every vehicle is home; a look flown before that replan must
+    still count (it used to be replaced by the new plan's look, again and again, never judged)."""
+    from uavloc_gcs.observations import SlotBatch
+
+    policy = SearchPolicy(small, time_limit_s=20.0, max_iter=5)
+    policy.ingest(SlotBatch.from_columns([1.0, 1.025], [1, 1], [[100, 50, 100], [100.5, 50, 100]], [77, 77],
+                                         [-80.0, -80.5], [10, 10]))
+    policy.update(2.0)
+    (task,) = policy.replan(2.0, [VehicleState("1", (0.0, 0.0), (0.0, 0.0), small.usable_energy_j)]).tasks
+    t_look = task.access_times_s[0]
+    home = [VehicleState("1", (0.0, 0.0), (0.0, 0.0), small.usable_energy_j)]
+    (again,) = policy.replan(t_look + 1.0, home).tasks  # flown and back home: sent out again
+    assert 77 in again.target_ids and again.access_times_s[0] > t_look + 1.0
+    grace = small.horizontal_range_m / small.fleet.speed_m_s
+    policy.update(t_look + grace + 0.5)
+    (st,) = policy.people(t_look + grace + 0.5)
+    assert st.looks == 1  # the first look, judged R/V after its planned time
+
+
 def _with_energy(states, energies):
     return [VehicleState(s.id, s.start_xy_m, s.home_xy_m, e) for s, e in zip(states, energies)]
 
