@@ -15,7 +15,11 @@ replanning, return) on paired worlds with each variant of the rules that place a
   (``search.policy.AMBIGUITY_SETTLED_MASS = None``);
 - ``radial``: a repeated look is planned about the estimate itself, so a vehicle near home flies
   out to the near edge of its disk and back along one line (``search.policy.SIDEWAYS_LOOK_FRACTION
-  = None``; by default it goes beside the person, across that line).
+  = None``; by default it goes beside the person, across that line);
+- ``cap4``: a person is given up after 4 looks (``search.policy.MAX_LOOKS = 4``; by default only
+  two looks that heard nothing, or no energy for a look, give a person up);
+- ``edge-reach``: a look may pass at the edge of the range of the predicted position, out of
+  hearing of much of the predicted 95 % circle (``estimation.access.REACH_WHOLE_CIRCLE = False``).
 
 Printed per variant: people heard and located, located inside their own 95 % radius, mean
 completion time with its 95 % CI, and the ratio to the clairvoyant plan's completion time (the
@@ -27,7 +31,9 @@ from __future__ import annotations
 
 import argparse
 import math
+import re
 import sys
+from collections import Counter
 from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
@@ -45,12 +51,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--jobs", type=int, default=2, help="worker processes (default 2)")
 
 
-# variant -> (module, switch, value when the rule is off); "default" changes nothing
+# variant -> (module, switch, its value in that variant); "default" changes nothing
 SWITCHES = {
     "no-inside-cut": ("policy", "INSIDE_LOOK_FRACTION", None),
     "no-shrink": ("targets", "LOOK_SHRINK", 1.0),
     "no-settle": ("policy", "AMBIGUITY_SETTLED_MASS", None),
     "radial": ("policy", "SIDEWAYS_LOOK_FRACTION", None),
+    "cap4": ("policy", "MAX_LOOKS", 4),
+    "edge-reach": ("access", "REACH_WHOLE_CIRCLE", False),
 }
 VARIANTS = ("default", *SWITCHES)
 _SHIPPED: dict = {}  # the switches' shipped values, read once per worker before any change
@@ -58,13 +66,15 @@ _SHIPPED: dict = {}  # the switches' shipped values, read once per worker before
 
 def _fly(job):
     """One mission under one variant (in a worker process: the switches are module globals, so
-    each job first puts back the shipped values, then turns its own rule off)."""
+    each job first puts back the shipped values, then sets its own switch)."""
     variant, scenario_file, people, seed, run = job
     from sim_link.experiments.paper import REFERENCE, ExperimentConfig, Task, run_task, world_seed
     from uavloc_gcs.scenario import load_scenario
     from uavloc_gcs.search import policy, targets
 
-    modules = {"policy": policy, "targets": targets}
+    from uavloc_gcs.estimation import access
+
+    modules = {"policy": policy, "targets": targets, "access": access}
     if not _SHIPPED:
         _SHIPPED.update({(m, name): getattr(modules[m], name) for m, name, _ in SWITCHES.values()})
     for (m, name), value in _SHIPPED.items():
@@ -78,7 +88,14 @@ def _fly(job):
     heard = [p for p in res.persons if p.heard]
     located = [p for p in heard if p.located]
     inside = [p for p in located if p.error_m <= p.claimed_radius_m]
-    return variant, run, len(heard), len(located), len(inside), res.completion_time_s, res.oracle_completion_time_s
+    why = [_kind(p.reason) for p in heard if not p.located]
+    return (variant, run, len(heard), len(located), len(inside), res.completion_time_s, res.oracle_completion_time_s,
+            why)
+
+
+def _kind(reason: str) -> str:
+    """A policy statement without its numbers and details: "given up: not heard on N looks"."""
+    return re.sub(r"\d+(\.\d+)?", "N", reason.split(" (")[0]).strip() or "no statement"
 
 
 def main(args: argparse.Namespace) -> int:
@@ -117,6 +134,10 @@ def main(args: argparse.Namespace) -> int:
             paired = f"{d:+7.1f} ± {dci:4.1f}"
         print(f"{v:14s} {located:6d}/{heard:<7d} {inside / max(located, 1):11.3f} {m:8.1f} ± {ci:4.1f} "
               f"{ratio:13.3f} {paired:>14s}")
+    for v in variants:
+        why = Counter(k for r in by[v] for k in r[7])
+        if why:
+            print(f"not located, {v}: " + "; ".join(f"{n} {k}" for k, n in why.most_common()))
     return 0
 
 

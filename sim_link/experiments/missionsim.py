@@ -48,6 +48,7 @@ class PersonResult:
     fix_t_s: float  # NaN if never located
     error_m: float  # believed position at its reference time vs truth at that time
     claimed_radius_m: float  # the method's own error claim (95 % radius or annulus bound)
+    reason: str = ""  # the policy's statement about this person at the end ("" where it makes none)
 
 
 @dataclass(frozen=True)
@@ -223,14 +224,15 @@ def person_results(world: World, statuses: list, t_end_s: float) -> tuple[Person
     for i, eid in enumerate(world.emitter_ids):
         s = by_id.get(int(eid))
         if s is None or s.xy_m is None:
-            out.append(PersonResult(int(eid), s is not None, False, math.nan, math.nan, math.nan))
+            out.append(PersonResult(int(eid), s is not None, False, math.nan, math.nan, math.nan,
+                                    "" if s is None else s.reason))
             continue
         t_ref = s.t_ref_s if s.t_ref_s is not None else t_end_s
         truth = world.positions(t_ref)[i]
         err = float(np.hypot(s.xy_m[0] - truth[0], s.xy_m[1] - truth[1]))
         claim = float(s.radius95_m)
         out.append(PersonResult(int(eid), True, s.located, math.nan if s.fix_t_s is None else s.fix_t_s, err,
-                                claim))
+                                claim, s.reason))
     return tuple(out)
 
 
