@@ -19,7 +19,11 @@ replanning, return) on paired worlds with each variant of the rules that place a
 - ``cap4``: a person is given up after 4 looks (``search.policy.MAX_LOOKS = 4``; by default only
   two looks that heard nothing, or no energy for a look, give a person up);
 - ``edge-reach``: a look may pass at the edge of the range of the predicted position, out of
-  hearing of much of the predicted 95 % circle (``estimation.access.REACH_WHOLE_CIRCLE = False``).
+  hearing of much of the predicted 95 % circle (``estimation.access.REACH_WHOLE_CIRCLE = False``);
+- ``heard-tracks``: the estimator's silences only where the vehicle heard some other phone, which
+  is all the daemon knows of where it listened (``missionsim.LISTENING = "heard"``; by default the
+  whole flight);
+- ``no-silences``: no silences at all (``missionsim.LISTENING = "none"``).
 
 Printed per variant: people heard and located, located inside their own 95 % radius, mean
 completion time with its 95 % CI, and the ratio to the clairvoyant plan's completion time (the
@@ -59,6 +63,8 @@ SWITCHES = {
     "radial": ("policy", "SIDEWAYS_LOOK_FRACTION", None),
     "cap4": ("policy", "MAX_LOOKS", 4),
     "edge-reach": ("access", "REACH_WHOLE_CIRCLE", False),
+    "heard-tracks": ("missionsim", "LISTENING", "heard"),
+    "no-silences": ("missionsim", "LISTENING", "none"),
 }
 VARIANTS = ("default", *SWITCHES)
 _SHIPPED: dict = {}  # the switches' shipped values, read once per worker before any change
@@ -68,13 +74,13 @@ def _fly(job):
     """One mission under one variant (in a worker process: the switches are module globals, so
     each job first puts back the shipped values, then sets its own switch)."""
     variant, scenario_file, people, seed, run = job
+    from sim_link.experiments import missionsim
     from sim_link.experiments.paper import REFERENCE, ExperimentConfig, Task, run_task, world_seed
+    from uavloc_gcs.estimation import access
     from uavloc_gcs.scenario import load_scenario
     from uavloc_gcs.search import policy, targets
 
-    from uavloc_gcs.estimation import access
-
-    modules = {"policy": policy, "targets": targets, "access": access}
+    modules = {"policy": policy, "targets": targets, "access": access, "missionsim": missionsim}
     if not _SHIPPED:
         _SHIPPED.update({(m, name): getattr(modules[m], name) for m, name, _ in SWITCHES.values()})
     for (m, name), value in _SHIPPED.items():

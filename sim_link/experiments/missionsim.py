@@ -195,6 +195,12 @@ def slot_times(t_from_s: float, t_to_s: float, slot_s: float) -> np.ndarray:
     return np.arange(k0, k1) * slot_s
 
 
+# Where the policy learns the vehicles listened (its silences): "flown", the whole flight (a
+# companion that reported every slot it listened); "heard", only the slots where it heard some
+# phone (what the daemon knows: SearchPolicy.tracks_from_slots); "none", no silences.
+LISTENING = "flown"
+
+
 def hear(world: World, vehicles: list[Vehicle], t_from_s: float, t_to_s: float, policy=None):
     """Slots every vehicle hears in [t_from_s, t_to_s) along its current flight; with ``policy``,
     where each vehicle listened is recorded too (``SearchPolicy.ingest_track``)."""
@@ -212,7 +218,7 @@ def hear(world: World, vehicles: list[Vehicle], t_from_s: float, t_to_s: float, 
         xy = v.flight.position(tt)
         xyz = np.column_stack([xy, np.full(len(tt), sc.fleet.altitude_m)])
         out.append(world.hear_track(v.index, tt, xyz))
-        if policy is not None:
+        if policy is not None and not policy.tracks_from_slots:
             policy.ingest_track(v.index, tt, xyz)
     return SlotBatch.concat(out)
 
@@ -264,7 +270,8 @@ def simulate_mission(
     policy = SearchPolicy(scenario, model_motion=model_motion, optimizer=optimizer,
                           local_search=scenario.planner.local_search, seed=seed, time_limit_s=time_limit_s,
                           max_iter=max_iter)
-    policy.hearing_evidence = hearing_evidence and math.isfinite(scenario.fleet.comm_range_m)
+    policy.hearing_evidence = hearing_evidence and LISTENING != "none" and math.isfinite(scenario.fleet.comm_range_m)
+    policy.tracks_from_slots = LISTENING == "heard"
     scan = plan_scan(scenario)
     m = scenario.fleet.vehicles
     vehicles = [Vehicle(i + 1, scenario) for i in range(m)]

@@ -47,9 +47,9 @@ class Silence:
         return len(self.t_s)
 
 
-def silence_from_track(t_s, xyz_m, heard_t_s, *, slot_s: float) -> Silence:
+def silence_from_track(t_s, xyz_m, heard_t_s, *, slot_s: float, quiet_s: float | None = None) -> Silence:
     """The slots of a listening track (times (N,), positions (N, 3)) at which this phone was not
-    heard (no heard slot within half a slot)."""
+    heard: no heard slot within ``quiet_s`` [s] (default half a slot, i.e. not that slot)."""
     t = np.asarray(t_s, float).reshape(-1)
     xyz = np.asarray(xyz_m, float).reshape(-1, 3)
     heard = np.sort(np.asarray(heard_t_s, float).reshape(-1))
@@ -57,7 +57,7 @@ def silence_from_track(t_s, xyz_m, heard_t_s, *, slot_s: float) -> Silence:
         return Silence(t, xyz)
     k = np.clip(np.searchsorted(heard, t), 1, len(heard) - 1) if len(heard) > 1 else np.zeros(len(t), int)
     near = np.minimum(np.abs(heard[k] - t), np.abs(heard[np.maximum(k - 1, 0)] - t))
-    quiet = near > 0.5 * slot_s
+    quiet = near > (0.5 * slot_s if quiet_s is None else quiet_s)
     return Silence(t[quiet], xyz[quiet])
 
 

@@ -78,6 +78,12 @@ AMBIGUITY_SETTLED_MASS = 0.01
 # -4.2 +- 4.0 s. None: off.
 SIDEWAYS_LOOK_FRACTION = 0.25
 TRACK_STEP_SLOTS = 10  # listening tracks are kept every this many slots (0.25 s, 6 m at 25 m/s)
+# A caller with no listening track of its own (the daemon: a companion reports only the slots it
+# heard) sets ``tracks_from_slots``: every slot heard, of any phone, says where that vehicle
+# listened, so the other phones were silent there. A lost RSSI batch (at most 12 entries, 255 ms)
+# must not read as silence, so with these tracks a phone counts as silent only where it was not
+# heard for this long either side.
+SLOT_TRACK_QUIET_S = 0.6
 
 
 def _sideways(centre: np.ndarray, radius: float, starts: np.ndarray, unresolved: int) -> tuple[np.ndarray, float]:
@@ -214,6 +220,7 @@ class SearchPolicy:
         # silences of the recorded tracks (ingest_track) go to the estimator; measured on missions
         # (docs/readme/localization.md): more people located, sooner
         self.hearing_evidence = math.isfinite(scenario.fleet.comm_range_m)
+        self.tracks_from_slots = False  # see SLOT_TRACK_QUIET_S
 
     # -- data in ---------------------------------------------------------------------------
     def ingest(self, slots: SlotBatch) -> None:
@@ -227,6 +234,11 @@ class SearchPolicy:
             p.n_slots += len(part)
             p.last_slot_t_s = max(p.last_slot_t_s, float(np.max(part.t_s)))
             p.dirty = True
+        if self.tracks_from_slots:
+            for v in np.unique(slots.vehicle):
+                mine = slots.vehicle == v
+                t, first = np.unique(slots.t_s[mine], return_index=True)
+                self.ingest_track(int(v), t, slots.xyz_m[mine][first])
 
     def ingest_track(self, vehicle: int, t_s, xyz_m) -> None:
         """Record where ``vehicle`` listened: slot times (N,) [s] and positions (N, 3) [m, z = height
@@ -263,7 +275,8 @@ class SearchPolicy:
             if len(parts) > 1:
                 self._tracks[v] = parts = [(np.concatenate([a for a, _ in parts]), np.vstack([b for _, b in parts]))]
             t, xyz = parts[0]
-            s = silence_from_track(t, xyz, heard.t_s[heard.vehicle == v], slot_s=self.scenario.channel.slot_s)
+            s = silence_from_track(t, xyz, heard.t_s[heard.vehicle == v], slot_s=self.scenario.channel.slot_s,
+                                   quiet_s=SLOT_TRACK_QUIET_S if self.tracks_from_slots else None)
             ts.append(s.t_s)
             xs.append(s.xyz_m)
         return Silence(np.concatenate(ts), np.vstack(xs))

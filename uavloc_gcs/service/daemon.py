@@ -147,6 +147,8 @@ class Daemon:
         self.policy = policy
         if hasattr(policy, "look_flown"):
             policy.look_reports = True  # looks are judged from when the vehicle really passed them
+            # where each vehicle listened is known only from the slots it heard (SLOT_TRACK_QUIET_S)
+            policy.tracks_from_slots = True
         self.store: Store | None = None
         self.epoch_unix_s: float | None = None
         self._slots_in: list[SlotBatch] = []

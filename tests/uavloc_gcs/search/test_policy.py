@@ -259,6 +259,26 @@ def test_without_look_reports_a_look_past_its_time_is_judged_even_if_a_replan_fo
     assert st.looks == 1  # the first look, judged R/V after its planned time
 
 
+def test_tracks_from_slots_make_silences_only_where_a_phone_was_unheard_for_a_while(small):
+    """The daemon knows where a vehicle listened only from the slots it heard: phone 78 heard for
+    4 s, phone 77 only in its first second. 77 is silent where 78 was heard more than
+    SLOT_TRACK_QUIET_S after 77's last slot -- not in a gap as short as a lost batch."""
+    from uavloc_gcs.observations import SlotBatch
+
+    slot = small.channel.slot_s
+    t78 = np.arange(0.0, 4.0, slot)
+    t77 = np.concatenate([np.arange(0.0, 1.0, slot), [1.2]])  # 1.0-1.2 s: a lost batch, not a silence
+    t = np.concatenate([t78, t77])
+    xyz = np.column_stack([25.0 * t, np.full(len(t), 50.0), np.full(len(t), 100.0)])
+    policy = SearchPolicy(small, time_limit_s=20.0, max_iter=5)
+    policy.tracks_from_slots = True
+    policy.ingest(SlotBatch.from_columns(t, [1] * len(t), xyz, [78] * len(t78) + [77] * len(t77),
+                                         [-80.0] * len(t), [10] * len(t)))
+    quiet = policy._silence(policy._people[77]).t_s
+    assert len(quiet) and quiet.min() > 1.2 + pol.SLOT_TRACK_QUIET_S and quiet.max() <= 4.0
+    assert len(policy._silence(policy._people[78]).t_s) == 0  # heard wherever the vehicle listened
+
+
 def _with_energy(states, energies):
     return [VehicleState(s.id, s.start_xy_m, s.home_xy_m, e) for s, e in zip(states, energies)]
 
