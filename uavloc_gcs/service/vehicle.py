@@ -48,6 +48,7 @@ class Telemetry:
     unix_s: float | None = None  # the vehicle's clock (SYSTEM_TIME), simulated time under speed-up
     unix_wall_s: float | None = None  # daemon wall clock when unix_s arrived
     mission_ours: bool = True  # MISSION_CURRENT describes the mission we uploaded last (see VehicleAgent)
+    landed_state: int | None = None  # EXTENDED_SYS_STATE's MAV_LANDED_STATE, where the autopilot sends it
     wall_s: float = -math.inf
     messages: int = 0
 
@@ -117,6 +118,9 @@ class VehicleAgent:
             t.autopilot = msg.autopilot
             t.armed = bool(msg.base_mode & MAV_MODE_FLAG_SAFETY_ARMED)
             t.mode = self.flavour.mode_name(msg.custom_mode, msg.type)
+        elif kind == "EXTENDED_SYS_STATE":
+            if msg.landed_state != mavlink.MAV_LANDED_STATE_UNDEFINED:
+                t.landed_state = int(msg.landed_state)
         elif kind == "SYS_STATUS":
             if msg.battery_remaining >= 0:
                 t.battery_pct = float(msg.battery_remaining)
@@ -190,6 +194,11 @@ class VehicleAgent:
         return float(e), float(n)
 
     def on_ground(self) -> bool:
+        # Disarmed and on the ground by the autopilot's own word, whatever the altitude says: PX4
+        # SITL measured landed, disarmed and "on ground" at 2.2 m relative altitude (its height
+        # estimate drifted in flight), which the altitude rule alone took for still airborne.
+        if not self.tel.armed and self.tel.landed_state == mavlink.MAV_LANDED_STATE_ON_GROUND:
+            return True
         alt = self.tel.rel_alt_m
         return math.isfinite(alt) and alt < LANDED_ALT_M and (not self.tel.armed or self.tel.ground_speed_m_s < 0.5)
 

@@ -75,3 +75,23 @@ def test_the_mission_clock_follows_the_vehicles_boot_clock_from_one_anchor():
     assert a.tel.unix_s == 1_800_000_049.0 and a.tel.unix_wall_s == 110.2
     link.feed(mav.MAVLink_global_position_int_message(69_500, 0, 0, 0, 0, 0, 0, 0, 0))
     assert a.tel.unix_s == 1_800_000_049.5  # positions carry the boot clock too
+
+
+def test_a_vehicle_the_autopilot_says_landed_and_disarmed_is_on_the_ground_at_any_altitude():
+    """Measured on PX4 SITL: landed ("Disarmed by landing"), EXTENDED_SYS_STATE on ground, but a
+    relative altitude of 2.2 m from a drifted height estimate; the altitude rule alone kept it
+    airborne and the search ended "returning home, not landed yet"."""
+    link, clock = _Link(), [100.0]
+    a = _agent(link, clock)
+    disarmed = mav.MAVLink_heartbeat_message(2, 12, 29, 67371008, 3, 3)  # the last heartbeat measured
+    link.feed(disarmed)
+    link.feed(mav.MAVLink_global_position_int_message(374304, 426250008, 132829885, 899947, 2201, 2, -2, 3, 35594))
+    assert not a.on_ground()  # 2.2 m, and the autopilot has not said where it is
+    link.feed(mav.MAVLink_extended_sys_state_message(0, mav.MAV_LANDED_STATE_IN_AIR))
+    assert not a.on_ground()
+    link.feed(mav.MAVLink_extended_sys_state_message(0, mav.MAV_LANDED_STATE_ON_GROUND))
+    assert a.on_ground()
+    armed = mav.MAVLink_heartbeat_message(2, 12, 29 | 128, 67371008, 4, 3)
+    link.feed(armed)
+    link.feed(mav.MAVLink_global_position_int_message(374404, 426250008, 132829885, 899947, 2201, 800, 0, 3, 0))
+    assert not a.on_ground()  # armed and moving: the altitude rule decides, as before
