@@ -180,8 +180,9 @@ def truth_check(scenario, people: list[dict]) -> list[tuple[int, float, float, b
     return rows
 
 
-async def _vehicle_state(connection: str, sysid: int, seconds: float) -> tuple[bool, float, float, float]:
-    """(armed, relative altitude m, lat, lon) of a vehicle, heard on its ground-station link."""
+async def _vehicle_state(connection: str, sysid: int, seconds: float) -> tuple[bool, float, float, float, int | None]:
+    """(armed, relative altitude m, lat, lon, MAV_LANDED_STATE or None) of a vehicle, heard on its
+    ground-station link."""
     from uavloc_gcs.link import open_link, set_message_interval
 
     async with await open_link(connection, source_system=246) as link:
@@ -192,12 +193,15 @@ async def _vehicle_state(connection: str, sysid: int, seconds: float) -> tuple[b
             pass
         pos = await link.recv_match(types="GLOBAL_POSITION_INT", source_system=sysid, timeout_s=seconds)
         hb = await link.recv_match(types="HEARTBEAT", source_system=sysid, timeout_s=seconds) or hb
-        return bool(hb.base_mode & 128), pos.relative_alt / 1000.0, pos.lat / 1e7, pos.lon / 1e7
+        ext = await link.recv_match(types="EXTENDED_SYS_STATE", source_system=sysid, timeout_s=3.0)
+        return (bool(hb.base_mode & 128), pos.relative_alt / 1000.0, pos.lat / 1e7, pos.lon / 1e7,
+                None if ext is None else int(ext.landed_state))
 
 
 def landed_and_disarmed(vehicle: Vehicle, timeout_s: float = 60.0) -> tuple[bool, str]:
     """Whether the vehicle is disarmed on the ground within 10 m of its home (it may take a few
-    seconds after landing to disarm)."""
+    seconds after landing to disarm). On the ground: under 1 m relative altitude, or the
+    autopilot's own landed state (PX4 SITL once landed with its height estimate at 2.2 m)."""
     from uavloc_gcs.geo import LocalFrame
 
     s = vehicle.sitl
@@ -205,10 +209,10 @@ def landed_and_disarmed(vehicle: Vehicle, timeout_s: float = 60.0) -> tuple[bool
     state = None
     while time.monotonic() < end:
         state = asyncio.run(_vehicle_state(vehicle.connection, s.sysid, 10.0))
-        armed, alt, lat, lon = state
+        armed, alt, lat, lon, landed = state
         e, n = LocalFrame(s.home[0], s.home[1]).to_local(lat, lon)
-        if not armed and alt < 1.0 and math.hypot(e, n) < 10.0:
-            return True, f"disarmed at {math.hypot(e, n):.1f} m from home, {alt:.1f} m up"
+        if not armed and (alt < 1.0 or landed == 1) and math.hypot(e, n) < 10.0:  # 1: MAV_LANDED_STATE_ON_GROUND
+            return True, f"disarmed at {math.hypot(e, n):.1f} m from home, {alt:.1f} m up, landed state {landed}"
         time.sleep(2.0)
     return False, f"not home and disarmed: {state}"
 
