@@ -55,7 +55,8 @@ def access_radius_m(
     cov = a @ estimate.covariance @ a.T + state_noise(estimate.process_noise_m2_s3, dt) if moving \
         else estimate.covariance
     cov = cov if moving else cov[:2, :2] + np.eye(2) * (estimate.max_speed_m_s * abs(dt) / K95) ** 2
-    info_now = np.linalg.pinv(0.5 * (cov + cov.T), rcond=1e-12)
+    cov = 0.5 * (cov + cov.T)
+    info_now = np.linalg.pinv(cov, rcond=1e-12)
 
     rho = np.linspace(0.0, reach * 0.98, offsets)  # (O,)
     psi = np.linspace(0.0, 2.0 * np.pi, headings, endpoint=False)  # (H,)
@@ -86,6 +87,6 @@ def access_radius_m(
         # (where a little information suffices) flies out of hearing of a person a few metres off:
         # measured in `uavloc bench looks` (SITL sparse scan), a static person fitted with
         # 0.28 m/s was looked at from 107 m of the prediction, 124 m of the truth, twice, unheard.
-        r_pred = K95 * math.sqrt(max(float(np.linalg.eigvalsh(0.5 * (cov[:2, :2] + cov[:2, :2].T))[-1]), 0.0))
+        r_pred = K95 * math.sqrt(max(float(np.linalg.eigvalsh(cov[:2, :2])[-1]), 0.0))
         ok &= rho <= reach * 0.98 - r_pred
     return float(rho[ok].max()) if ok.any() else 0.0
