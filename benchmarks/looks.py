@@ -23,7 +23,13 @@ replanning, return) on paired worlds with each variant of the rules that place a
 - ``heard-tracks``: the estimator's silences only where the vehicle heard some other phone, which
   is all the daemon knows of where it listened (``missionsim.LISTENING = "heard"``; by default the
   whole flight);
-- ``no-silences``: no silences at all (``missionsim.LISTENING = "none"``).
+- ``no-silences``: no silences at all (``missionsim.LISTENING = "none"``);
+- ``bounds-not-in-cov``: the hearing constraints move and reweigh candidates but add no
+  information to their covariance (``estimation.estimate.BOUNDS_IN_COVARIANCE = False``);
+- ``no-bounded-mirror``: a candidate the hearing constraints moved gets no mirror starts of its
+  own (``estimation.estimate.MIRROR_AFTER_BOUNDS = False``);
+- ``bound-cap``: the hearing constraints shrink a candidate's standard deviation by at most 1.5x
+  in any direction (``estimation.estimate.BOUND_SHRINK_MAX = 1.5``; by default no cap).
 
 Printed per variant: people heard and located, located inside their own 95 % radius, mean
 completion time with its 95 % CI, and the ratio to the clairvoyant plan's completion time (the
@@ -65,6 +71,9 @@ SWITCHES = {
     "edge-reach": ("access", "REACH_WHOLE_CIRCLE", False),
     "heard-tracks": ("missionsim", "LISTENING", "heard"),
     "no-silences": ("missionsim", "LISTENING", "none"),
+    "bounds-not-in-cov": ("estimate", "BOUNDS_IN_COVARIANCE", False),
+    "no-bounded-mirror": ("estimate", "MIRROR_AFTER_BOUNDS", False),
+    "bound-cap": ("estimate", "BOUND_SHRINK_MAX", 1.5),
 }
 VARIANTS = ("default", *SWITCHES)
 _SHIPPED: dict = {}  # the switches' shipped values, read once per worker before any change
@@ -76,11 +85,11 @@ def _fly(job):
     variant, scenario_file, people, seed, run = job
     from sim_link.experiments import missionsim
     from sim_link.experiments.paper import REFERENCE, ExperimentConfig, Task, run_task, world_seed
-    from uavloc_gcs.estimation import access
+    from uavloc_gcs.estimation import access, estimate
     from uavloc_gcs.scenario import load_scenario
     from uavloc_gcs.search import policy, targets
 
-    modules = {"policy": policy, "targets": targets, "access": access, "missionsim": missionsim}
+    modules = {"policy": policy, "targets": targets, "access": access, "missionsim": missionsim, "estimate": estimate}
     if not _SHIPPED:
         _SHIPPED.update({(m, name): getattr(modules[m], name) for m, name, _ in SWITCHES.values()})
     for (m, name), value in _SHIPPED.items():

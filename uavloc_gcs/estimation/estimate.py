@@ -6,8 +6,9 @@ across the slots' principal line, keeps the distinct local optima as candidates,
 
 - ``radius95_m``: the radius of the circle about the estimate holding 95 % of the posterior
   (Laplace approximation, information deflated when the residuals show correlated shadowing or a
-  misfit). When a mirror candidate holds more than 5 % of the posterior mass the estimate is
-  ``ambiguous`` and the radius reaches over the mirror, because a 95 % circle must.
+  misfit). When a mirror candidate holds more than 5 % of the posterior mass the radius reaches
+  over it, because a 95 % circle must, and if it lies outside the best candidate's own circle the
+  estimate is ``ambiguous`` (a look has to tell them apart).
   ``mode_radius95_m`` is the radius of the best candidate alone.
 - ``annulus_bound_m``: the paper's annulus-intersection bound (:mod:`.annulus`).
 
@@ -58,6 +59,10 @@ PROBE_MERGE_M = 3.0
 # with them: 236/240 located, 95.8 % inside their radius, 172 s; without them the small-scenario
 # mission test no longer located a static person and runs were slower (4 runs: 189 vs 175 s).
 BOUNDS_IN_COVARIANCE = True
+BOUND_SHRINK_MAX: float | None = None  # see _capped; None: no cap
+# Whether a mode the hearing constraints moved gets its own mirror starts (bench looks variant
+# "no-bounded-mirror" switches it off; measured in docs/readme/localization.md).
+MIRROR_AFTER_BOUNDS = True
 MIRROR_PRIOR_SKIP = 12.0  # extra maneuver-prior cost (chi^2 units) beyond which a one-pass mirror is not tried
 
 
@@ -110,7 +115,8 @@ class Estimate:
         q = self.process_noise_m2_s3
         pos, r = _predict_mode(self.position_xy_m, self.velocity_m_s, self.covariance, self.mode_radius95_m,
                                t_s - self.t_ref_s, self.max_speed_m_s, self.model_motion, q)
-        if self.ambiguous and self.mirror is not None:
+        m = self.mirror
+        if m is not None and (self.ambiguous or m.relative_likelihood / (1 + m.relative_likelihood) > AMBIGUITY_MASS):
             mpos, mr = _predict_mode(self.mirror.position_xy_m, self.mirror.velocity_m_s, self.mirror.covariance,
                                      self.mirror.radius95_m, t_s - self.t_ref_s, self.max_speed_m_s,
                                      self.model_motion, q)
@@ -236,10 +242,15 @@ def estimate_emitter(
         m_cov = m_cov + extra
         rel = float(math.exp(min(m_logmass - logmass, 0.0)))
         mirror = Candidate(m_pos, m_vel, rel, _mode_radius(m_cov, moving, max_speed_m_s, t_ref - data.t_c), m_cov)
-    ambiguous = mirror is not None and mirror.relative_likelihood / (1 + mirror.relative_likelihood) > AMBIGUITY_MASS
+    # a second mode holding more than AMBIGUITY_MASS must be inside the 95 % circle; it is an
+    # alternative a look has to rule out (``ambiguous``) only when it lies outside the estimate's
+    # own circle: the hearing constraints can split one mode into near twins a few metres apart
     radius = mode_r
-    if ambiguous:
-        radius = max(mode_r, float(np.linalg.norm(mirror.position_xy_m - pos)) + mirror.radius95_m)
+    ambiguous = False
+    if mirror is not None and mirror.relative_likelihood / (1 + mirror.relative_likelihood) > AMBIGUITY_MASS:
+        apart = float(np.linalg.norm(mirror.position_xy_m - pos))
+        radius = max(mode_r, apart + mirror.radius95_m)
+        ambiguous = apart > mode_r
     if math.isfinite(reach):
         radius, mode_r = min(radius, reach), min(mode_r, reach)
     bound = annulus_bound_m(pos, t_ref, data.t_s, data.a_xy, data.h_m, data.y + beta, data.n_samples,
@@ -274,30 +285,47 @@ def _distinct_modes(problem: Problem, starts: list[np.ndarray]) -> list[tuple[np
     iterations; one that is by then next to a known optimum is dropped (it was converging there).
     """
     modes = [problem.fit(starts[0])]
+    _fit_more(problem, modes, list(starts[1:]) + _mirror_starts(problem, modes[0][0]))
+    out = _merged(modes)
+    if not out:
+        raise EstimationError("the fit diverged from every start point")
+    return out
+
+
+def _mirror_starts(problem: Problem, theta: np.ndarray) -> list[np.ndarray]:
+    """``theta`` mirrored across every straight leg (or the slots' principal line) and, with the
+    maneuver model, one pass alone mirrored where that needs no many-sigma maneuver."""
     legs = leg_lines(problem.data)
     if not legs:
         center, direction, _ = principal_line(problem.data)
         legs = [(center, direction, problem.data.t_c)]
-    more = list(starts[1:]) + [_mirror_state(problem, modes[0][0], c, d, t - problem.data.t_c) for c, d, t in legs]
+    out = [_mirror_state(problem, theta, c, d, t - problem.data.t_c) for c, d, t in legs]
     if problem.passes is not None:  # maneuver model: also mirror one pass alone, the others kept in place
-        base = _offset_prior_cost(problem, modes[0][0])
+        base = _offset_prior_cost(problem, theta)
         for c, d, t in legs:
-            s = _mirror_one_pass(problem, modes[0][0], c, d, t)
+            s = _mirror_one_pass(problem, theta, c, d, t)
             # a mirror that needs a many-sigma maneuver cannot hold posterior mass: not worth a fit
             if _offset_prior_cost(problem, s) - base < MIRROR_PRIOR_SKIP:
-                more.append(s)
-    for s in more:
+                out.append(s)
+    return out
+
+
+def _fit_more(problem: Problem, modes: list[tuple[np.ndarray, float]], starts: list[np.ndarray]) -> None:
+    """Fit each start a few iterations; one that is by then next to a known mode is dropped (it
+    was converging there), the others are fitted to the end and appended to ``modes``."""
+    for s in starts:
         theta, cost = problem.fit(s, max_nfev=PROBE_NFEV)
         if any(np.linalg.norm(theta[:2] - m[0][:2]) < PROBE_MERGE_M for m in modes):
             continue
         modes.append(problem.fit(theta))
-    modes.sort(key=lambda f: f[1])
+
+
+def _merged(modes: list[tuple[np.ndarray, float]]) -> list[tuple[np.ndarray, float]]:
+    """Finite modes, best first, duplicates (< 1 m apart) removed."""
     out: list[tuple[np.ndarray, float]] = []
-    for theta, cost in modes:
+    for theta, cost in sorted(modes, key=lambda f: f[1]):
         if np.all(np.isfinite(theta)) and all(np.linalg.norm(theta[:2] - m[0][:2]) > 1.0 for m in out):
             out.append((theta, cost))
-    if not out:
-        raise EstimationError("the fit diverged from every start point")
     return out
 
 
@@ -306,18 +334,19 @@ def _refit_bounded(problem: Problem, modes: list[tuple[np.ndarray, float]]) -> l
     reach of a slot heard, or within reach of a silence, moves or loses its posterior mass), best
     first, duplicates (< 1 m apart) merged."""
     out = []
+    moved = []
     for theta, _ in modes:
         r = problem.residuals(theta)
         if np.any(r[len(r) - len(problem.bounds):] > 0):
             out.append(problem.fit(theta))
+            moved.append(out[-1][0])
         else:
             out.append((theta, float(r @ r)))
-    out.sort(key=lambda f: f[1])
-    kept: list[tuple[np.ndarray, float]] = []
-    for theta, cost in out:
-        if np.all(np.isfinite(theta)) and all(np.linalg.norm(theta[:2] - m[0][:2]) > 1.0 for m in kept):
-            kept.append((theta, cost))
-    return kept or out[:1]
+    # a mode the constraints moved (e.g. off the track, where an unconstrained fit of an edge
+    # pass can sit) has a mirror of its own that no unconstrained start reached
+    if moved and MIRROR_AFTER_BOUNDS:
+        _fit_more(problem, out, _mirror_starts(problem, min(out, key=lambda f: f[1])[0]))
+    return _merged(out) or sorted(out, key=lambda f: f[1])[:1]
 
 
 def _power_contradicted(problem: Problem, best: tuple[np.ndarray, float], factor: float) -> bool:
@@ -376,12 +405,30 @@ def _laplace(problem: Problem, theta: np.ndarray, cost: float, factor: float) ->
     info = problem.data_information(theta) / factor + problem.prior_information()
     if problem.bounds is not None and BOUNDS_IN_COVARIANCE:
         jb = problem.jacobian(theta)[-len(problem.bounds):]
-        info = info + jb.T @ jb / factor  # the same deflation: a misfit state makes them binding
+        extra = jb.T @ jb / factor  # the same deflation: a misfit state makes them binding
+        if BOUND_SHRINK_MAX is not None:
+            extra = _capped(info, extra, BOUND_SHRINK_MAX)
+        info = info + extra
     cov = _inverse(info)
     data_cost = float(np.sum(problem.data_residuals(theta) ** 2))
     prior_cost = cost - data_cost
     sign, logdet = np.linalg.slogdet(cov)
     return cov, -0.5 * (data_cost / factor + prior_cost) + 0.5 * (logdet if sign > 0 else -np.inf)
+
+
+def _capped(info: np.ndarray, extra: np.ndarray, shrink: float) -> np.ndarray:
+    """``extra`` information limited so that, in every direction, it shrinks the standard
+    deviation given by ``info`` by at most the factor ``shrink``: the binding rows are hundreds
+    of near-copies of one one-sided constraint, and a one-sided constraint truncates the
+    posterior, it does not make it as narrow as their count would say."""
+    w, v = np.linalg.eigh(0.5 * (info + info.T))
+    if np.min(w) <= 0:
+        return extra
+    half = v @ np.diag(1.0 / np.sqrt(w)) @ v.T  # info^(-1/2)
+    d, u = np.linalg.eigh(half @ extra @ half)
+    d = np.clip(d, 0.0, shrink**2 - 1.0)
+    root = v @ np.diag(np.sqrt(w)) @ v.T
+    return root @ (u @ np.diag(d) @ u.T) @ root
 
 
 def _inverse(info: np.ndarray) -> np.ndarray:
