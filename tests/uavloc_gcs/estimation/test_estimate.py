@@ -288,3 +288,15 @@ def test_a_second_mode_inside_the_estimates_own_circle_is_covered_not_ambiguous(
         if not e.ambiguous:  # covered: the radius reaches over the twin's own circle
             assert e.radius95_m >= apart + m.radius95_m - 1e-9
     assert kinds == {True, False}  # the example holds one of each
+
+
+def test_capped_constraint_information_shrinks_a_deviation_at_most_by_the_factor():
+    from uavloc_gcs.estimation.estimate import _capped
+
+    info = np.diag([4.0, 1.0])  # standard deviations 0.5 and 1
+    extra = np.diag([400.0, 0.0])  # hundreds of binding rows along x
+    got = _capped(info, extra, 1.5)
+    sd = np.sqrt(np.diag(np.linalg.inv(info + got)))
+    assert sd == pytest.approx([0.5 / 1.5, 1.0])
+    small = np.diag([1.0, 0.0])  # under the cap: kept as it is
+    assert _capped(info, small, 1.5) == pytest.approx(small)
