@@ -202,6 +202,7 @@ def landed_and_disarmed(vehicle: Vehicle, timeout_s: float = 60.0) -> tuple[bool
     """Whether the vehicle is disarmed on the ground within 10 m of its home (it may take a few
     seconds after landing to disarm). On the ground: under 1 m relative altitude, or the
     autopilot's own landed state (PX4 SITL once landed with its height estimate at 2.2 m)."""
+    from uavloc_gcs.dialect import mavlink
     from uavloc_gcs.geo import LocalFrame
 
     s = vehicle.sitl
@@ -211,7 +212,7 @@ def landed_and_disarmed(vehicle: Vehicle, timeout_s: float = 60.0) -> tuple[bool
         state = asyncio.run(_vehicle_state(vehicle.connection, s.sysid, 10.0))
         armed, alt, lat, lon, landed = state
         e, n = LocalFrame(s.home[0], s.home[1]).to_local(lat, lon)
-        if not armed and (alt < 1.0 or landed == 1) and math.hypot(e, n) < 10.0:  # 1: MAV_LANDED_STATE_ON_GROUND
+        if not armed and (alt < 1.0 or landed == mavlink.MAV_LANDED_STATE_ON_GROUND) and math.hypot(e, n) < 10.0:
             return True, f"disarmed at {math.hypot(e, n):.1f} m from home, {alt:.1f} m up, landed state {landed}"
         time.sleep(2.0)
     return False, f"not home and disarmed: {state}"

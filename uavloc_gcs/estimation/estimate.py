@@ -79,6 +79,12 @@ class Candidate:
     radius95_m: float
     covariance: np.ndarray = field(repr=False)  # 4x4 (x, y, vx, vy)
 
+    @property
+    def holds_mass(self) -> bool:
+        """Whether it holds more than AMBIGUITY_MASS of the two candidates' posterior mass (then
+        the 95 % circle must reach over it)."""
+        return self.relative_likelihood / (1 + self.relative_likelihood) > AMBIGUITY_MASS
+
 
 @dataclass(frozen=True)
 class Estimate:
@@ -119,7 +125,7 @@ class Estimate:
         pos, r = _predict_mode(self.position_xy_m, self.velocity_m_s, self.covariance, self.mode_radius95_m,
                                t_s - self.t_ref_s, self.max_speed_m_s, self.model_motion, q)
         m = self.mirror
-        if m is not None and (self.ambiguous or m.relative_likelihood / (1 + m.relative_likelihood) > AMBIGUITY_MASS):
+        if m is not None and (self.ambiguous or m.holds_mass):
             mpos, mr = _predict_mode(m.position_xy_m, m.velocity_m_s, m.covariance, m.radius95_m,
                                      t_s - self.t_ref_s, self.max_speed_m_s, self.model_motion, q)
             r = max(r, float(np.linalg.norm(mpos - pos)) + mr)
@@ -249,7 +255,7 @@ def estimate_emitter(
     # own circle: the hearing constraints can split one mode into near twins a few metres apart
     radius = mode_r
     ambiguous = False
-    if mirror is not None and mirror.relative_likelihood / (1 + mirror.relative_likelihood) > AMBIGUITY_MASS:
+    if mirror is not None and mirror.holds_mass:
         apart = float(np.linalg.norm(mirror.position_xy_m - pos))
         radius = max(mode_r, apart + mirror.radius95_m)
         ambiguous = apart > mode_r

@@ -2,8 +2,8 @@
 the search needs (upload, download, start, switch mission, return home).
 
 Telemetry is kept from the raw messages (HEARTBEAT, GLOBAL_POSITION_INT, SYS_STATUS,
-MISSION_CURRENT, SYSTEM_TIME, EXTENDED_SYS_STATE) in the link's receive path; RSSI batches are decoded into
-:class:`SlotBatch` on the mission clock and handed to ``on_slots``. The protocol exchanges
+MISSION_CURRENT, SYSTEM_TIME, EXTENDED_SYS_STATE) in the link's receive path; RSSI batches are
+decoded into :class:`SlotBatch` on the mission clock and handed to ``on_slots``. The protocol exchanges
 themselves (mission transfer, commands with COMMAND_ACK) are the link layer's.
 """
 
