@@ -64,6 +64,10 @@ from uavloc_gcs.observations import SlotBatch
 from uavloc_gcs.scenario import load_scenario
 
 from ._progress import Progress
+from .looks import SWITCHES
+
+# the estimator's switches of bench looks' variants: name -> (estimate module attribute, value)
+ESTIMATOR_SWITCHES = {k: (attr, value) for k, (module, attr, value) in SWITCHES.items() if module == "estimate"}
 
 CENTER = np.array([560.0, 320.0])
 LANE_SPACING_M = 100.0
@@ -132,6 +136,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "estimator's default)")
     parser.add_argument("--scenario", default="paper", metavar="FILE.toml",
                         help="channel and fleet of this scenario (or a shipped one: paper, small; default paper)")
+    parser.add_argument("--switch", choices=sorted(ESTIMATOR_SWITCHES), action="append", default=[],
+                        help="run with this estimator switch of `uavloc bench looks --variants` turned")
 
 
 def _leg(start, end, t0, speed, slot_s, alt):
@@ -354,8 +360,12 @@ def run_maneuver_family(fam: ManeuverFamily, runs: int, seed: int, sc, bar=None,
 
 
 def main(args: argparse.Namespace) -> int:
+    from uavloc_gcs.estimation import estimate as estimate_module
     from uavloc_gcs.examples import scenario_path
 
+    for name in args.switch:
+        setattr(estimate_module, *ESTIMATOR_SWITCHES[name])
+        print(f"estimator switch {name}: estimate.{ESTIMATOR_SWITCHES[name][0]} = {ESTIMATOR_SWITCHES[name][1]!r}")
     sc = load_scenario(scenario_path(args.scenario))
     fams = [f for f in FAMILIES if not args.family or any(s in f.name for s in args.family)]
     mfams = [f for f in MANEUVER_FAMILIES if not args.family or any(s in f.name for s in args.family)]

@@ -74,6 +74,7 @@ SWITCHES = {
     "bounds-not-in-cov": ("estimate", "BOUNDS_IN_COVARIANCE", False),
     "no-bounded-mirror": ("estimate", "MIRROR_AFTER_BOUNDS", False),
     "bound-cap": ("estimate", "BOUND_SHRINK_MAX", 1.5),
+    "turn-mixture": ("estimate", "TURN_MIXTURE", True),
 }
 VARIANTS = ("default", *SWITCHES)
 _SHIPPED: dict = {}  # the switches' shipped values, read once per worker before any change

@@ -36,6 +36,16 @@ def test_bench_help_lists_benchmarks_and_their_options():
     assert out.returncode == 2 and "invalid choice" in out.stderr
 
 
+def test_bench_localize_runs_with_an_estimator_switch_and_names_it():
+    cmd = [sys.executable, "-m", "uavloc_gcs", "bench", "localize", "--runs", "2", "--family", "two parallel, static, NM"]
+    out = subprocess.run(cmd + ["--switch", "turn-mixture"], capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    assert "estimator switch turn-mixture: estimate.TURN_MIXTURE = True" in out.stdout
+    assert "two parallel, static, NM" in out.stdout
+    out = subprocess.run(cmd + ["--switch", "nope"], capture_output=True, text=True)
+    assert out.returncode == 2 and "turn-mixture" in out.stderr
+
+
 def test_startup_does_not_load_the_simulator_or_scipy():
     code = ("import sys; from uavloc_gcs.cli import build_parser; build_parser(); "
             "print(sorted(m for m in ('sim_link.world', 'scipy.optimize', 'benchmarks.localize') if m in sys.modules))")

@@ -66,6 +66,15 @@ BOUND_SHRINK_MAX: float | None = None
 # Whether a mode the hearing constraints moved gets its own mirror starts (bench looks variant
 # "no-bounded-mirror" switches it off; measured in docs/readme/experiments.md).
 MIRROR_AFTER_BOUNDS = True
+# Whether a second motion model joins the estimate: that the person turned since the oldest data
+# (prior probability 1 - exp(-lag / maneuver time)), in which the old passes tie the present state
+# only through the speed bound (q = 3 v_max^2 / lag: a deviation of v_max * lag after the lag).
+# The Gaussian maneuver noise alone has light tails: a person who turned 100 s ago is several of
+# its sigmas off the line, and the mirror the turn leads to loses all its mass. Measured (bench
+# localize --switch turn-mixture, 100 runs, docs/readme/experiments.md): small area, lanes + look
+# 0.79 -> 0.87 covered but the median radius 19 -> 55 m, lanes + look 0.95 -> 0.98, and the
+# solve 2.5-3x slower; short of 93 %, so off.
+TURN_MIXTURE = False
 MIRROR_PRIOR_SKIP = 12.0  # extra maneuver-prior cost (chi^2 units) beyond which a one-pass mirror is not tried
 
 
@@ -194,8 +203,89 @@ def estimate_emitter(
         return _not_enough(emitter, slots, t_ref, last, max_speed_m_s, moving)
     q = intensity_m2_s3(max_speed_m_s, maneuver_time_s) if moving else 0.0
     t_anchor = min(max(t_ref, float(data.t_s.min())), float(data.t_s.max()))
-    problem = Problem(data, moving, bool(estimate_tx_power), float(max_speed_m_s),
-                      TX_PRIOR_SIGMA_DB * channel.nepers_per_db, find_passes(data.t_s, t_anchor, q))
+    main = _solve(data, channel, q, t_anchor, moving, bool(estimate_tx_power), float(max_speed_m_s),
+                  previous, silence)
+    if not main.problem.tx and _power_contradicted(main.problem, main.modes[0], main.factor):
+        log.info("emitter %d: the data contradict the nominal transmit power; estimating it", emitter)
+        return estimate_emitter(slots, channel, max_speed_m_s=max_speed_m_s, t_ref_s=t_ref_s,
+                                model_motion=model_motion, estimate_tx_power=True, previous=previous,
+                                maneuver_time_s=maneuver_time_s, silence=silence)
+    solutions = [(main, 0.0)]
+    lag = t_anchor - float(data.t_s.min())
+    if TURN_MIXTURE and main.problem.passes is not None and lag > 0 and math.isfinite(maneuver_time_s):
+        # the person may have turned since the oldest data: a second model in which the old
+        # passes tie the present state only through the speed bound (see TURN_MIXTURE)
+        p_turn = 1.0 - math.exp(-lag / maneuver_time_s)
+        q_turn = 3.0 * max_speed_m_s**2 / lag
+        if q_turn > q and p_turn > 0:
+            turned = _solve(data, channel, q_turn, t_anchor, moving, main.problem.tx,
+                            float(max_speed_m_s), previous, silence)
+            solutions = [(main, math.log1p(-p_turn)), (turned, math.log(p_turn))]
+    entries = _candidates(solutions, moving, t_ref - data.t_c)
+    top = entries[0]
+    sol, theta, pos, vel, cov, logmass = top.solution, top.theta, top.pos, top.vel, top.cov, top.logmass
+    problem, factor = sol.problem, sol.factor
+    # beyond the data (t_ref outside their span) the person may have maneuvered since the anchor
+    extra = state_noise(sol.q, t_ref - t_anchor)
+    cov = cov + extra
+    q = sol.q
+    beta = theta[problem.beta_index] if problem.tx else 0.0
+    mode_r = _mode_radius(cov, moving, max_speed_m_s, t_ref - data.t_c)
+    # where the phone was heard at all bounds everything, e.g. the lateral error right under a track
+    reach = reach_bound_m(pos, t_ref, data.t_s, data.a_xy, data.h_m, channel.comm_range_m, max_speed_m_s)
+    mirror = None
+    if len(entries) > 1:
+        other = entries[1]
+        m_cov = other.cov + state_noise(other.solution.q, t_ref - t_anchor)
+        rel = float(math.exp(min(other.logmass - logmass, 0.0)))
+        mirror = Candidate(other.pos, other.vel, rel, _mode_radius(m_cov, moving, max_speed_m_s, t_ref - data.t_c),
+                           m_cov)
+    # a second mode holding more than AMBIGUITY_MASS must be inside the 95 % circle; it is an
+    # alternative a look has to rule out (``ambiguous``) only when it lies outside the estimate's
+    # own circle: the hearing constraints can split one mode into near twins a few metres apart
+    radius = mode_r
+    ambiguous = False
+    if mirror is not None and mirror.holds_mass:
+        apart = float(np.linalg.norm(mirror.position_xy_m - pos))
+        radius = max(mode_r, apart + mirror.radius95_m)
+        ambiguous = apart > mode_r
+    if math.isfinite(reach):
+        radius, mode_r = min(radius, reach), min(mode_r, reach)
+    bound = annulus_bound_m(pos, t_ref, data.t_s, data.a_xy, data.h_m, data.y + beta, data.n_samples,
+                            channel.log_range_sigma, max_speed_m_s)
+    return Estimate(
+        emitter, "ok", t_ref, pos, vel, cov, radius, bound, ambiguous, mirror, len(slots), last,
+        beta / channel.nepers_per_db, mode_r, float(max_speed_m_s), moving, factor, q,
+    )
+
+
+@dataclass
+class _Solution:
+    """The modes of one motion model: its problem (hearing bounds included), modes best first by
+    Laplace mass, their (covariance, log mass), and the model's maneuver intensity q."""
+
+    problem: Problem
+    modes: list
+    laplace: list
+    factor: float
+    q: float
+
+
+@dataclass
+class _Entry:
+    solution: _Solution
+    theta: np.ndarray
+    pos: np.ndarray
+    vel: np.ndarray
+    cov: np.ndarray  # 4x4 at t_ref, before the maneuver noise beyond the data
+    logmass: float
+
+
+def _solve(data, channel: ChannelModel, q: float, t_anchor: float, moving: bool, tx: bool, vmax: float,
+           previous: "Estimate | None", silence: Silence | None) -> _Solution:
+    """Every mode of the data under the maneuver intensity q, refitted under the hearing bounds."""
+    problem = Problem(data, moving, tx, vmax, TX_PRIOR_SIGMA_DB * channel.nepers_per_db,
+                      find_passes(data.t_s, t_anchor, q))
     starts = start_points(problem)
     if problem.passes is not None:
         # the CV fit from the best start first: with free pass offsets the maneuver fit has more
@@ -219,54 +309,49 @@ def estimate_emitter(
                                                      else 0.0), data.t_s)
     bounds = build_bounds(data.t_c, t_anchor, data.t_s, heard_xyz, heard_pass, heard_mid, silence,
                           channel.comm_range_m, q,
-                          np.array([m[0][:2] for m in modes]), float(max_speed_m_s), moving)
+                          np.array([m[0][:2] for m in modes]), vmax, moving)
     if bounds is not None and silence is not None:
         problem = replace(problem, bounds=bounds)
         modes = _refit_bounded(problem, modes)
-    best = modes[0]
-    factor = inflation_factor(problem, best[0])
-    if not problem.tx and _power_contradicted(problem, best, factor):
-        log.info("emitter %d: the data contradict the nominal transmit power; estimating it", emitter)
-        return estimate_emitter(slots, channel, max_speed_m_s=max_speed_m_s, t_ref_s=t_ref_s,
-                                model_motion=model_motion, estimate_tx_power=True, previous=previous,
-                                maneuver_time_s=maneuver_time_s, silence=silence)
+    factor = inflation_factor(problem, modes[0][0])
     laplace = [_laplace(problem, theta, cost, factor) for theta, cost in modes]
     order = np.argsort([-lm for _, lm in laplace])
-    modes = [modes[i] for i in order]
-    laplace = [laplace[i] for i in order]
-    (theta, _), (cov_c, logmass) = modes[0], laplace[0]
-    pos, vel, cov = _at(theta, cov_c, moving, t_ref - data.t_c)
-    # beyond the data (t_ref outside their span) the person may have maneuvered since the anchor
-    extra = state_noise(q, t_ref - t_anchor)
-    cov = cov + extra
-    beta = theta[problem.beta_index] if problem.tx else 0.0
-    mode_r = _mode_radius(cov, moving, max_speed_m_s, t_ref - data.t_c)
-    # where the phone was heard at all bounds everything, e.g. the lateral error right under a track
-    reach = reach_bound_m(pos, t_ref, data.t_s, data.a_xy, data.h_m, channel.comm_range_m, max_speed_m_s)
-    mirror = None
-    if len(modes) > 1:
-        (m_theta, _), (m_cov_c, m_logmass) = modes[1], laplace[1]
-        m_pos, m_vel, m_cov = _at(m_theta, m_cov_c, moving, t_ref - data.t_c)
-        m_cov = m_cov + extra
-        rel = float(math.exp(min(m_logmass - logmass, 0.0)))
-        mirror = Candidate(m_pos, m_vel, rel, _mode_radius(m_cov, moving, max_speed_m_s, t_ref - data.t_c), m_cov)
-    # a second mode holding more than AMBIGUITY_MASS must be inside the 95 % circle; it is an
-    # alternative a look has to rule out (``ambiguous``) only when it lies outside the estimate's
-    # own circle: the hearing constraints can split one mode into near twins a few metres apart
-    radius = mode_r
-    ambiguous = False
-    if mirror is not None and mirror.holds_mass:
-        apart = float(np.linalg.norm(mirror.position_xy_m - pos))
-        radius = max(mode_r, apart + mirror.radius95_m)
-        ambiguous = apart > mode_r
-    if math.isfinite(reach):
-        radius, mode_r = min(radius, reach), min(mode_r, reach)
-    bound = annulus_bound_m(pos, t_ref, data.t_s, data.a_xy, data.h_m, data.y + beta, data.n_samples,
-                            channel.log_range_sigma, max_speed_m_s)
-    return Estimate(
-        emitter, "ok", t_ref, pos, vel, cov, radius, bound, ambiguous, mirror, len(slots), last,
-        beta / channel.nepers_per_db, mode_r, float(max_speed_m_s), moving, factor, q,
-    )
+    return _Solution(problem, [modes[i] for i in order], [laplace[i] for i in order], factor, q)
+
+
+def _offset_prior_norm(problem: Problem) -> float:
+    """Log normalisation of the pass offsets' Gaussian prior (both axes), without the 2 pi terms,
+    which cancel against the Laplace volume's: what makes the log masses of two motion models
+    with different offset priors comparable."""
+    if problem.passes is None:
+        return 0.0
+    return 2.0 * float(np.sum(np.log(np.abs(np.diag(problem.passes.whiten)))))
+
+
+def _candidates(solutions: list[tuple[_Solution, float]], moving: bool, dt: float) -> list[_Entry]:
+    """The modes of all motion models at t_ref, by posterior mass (model prior included), best
+    first; modes of different models closer than ``PROBE_MERGE_M`` are one candidate with the
+    mixture's mean covariance (the heavier's state)."""
+    entries = []
+    for sol, log_prior in solutions:
+        norm = _offset_prior_norm(sol.problem) if len(solutions) > 1 else 0.0
+        for (theta, _), (cov_c, logmass) in zip(sol.modes, sol.laplace):
+            pos, vel, cov = _at(theta, cov_c, moving, dt)
+            entries.append(_Entry(sol, theta, pos, vel, cov, logmass + norm + log_prior))
+    entries.sort(key=lambda e: -e.logmass)
+    out: list[_Entry] = []
+    for e in entries:
+        twin = next((o for o in out if o.solution is not e.solution
+                     and float(np.linalg.norm(o.pos - e.pos)) < PROBE_MERGE_M), None)
+        if twin is None:
+            out.append(e)
+            continue
+        w = 1.0 / (1.0 + math.exp(min(twin.logmass - e.logmass, 700.0)))  # e's share of the pair
+        d = np.concatenate([e.pos - twin.pos, e.vel - twin.vel]) if moving else np.concatenate([e.pos - twin.pos, [0, 0]])
+        twin.cov = (1 - w) * twin.cov + w * e.cov + w * (1 - w) * np.outer(d, d)
+        twin.logmass = float(np.logaddexp(twin.logmass, e.logmass))
+    out.sort(key=lambda e: -e.logmass)
+    return out
 
 
 def estimate_all(slots: SlotBatch, channel: ChannelModel, *, max_speed_m_s: float,
