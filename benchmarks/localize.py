@@ -44,6 +44,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import sys
 import time
 from dataclasses import dataclass
 
@@ -136,6 +137,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "estimator's default)")
     parser.add_argument("--scenario", default="paper", metavar="FILE.toml",
                         help="channel and fleet of this scenario (or a shipped one: paper, small; default paper)")
+    parser.add_argument("--maneuver-time", type=float, default=None, metavar="S",
+                        help="the estimator's maneuver time for the random-waypoint families (default: its own, "
+                             "uavloc_gcs.estimation.maneuver.MANEUVER_TIME_S)")
     parser.add_argument("--switch", choices=sorted(ESTIMATOR_SWITCHES), action="append", default=[],
                         help="run with this estimator switch of `uavloc bench looks --variants` turned")
 
@@ -321,7 +325,8 @@ def _track_silence(tracks, slots: SlotBatch, slot_s: float) -> Silence:
     return Silence(np.concatenate([p.t_s for p in parts]), np.vstack([p.xyz_m for p in parts]))
 
 
-def run_maneuver_family(fam: ManeuverFamily, runs: int, seed: int, sc, bar=None, evidence: str = "none") -> dict:
+def run_maneuver_family(fam: ManeuverFamily, runs: int, seed: int, sc, bar=None, evidence: str = "none",
+                        maneuver_time_s: float | None = None) -> dict:
     if fam.area_m is not None:
         sc = sc.replace(area={"width_m": fam.area_m[0], "height_m": fam.area_m[1]})
     channel = ChannelModel.from_scenario(sc)
@@ -338,7 +343,7 @@ def run_maneuver_family(fam: ManeuverFamily, runs: int, seed: int, sc, bar=None,
             continue
         quiet = {"all": _track_silence(tracks, slots, sc.channel.slot_s), "heard": Silence.empty()}.get(evidence)
         span.append(float(slots.t_s.max() - slots.t_s.min()))
-        for key, tm in (("new", None), ("cv", math.inf)):
+        for key, tm in (("new", maneuver_time_s), ("cv", math.inf)):
             opts = {} if tm is None else {"maneuver_time_s": tm}
             est = estimate_emitter(slots, channel, max_speed_m_s=vmax, silence=quiet, **opts)
             out = [float(np.linalg.norm(est.position_xy_m - world.positions(est.t_ref_s)[0])), est.radius95_m,
@@ -363,6 +368,10 @@ def main(args: argparse.Namespace) -> int:
     from uavloc_gcs.estimation import estimate as estimate_module
     from uavloc_gcs.examples import scenario_path
 
+    if args.maneuver_time is not None and not args.maneuver_time > 0:
+        print(f"uavloc bench localize: --maneuver-time must be a positive number of seconds, got {args.maneuver_time}",
+              file=sys.stderr)
+        return 2
     for name in args.switch:
         setattr(estimate_module, *ESTIMATOR_SWITCHES[name])
         print(f"estimator switch {name}: estimate.{ESTIMATOR_SWITCHES[name][0]} = {ESTIMATOR_SWITCHES[name][1]!r}")
@@ -394,7 +403,7 @@ def main(args: argparse.Namespace) -> int:
         print("-" * len(head))
         for fam in mfams:
             r = run_maneuver_family(fam, args.runs, args.seed + 5000 + 1000 * MANEUVER_FAMILIES.index(fam), sc, bar,
-                                    args.evidence)
+                                    args.evidence, args.maneuver_time)
             n, c = r["new"], r["cv"]
             print(f"{r['family']:30s} {r['runs']:4d} {r['span']:6.0f} {n['rmse']:7.2f} {n['median_err']:6.2f} {n['ambiguous']:5.2f} "
                   f"{n['cover'][0]:5.2f} {n['median_r'][0]:6.1f} {n['cover'][1]:5.2f} {n['median_r'][1]:6.1f} "

@@ -44,6 +44,8 @@ def test_bench_localize_runs_with_an_estimator_switch_and_names_it():
     assert "two parallel, static, NM" in out.stdout
     out = subprocess.run(cmd + ["--switch", "nope"], capture_output=True, text=True)
     assert out.returncode == 2 and "turn-mixture" in out.stderr
+    out = subprocess.run(cmd + ["--maneuver-time", "0"], capture_output=True, text=True)
+    assert out.returncode == 2 and "--maneuver-time must be a positive number of seconds, got 0.0" in out.stderr
 
 
 def test_startup_does_not_load_the_simulator_or_scipy():

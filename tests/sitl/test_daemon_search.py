@@ -71,11 +71,10 @@ SPARSE_SCAN = "[scan]\nlane_spacing_m = 220.0\ncoverage = \"single\""  # two lan
 
 
 @pytest.mark.parametrize("kind", ["ardupilot", pytest.param("px4", marks=pytest.mark.xfail(
-    strict=False, reason="look geometry and radius (issue 12), measured 2026-11-24: with the look rules of that day "
-    "(LOOK_SHRINK, AMBIGUITY_SETTLED_MASS, SIDEWAYS_LOOK_FRACTION, later REACH_WHOLE_CIRCLE) 8 of 9 runs passed (the "
-    "ninth failed inside a full suite run, its store not kept), but the "
-    "person 38 m off the lane ended 14.0 m off with a 12.4 m radius once (allowed: one of three outside its 95 % circle); "
-    "before the sideways looks one run in five gave that person up after 4 looks flown out and back along one line"))])
+    strict=False, reason="look geometry and radius (issue 12): since the estimator fixes of 2026-11-24, 10 of 11 runs "
+    "passed (the failure was inside a full suite run, its store not kept); before them one person 38 m off the lane "
+    "ended 14.0 m off with a 12.4 m radius once, and before the sideways looks one run in five gave that person up "
+    "after 4 looks flown out and back along one line"))])
 def test_a_search_with_looks_replans_without_churn(sitl, tmp_path, kind):
     """A sparse scan leaves people unlocated, so the look phase runs on the real autopilot: the
     daemon replans and uploads looks in flight; a handful of uploads per vehicle at most."""
@@ -111,16 +110,14 @@ def test_a_previously_flown_vehicle_searches_again(sitl, tmp_path, kind):
         _check(run, sc, [v])
 
 
-@pytest.mark.parametrize("kind", ["ardupilot", pytest.param("px4", marks=pytest.mark.xfail(
-    strict=False, reason="look geometry, not the start (issue 12): on 2026-11-24 one run in two left a person "
-    "(seed 3's P02) mirror-ambiguous after 4 looks flown along its mirror axis (vehicle -> estimate -> home); "
-    "later that day 10 of 10 runs passed (8 with the day's look rules), one with a person 15.7 m off with an 11.4 m radius"))])
+@pytest.mark.parametrize("kind", ["ardupilot", "px4"])
 def test_a_freshly_booted_vehicle_searches(sitl, tmp_path, kind):
     """The daemon started as soon as the autopilot sends its first heartbeat (not when it is ready
     to fly): ArduCopter refuses to arm for a while and PX4 reports health failures, so the start
     must wait, arm when ready and take off; the search then runs to its end like any other. (The
     suite's usual people, seed 3. With seed 5 a person 12 m from the launch point stayed mirror-
-    ambiguous: every look flew a line through home, see the closing note of issue 12.)"""
+    ambiguous: every look flew a line through home, see the closing note of issue 12. PX4 was a
+    non-strict xfail for that until 2026-11-24; 16 runs in a row have passed since.)"""
     wait = "heartbeat" if kind == "ardupilot" else "none"
     v = dr.start_px4(sitl, wait=wait) if kind == "px4" else dr.start_arducopter(sitl, wait=wait)
     sc = dr.load(dr.scenario_text(f"{kind}-fresh", kind, [v]), tmp_path / "mission.toml")

@@ -71,9 +71,10 @@ MIRROR_AFTER_BOUNDS = True
 # only through the speed bound (q = 3 v_max^2 / lag: a deviation of v_max * lag after the lag).
 # The Gaussian maneuver noise alone has light tails: a person who turned 100 s ago is several of
 # its sigmas off the line, and the mirror the turn leads to loses all its mass. Measured (bench
-# localize --switch turn-mixture, 100 runs, docs/readme/experiments.md): small area, lanes + look
-# 0.79 -> 0.87 covered but the median radius 19 -> 55 m, lanes + look 0.95 -> 0.98, and the
-# solve 2.5-3x slower; short of 93 %, so off.
+# localize --runs 100 --family "lanes + look" [--switch turn-mixture]; docs/readme/experiments.md):
+# small area 0.83 -> 0.91 covered with the median radius 18.6 -> 28.9 m, two lanes + look 0.93 ->
+# 0.92, the solve 2.5-3x slower, and after two looks at a known turn radii 17-28 m instead of
+# 11-14 m (test_maneuver.py); short of 93 % in the small area, so off.
 TURN_MIXTURE = False
 MIRROR_PRIOR_SKIP = 12.0  # extra maneuver-prior cost (chi^2 units) beyond which a one-pass mirror is not tried
 
