@@ -29,7 +29,10 @@ replanning, return) on paired worlds with each variant of the rules that place a
 - ``no-bounded-mirror``: a candidate the hearing constraints moved gets no mirror starts of its
   own (``estimation.estimate.MIRROR_AFTER_BOUNDS = False``);
 - ``bound-cap``: the hearing constraints shrink a candidate's standard deviation by at most 1.5x
-  in any direction (``estimation.estimate.BOUND_SHRINK_MAX = 1.5``; by default no cap).
+  in any direction (``estimation.estimate.BOUND_SHRINK_MAX = 1.5``; by default no cap);
+- ``turn-mixture``: a second motion model in which the person turned since the oldest data
+  (``estimation.estimate.TURN_MIXTURE = True``; off by default). ``uavloc bench localize --switch``
+  runs the estimator's switches of this list in the localization benchmark.
 
 Printed per variant: people heard and located, located inside their own 95 % radius, mean
 completion time with its 95 % CI, and the ratio to the clairvoyant plan's completion time (the

@@ -21,7 +21,7 @@ import sys
 import time
 
 from uavloc_gcs.geo import LocalFrame
-from uavloc_gcs.link import (arm, open_link, set_current_item, set_message_interval, set_mode, start_mission,
+from uavloc_gcs.link import (arm, open_link, set_message_interval, set_mode, start_mission,
                              upload_mission)
 from uavloc_gcs.mission import flight_mission, to_wire
 from uavloc_gcs.service.vehicle import VehicleAgent

@@ -274,6 +274,8 @@ class _Solution:
 
 @dataclass
 class _Entry:
+    """One mode of one motion model moved to t_ref, with its mass under the model's prior."""
+
     solution: _Solution
     theta: np.ndarray
     pos: np.ndarray
@@ -348,7 +350,7 @@ def _candidates(solutions: list[tuple[_Solution, float]], moving: bool, dt: floa
             out.append(e)
             continue
         w = 1.0 / (1.0 + math.exp(min(twin.logmass - e.logmass, 700.0)))  # e's share of the pair
-        d = np.concatenate([e.pos - twin.pos, e.vel - twin.vel]) if moving else np.concatenate([e.pos - twin.pos, [0, 0]])
+        d = np.concatenate([e.pos - twin.pos, e.vel - twin.vel])  # a static model's velocity is zero
         twin.cov = (1 - w) * twin.cov + w * e.cov + w * (1 - w) * np.outer(d, d)
         twin.logmass = float(np.logaddexp(twin.logmass, e.logmass))
     out.sort(key=lambda e: -e.logmass)
