@@ -1,6 +1,5 @@
 """``uavloc demo`` stopped by a signal at any moment leaves no fake-fleet process behind."""
 
-import os
 import signal
 import subprocess
 import sys

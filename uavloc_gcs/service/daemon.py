@@ -35,7 +35,7 @@ from ..errors import ConfigError, LinkError, UavlocError
 from ..mission import NAV_WAYPOINT, flight_mission, to_wire
 from ..observations import SlotBatch
 from ..scenario import Scenario
-from .lifecycle import ExchangeFailed, allowed, persist
+from .lifecycle import allowed, persist
 from .liveview import LiveView, StatusSnapshot, VehicleStatus, person_view
 from .missionstate import ClockRate, final_seq, hold_seq, same_stored_mission, with_hold_before_rtl
 from .outcome import SearchOutcome, estimate_row, final_results, statement_for
