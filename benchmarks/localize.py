@@ -141,7 +141,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="the estimator's maneuver time for the random-waypoint families (default: its own, "
                              "uavloc_gcs.estimation.maneuver.MANEUVER_TIME_S)")
     parser.add_argument("--switch", choices=sorted(ESTIMATOR_SWITCHES), action="append", default=[],
-                        help="run with this estimator switch of `uavloc bench looks --variants` turned")
+                        help="run with this estimator switch of `uavloc bench looks --variants` turned on "
+                             "(give it again for another)")
 
 
 def _leg(start, end, t0, speed, slot_s, alt):

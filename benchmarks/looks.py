@@ -31,8 +31,13 @@ replanning, return) on paired worlds with each variant of the rules that place a
 - ``bound-cap``: the hearing constraints shrink a candidate's standard deviation by at most 1.5x
   in any direction (``estimation.estimate.BOUND_SHRINK_MAX = 1.5``; by default no cap);
 - ``turn-mixture``: a second motion model in which the person turned since the oldest data
-  (``estimation.estimate.TURN_MIXTURE = True``; off by default). ``uavloc bench localize --switch``
-  runs the estimator's switches of this list in the localization benchmark.
+  (``estimation.estimate.TURN_MIXTURE = True``; off by default);
+- ``tail-1``, ``tail-4``: the maneuver offsets' prior a multivariate t with 1 or 4 degrees of
+  freedom (``estimation.estimate.MANEUVER_TAIL_DOF``; by default Gaussian);
+- ``turn-tail``: ``turn-mixture`` and ``tail-4`` together.
+
+``uavloc bench localize --switch`` runs the estimator's switches of this list in the localization
+benchmark (given twice, both).
 
 Printed per variant: people heard and located, located inside their own 95 % radius, mean
 completion time with its 95 % CI, and the ratio to the clairvoyant plan's completion time (the
@@ -78,8 +83,12 @@ SWITCHES = {
     "no-bounded-mirror": ("estimate", "MIRROR_AFTER_BOUNDS", False),
     "bound-cap": ("estimate", "BOUND_SHRINK_MAX", 1.5),
     "turn-mixture": ("estimate", "TURN_MIXTURE", True),
+    "tail-1": ("estimate", "MANEUVER_TAIL_DOF", 1.0),
+    "tail-4": ("estimate", "MANEUVER_TAIL_DOF", 4.0),
 }
-VARIANTS = ("default", *SWITCHES)
+# variant -> the switches it turns together
+COMBINED = {"turn-tail": ("turn-mixture", "tail-4")}
+VARIANTS = ("default", *SWITCHES, *COMBINED)
 _SHIPPED: dict = {}  # the switches' shipped values, read once per worker before any change
 
 
@@ -98,9 +107,10 @@ def _fly(job):
         _SHIPPED.update({(m, name): getattr(modules[m], name) for m, name, _ in SWITCHES.values()})
     for (m, name), value in _SHIPPED.items():
         setattr(modules[m], name, value)
-    if variant in SWITCHES:
-        m, name, off = SWITCHES[variant]
-        setattr(modules[m], name, off)
+    for one in COMBINED.get(variant, (variant,)):
+        if one in SWITCHES:
+            m, name, value = SWITCHES[one]
+            setattr(modules[m], name, value)
     cfg = ExperimentConfig(load_scenario(scenario_file), people=(people,), runs=run + 1, seed=seed,
                            methods=(REFERENCE,), error_people=0)
     res = run_task(cfg, Task(REFERENCE, people, run, world_seed(seed, people, run)))

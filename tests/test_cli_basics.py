@@ -53,3 +53,18 @@ def test_startup_does_not_load_the_simulator_or_scipy():
             "print(sorted(m for m in ('sim_link.world', 'scipy.optimize', 'benchmarks.localize') if m in sys.modules))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert out.stdout.strip() == "[]", out.stdout + out.stderr
+
+
+def test_every_bench_looks_variant_names_switches_that_exist():
+    """A variant whose switch names no module attribute would silently run the default."""
+    from benchmarks.looks import COMBINED, SWITCHES, VARIANTS
+    from sim_link.experiments import missionsim
+    from uavloc_gcs.estimation import access, estimate
+    from uavloc_gcs.search import policy, targets
+
+    modules = {"policy": policy, "targets": targets, "access": access, "missionsim": missionsim, "estimate": estimate}
+    for name, (module, attr, value) in SWITCHES.items():
+        assert hasattr(modules[module], attr), name
+        assert getattr(modules[module], attr) != value, f"{name} is the shipped value"
+    assert all(one in SWITCHES for parts in COMBINED.values() for one in parts)
+    assert set(VARIANTS) == {"default", *SWITCHES, *COMBINED}

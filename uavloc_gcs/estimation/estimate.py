@@ -76,6 +76,14 @@ MIRROR_AFTER_BOUNDS = True
 # 0.92, the solve 2.5-3x slower, and after two looks at a known turn radii 17-28 m instead of
 # 11-14 m (test_maneuver.py); short of 93 % in the small area, so off.
 TURN_MIXTURE = False
+# The pass offsets' prior: multivariate t with this many degrees of freedom (None: Gaussian). A
+# scale mixture of the Gaussian maneuver prior over the intensity q: a person who turned is far in
+# the Gaussian's tail, in the t's only a logarithm away. Measured (bench localize --runs 200
+# --switch tail-4 [--switch turn-mixture]; docs/readme/experiments.md): small area + look 0.81 ->
+# 0.88 covered (0.93 with the mixture, every random-waypoint family then >= 0.93), but the look
+# families' radii about double and correlated shadowing's RMSE / bound goes 0.45 -> 0.8 for two
+# parallel legs (the offsets absorb the shadowing), so off.
+MANEUVER_TAIL_DOF: float | None = None
 MIRROR_PRIOR_SKIP = 12.0  # extra maneuver-prior cost (chi^2 units) beyond which a one-pass mirror is not tried
 
 
@@ -288,7 +296,7 @@ def _solve(data, channel: ChannelModel, q: float, t_anchor: float, moving: bool,
            previous: "Estimate | None", silence: Silence | None) -> _Solution:
     """Every mode of the data under the maneuver intensity q, refitted under the hearing bounds."""
     problem = Problem(data, moving, tx, vmax, TX_PRIOR_SIGMA_DB * channel.nepers_per_db,
-                      find_passes(data.t_s, t_anchor, q))
+                      find_passes(data.t_s, t_anchor, q), offset_tail=MANEUVER_TAIL_DOF)
     starts = start_points(problem)
     if problem.passes is not None:
         # the CV fit from the best start first: with free pass offsets the maneuver fit has more
@@ -328,7 +336,11 @@ def _offset_prior_norm(problem: Problem) -> float:
     with different offset priors comparable."""
     if problem.passes is None:
         return 0.0
-    return 2.0 * float(np.sum(np.log(np.abs(np.diag(problem.passes.whiten)))))
+    norm = 2.0 * float(np.sum(np.log(np.abs(np.diag(problem.passes.whiten)))))
+    if problem.offset_tail is not None:  # the t's normalisation beyond the Gaussian's, d = 2m, c = dof + d
+        nu, d = problem.offset_tail, 2.0 * problem.passes.count
+        norm += math.lgamma(0.5 * (nu + d)) - math.lgamma(0.5 * nu) - 0.5 * d * math.log(0.5 * (nu + d))
+    return norm
 
 
 def _candidates(solutions: list[tuple[_Solution, float]], moving: bool, dt: float) -> list[_Entry]:
@@ -397,11 +409,11 @@ def _mirror_starts(problem: Problem, theta: np.ndarray) -> list[np.ndarray]:
         legs = [(center, direction, problem.data.t_c)]
     out = [_mirror_state(problem, theta, c, d, t - problem.data.t_c) for c, d, t in legs]
     if problem.passes is not None:  # maneuver model: also mirror one pass alone, the others kept in place
-        base = _offset_prior_cost(problem, theta)
+        base = problem.offset_prior_cost(theta)
         for c, d, t in legs:
             s = _mirror_one_pass(problem, theta, c, d, t)
             # a mirror that needs a many-sigma maneuver cannot hold posterior mass: not worth a fit
-            if _offset_prior_cost(problem, s) - base < MIRROR_PRIOR_SKIP:
+            if problem.offset_prior_cost(s) - base < MIRROR_PRIOR_SKIP:
                 out.append(s)
     return out
 
@@ -448,8 +460,7 @@ def _refit_bounded(problem: Problem, modes: list[tuple[np.ndarray, float]]) -> l
 def _power_contradicted(problem: Problem, best: tuple[np.ndarray, float], factor: float) -> bool:
     """Likelihood-ratio test of the nominal transmit power: refit with the offset free (its prior
     included) and compare; the (deflated) statistic against chi^2_1 at 1e-3."""
-    free = Problem(problem.data, problem.moving, True, problem.max_speed_m_s, problem.tx_sigma_nepers,
-                   problem.passes, problem.bounds)
+    free = replace(problem, tx=True)
     _, cost = free.fit(np.insert(best[0], problem.base_size, 0.0))
     return (best[1] - cost) / factor > POWER_TEST_CHI2
 
@@ -466,12 +477,6 @@ def _mirror_state(problem: Problem, theta: np.ndarray, center, direction, tau: f
     for k in range(b, problem.size, 2):  # the pass offsets are vectors: reflect them too
         out[k: k + 2] = mirror_point(theta[k: k + 2], np.zeros(2), direction)
     return out
-
-
-def _offset_prior_cost(problem: Problem, theta: np.ndarray) -> float:
-    off = theta[problem.base_size:].reshape(-1, 2)
-    w = problem.passes.whiten
-    return float(np.sum((w @ off[:, 0]) ** 2) + np.sum((w @ off[:, 1]) ** 2))
 
 
 def _mirror_one_pass(problem: Problem, theta: np.ndarray, center, direction, t_leg_s: float) -> np.ndarray:
@@ -498,7 +503,7 @@ def _mirror_one_pass(problem: Problem, theta: np.ndarray, center, direction, t_l
 
 def _laplace(problem: Problem, theta: np.ndarray, cost: float, factor: float) -> tuple[np.ndarray, float]:
     """Posterior covariance (deflated data information) and log mass of a mode."""
-    info = problem.data_information(theta) / factor + problem.prior_information()
+    info = problem.data_information(theta) / factor + problem.prior_information(theta)
     if problem.bounds is not None and BOUNDS_IN_COVARIANCE:
         jb = problem.jacobian(theta)[-len(problem.bounds):]
         extra = jb.T @ jb / factor  # the same deflation: a misfit state makes them binding

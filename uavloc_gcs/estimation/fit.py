@@ -97,6 +97,7 @@ class Problem:
     tx_sigma_nepers: float
     passes: Passes | None = None  # maneuver offsets per old pass (see .maneuver); None = pure CV
     bounds: Bounds | None = None  # where the phone was heard / not heard (see .evidence); None = unused
+    offset_tail: float | None = None  # the offsets' prior is multivariate t with these dof; None = Gaussian
 
     @property
     def base_size(self) -> int:
@@ -154,8 +155,8 @@ class Problem:
             parts.append([beta / self.tx_sigma_nepers])
         parts.append((theta[:2] - d.center) / POSITION_PRIOR_SIGMA_M)
         if self.passes is not None:
-            off = theta[self.base_size:].reshape(-1, 2)
-            parts += [self.passes.whiten @ off[:, 0], self.passes.whiten @ off[:, 1]]
+            e = self._whitened_offsets(theta)
+            parts.append(e * self._tail(float(e @ e))[0] if self.offset_tail is not None else e)
         if self.bounds is not None:
             parts.append(self.bounds.residuals(theta[:2], theta[2:4] if self.moving else None, self._bound_shift(theta)))
         return np.concatenate([np.asarray(p, float).ravel() for p in parts])
@@ -184,6 +185,10 @@ class Problem:
             off = np.zeros((2 * m, p))
             off[:m, b::2] = self.passes.whiten
             off[m:, b + 1::2] = self.passes.whiten
+            if self.offset_tail is not None:  # d(f(s) e) = f de + 2 f'(s) e e^T de
+                e = self._whitened_offsets(theta)
+                f, df = self._tail(float(e @ e))
+                off = f * off + 2.0 * df * np.outer(e, e @ off)
             rows.append(off)
         if self.bounds is not None:
             jb = self.bounds.jacobian(theta[:2], theta[2:4] if self.moving else None, self._bound_shift(theta))
@@ -205,7 +210,39 @@ class Problem:
         off = np.vstack([theta[self.base_size:].reshape(-1, 2), np.zeros((1, 2))])
         return off[self.bounds.pass_index]
 
-    def prior_information(self) -> np.ndarray:
+    def _whitened_offsets(self, theta: np.ndarray) -> np.ndarray:
+        """The pass offsets whitened by their Gaussian prior, x axis then y axis (2m,)."""
+        off = theta[self.base_size:].reshape(-1, 2)
+        return np.concatenate([self.passes.whiten @ off[:, 0], self.passes.whiten @ off[:, 1]])
+
+    def _tail_c(self) -> float:
+        return self.offset_tail + 2.0 * self.passes.count
+
+    def _tail(self, s: float) -> tuple[float, float]:
+        """f(s) and f'(s) with f(s)^2 s = c ln(1 + s / c), c = dof + 2m: the multivariate t's
+        -2 ln density of the whitened offsets e (s = |e|^2), scaled to the Gaussian's curvature
+        at e = 0, as a residual f(s) e for least squares."""
+        c = self._tail_c()
+        if s < 1e-9 * c:
+            return 1.0 - s / (4.0 * c), -1.0 / (4.0 * c)
+        rho = c * math.log1p(s / c)
+        f = math.sqrt(rho / s)
+        dg = (c / (c + s) * s - rho) / (s * s)
+        return f, dg / (2.0 * f)
+
+    def offset_prior_cost(self, theta: np.ndarray) -> float:
+        """-2 ln prior density of the pass offsets (without its normalisation)."""
+        e = self._whitened_offsets(theta)
+        s = float(e @ e)
+        if self.offset_tail is None:
+            return s
+        c = self._tail_c()
+        return c * math.log1p(s / c)
+
+    def prior_information(self, theta: np.ndarray | None = None) -> np.ndarray:
+        """The priors' information; with a t-distributed offset prior its Gaussian information
+        scaled by the weight c / (c + s) at ``theta`` (the scale mixture's expected precision
+        given the offsets: positive where the t's own curvature is not, far in its tail)."""
         j = np.zeros((self.size, self.size))
         j[0, 0] = j[1, 1] = POSITION_PRIOR_SIGMA_M**-2
         if self.moving:
@@ -215,6 +252,9 @@ class Problem:
         if self.passes is not None:
             b = self.base_size
             ww = self.passes.whiten.T @ self.passes.whiten
+            if self.offset_tail is not None and theta is not None:
+                e = self._whitened_offsets(theta)
+                ww = ww * self._tail_c() / (self._tail_c() + float(e @ e))
             j[b::2, b::2] = ww
             j[b + 1::2, b + 1::2] = ww
         return j
