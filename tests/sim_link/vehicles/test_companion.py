@@ -152,8 +152,14 @@ def test_cli_companion_against_a_fake_autopilot():
         t0 = time.time()
     finally:
         proc.send_signal(signal.SIGINT)
-        proc.communicate(timeout=10)
-        fleet.stop()
+        try:
+            proc.communicate(timeout=10)
+        except subprocess.TimeoutExpired:
+            proc.kill()  # never leave it holding the ports for the rest of the suite
+            proc.communicate()
+            raise
+        finally:
+            fleet.stop()
     assert proc.returncode == 0 and time.time() - t0 < 10
 
 

@@ -39,7 +39,12 @@ def test_sim_prints_ports_serves_and_stops_on_ctrl_c():
         s.close()
     finally:
         proc.send_signal(signal.SIGINT)
-        out, err = proc.communicate(timeout=10)
+        try:
+            out, err = proc.communicate(timeout=10)
+        except subprocess.TimeoutExpired:
+            proc.kill()  # never leave it holding the ports for the rest of the suite
+            proc.communicate()
+            raise
     assert proc.returncode == 0, err
     assert "stopped" in out
 
