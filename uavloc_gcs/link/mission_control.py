@@ -82,40 +82,63 @@ class StatusWatch:
 
     A long text arrives in chunks sharing a non-zero ``id`` (PX4 splits "Arming denied: Resolve
     system health failures first" in two); chunks are joined. PX4 sends the text about 0.6 s after
-    the refusing COMMAND_ACK (measured on SITL), so :meth:`reason_soon` waits a moment for it."""
+    the refusing COMMAND_ACK (measured on SITL), so :meth:`reason_soon` waits a moment for it.
+
+    Only a text that can explain a refusal is named as the reason: severity WARNING or worse, or
+    worded like a refusal. Autopilots also chat at INFO: PX4 SITL's "[logger] ./log/....ulg"
+    arrived between an arm refusal's ACK and its "Arming denied" in CI, and was once named as the
+    reason."""
 
     def __init__(self, link: Link, system: int):
         self.texts: list[str] = []
+        self._explains: list[bool] = []  # per text: could it say why a command was refused?
+        self._since_mark: list[bool] = []  # per text: arrived after the last mark()
         self._last_id = 0
-        self._arrived = asyncio.Event()
+        self._arrived = asyncio.Event()  # an explaining text arrived since mark()
         self._sub = link.subscribe("STATUSTEXT", source_system=system, callback=self._on)
+
+    @staticmethod
+    def explains(text: str, severity: int) -> bool:
+        """Could this text say why a command was refused?"""
+        low = text.lower()
+        worded = (low.startswith(("prearm", "arm", "preflight", "arming", "disarm"))
+                  or any(w in low for w in ("denied", "refused", "failed", "rejected")))
+        return worded or severity <= mavlink.MAV_SEVERITY_WARNING
 
     def _on(self, msg) -> None:
         text = str(msg.text).rstrip("\x00")
+        severity = int(getattr(msg, "severity", mavlink.MAV_SEVERITY_INFO))
         chunk_id = int(getattr(msg, "id", 0) or 0)
         if chunk_id and chunk_id == self._last_id and int(getattr(msg, "chunk_seq", 0) or 0) > 0 and self.texts:
             self.texts[-1] = (self.texts[-1] + text).strip()
+            self._explains[-1] = self._explains[-1] or self.explains(self.texts[-1], severity)
         else:
             self.texts.append(text.strip())
+            self._explains.append(self.explains(text, severity))
+            self._since_mark.append(True)
         self._last_id = chunk_id
-        del self.texts[:-20]
-        self._arrived.set()
+        del self.texts[:-20], self._explains[:-20], self._since_mark[:-20]
+        if self._explains[-1]:
+            self._arrived.set()
 
     def mark(self) -> None:
         """Forget that a text arrived (call before sending the command whose refusal to explain)."""
         self._arrived.clear()
+        self._since_mark = [False] * len(self.texts)
 
     def reason(self) -> str | None:
-        """The latest text that explains an arming refusal, else the latest text."""
-        for text in reversed(self.texts):
-            low = text.lower()
-            if low.startswith(("prearm", "arm", "preflight", "arming", "disarm")) or "denied" in low:
-                return text
-        return self.texts[-1] if self.texts else None
+        """The latest text that could explain a refusal, preferring one that came since :meth:`mark`;
+        None when the vehicle said nothing of the kind (its INFO chatter is not a reason)."""
+        for fresh_only in (True, False):
+            for text, explains, fresh in zip(reversed(self.texts), reversed(self._explains),
+                                             reversed(self._since_mark)):
+                if explains and (fresh or not fresh_only):
+                    return text
+        return None
 
     async def reason_soon(self, wait_s: float = STATUSTEXT_GRACE_S) -> str | None:
-        """:meth:`reason`, after waiting up to ``wait_s`` for a text when none came since :meth:`mark`
-        (and a moment more for the rest of a chunked text)."""
+        """:meth:`reason`, after waiting up to ``wait_s`` for an explaining text when none came
+        since :meth:`mark` (and a moment more for the rest of a chunked text)."""
         if not self._arrived.is_set():
             try:
                 await asyncio.wait_for(self._arrived.wait(), wait_s)

@@ -59,7 +59,8 @@ class ScriptedVehicle(asyncio.DatagramProtocol):
     def __init__(self, style: Style = PX4, *, system_id: int = 1, component_id: int = 1,
                  faults: Faults | None = None, signing_key: bytes | None = None,
                  telemetry_interval_s: float = 0.2, command_results: dict[int, int] | None = None,
-                 reject_item: tuple[int, int] | None = None):
+                 reject_item: tuple[int, int] | None = None,
+                 command_texts: dict[int, list[tuple[float, int, str]]] | None = None):
         self.style = style
         self.faults = faults or Faults()
         self.rng = random.Random(self.faults.seed)
@@ -73,6 +74,9 @@ class ScriptedVehicle(asyncio.DatagramProtocol):
         self.telemetry_interval_s = telemetry_interval_s
         self.command_results = command_results or {}
         self.reject_item = reject_item  # (seq, MAV_MISSION_RESULT) to refuse during upload
+        # command -> STATUSTEXTs (delay after the ACK in s, severity, text) sent after each ACK of it
+        self.command_texts = command_texts or {}
+        self._text_id = 0
         self.silent = False  # simulate a link drop: neither send nor receive
         self.received: list = []  # every accepted message, for assertions
         self.gcs_addr = None
@@ -271,6 +275,19 @@ class ScriptedVehicle(asyncio.DatagramProtocol):
             elif msg.command == M.MAV_CMD_DO_SET_MISSION_CURRENT:
                 self.state.current_seq = int(msg.param1)
         self.send(self.mav.command_ack_encode(msg.command, result, 0, 0, msg.get_srcSystem(), msg.get_srcComponent()))
+        loop = asyncio.get_running_loop()
+        for delay_s, severity, text in self.command_texts.get(msg.command, []):
+            loop.call_later(delay_s, self.say, severity, text)
+
+    def say(self, severity: int, text: str) -> None:
+        """A STATUSTEXT, in 50-byte chunks sharing an id when longer (as PX4 and ArduPilot do)."""
+        raw = text.encode()
+        if len(raw) <= 50:
+            self.send(self.mav.statustext_encode(severity, raw))
+            return
+        self._text_id = self._text_id % 65535 + 1
+        for n, i in enumerate(range(0, len(raw), 50)):
+            self.send(self.mav.statustext_encode(severity, raw[i:i + 50], self._text_id, n))
 
     def _on_mission_set_current(self, msg) -> None:
         self.state.current_seq = msg.seq
