@@ -34,7 +34,9 @@ replanning, return) on paired worlds with each variant of the rules that place a
   (``estimation.estimate.TURN_MIXTURE = True``; off by default);
 - ``tail-1``, ``tail-4``: the maneuver offsets' prior a multivariate t with 1 or 4 degrees of
   freedom (``estimation.estimate.MANEUVER_TAIL_DOF``; by default Gaussian);
-- ``turn-tail``: ``turn-mixture`` and ``tail-4`` together.
+- ``turn-tail``: ``turn-mixture`` and ``tail-4`` together;
+- ``turn-jump``: models in which the person turned once, at one of the longest gaps in the data
+  (``estimation.estimate.TURN_JUMP = True``; off by default).
 
 ``uavloc bench localize --switch`` runs the estimator's switches of this list in the localization
 benchmark (given twice, both).
@@ -85,6 +87,7 @@ SWITCHES = {
     "turn-mixture": ("estimate", "TURN_MIXTURE", True),
     "tail-1": ("estimate", "MANEUVER_TAIL_DOF", 1.0),
     "tail-4": ("estimate", "MANEUVER_TAIL_DOF", 4.0),
+    "turn-jump": ("estimate", "TURN_JUMP", True),
 }
 # variant -> the switches it turns together
 COMBINED = {"turn-tail": ("turn-mixture", "tail-4")}

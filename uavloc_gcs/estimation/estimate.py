@@ -84,6 +84,22 @@ TURN_MIXTURE = False
 # families' radii about double and correlated shadowing's RMSE / bound goes 0.45 -> 0.8 for two
 # parallel legs (the offsets absorb the shadowing), so off.
 MANEUVER_TAIL_DOF: float | None = None
+# Whether models in which the person turned once join the estimate: at each of the longest gaps
+# in the data (``TURN_GAPS``, the turn's time unknown within them) the velocity before it was
+# v - u, with u ~ N(0, (TURN_SIGMA_FRACTION v_max)^2) per axis, beside the Gaussian maneuver
+# noise. The prior probability of a turn since the oldest data, 1 - exp(-lag / maneuver time),
+# is shared among the gaps by the time each stands for. A turn is one change of velocity: two
+# parameters that correlated shadowing cannot use the way it uses free offsets per pass
+# (MANEUVER_TAIL_DOF). Measured (bench localize --runs 200 --family "small area, lanes + look"
+# [--switch turn-jump]; docs/readme/experiments.md): 0.81 -> 0.90 covered, but the median radius
+# 24.4 -> 46.2 m (with TURN_TIME_S = 200 s: 0.92 at 50.0 m); correlated shadowing's RMSE / bound
+# stays 0.46-0.48 (0.43-0.44 without; the t prior: 0.8-1.2), and the solve takes 2x (4-5x under
+# correlated shadowing). Short of 93 % at twice the radius, so off.
+TURN_JUMP = False
+TURN_GAPS = 3
+TURN_GAP_MIN_S = 5.0
+TURN_SIGMA_FRACTION = 1.0
+TURN_TIME_S: float | None = None  # mean time between turns for TURN_JUMP's prior; None: the maneuver time
 MIRROR_PRIOR_SKIP = 12.0  # extra maneuver-prior cost (chi^2 units) beyond which a one-pass mirror is not tried
 
 
@@ -230,6 +246,9 @@ def estimate_emitter(
             turned = _solve(data, channel, q_turn, t_anchor, moving, main.problem.tx,
                             float(max_speed_m_s), previous, silence)
             solutions = [(main, math.log1p(-p_turn)), (turned, math.log(p_turn))]
+    if TURN_JUMP and main.problem.passes is not None and lag > 0 and math.isfinite(maneuver_time_s):
+        solutions = _with_turns(main, data, channel, t_anchor, moving, float(max_speed_m_s), previous, silence,
+                                lag, maneuver_time_s)
     entries = _candidates(solutions, moving, t_ref - data.t_c)
     top = entries[0]
     sol, theta, pos, vel, cov, logmass = top.solution, top.theta, top.pos, top.vel, top.cov, top.logmass
@@ -292,11 +311,40 @@ class _Entry:
     logmass: float
 
 
+def _with_turns(main: "_Solution", data, channel: ChannelModel, t_anchor: float, moving: bool, vmax: float,
+                previous: "Estimate | None", silence: Silence | None, lag: float,
+                maneuver_time_s: float) -> list[tuple["_Solution", float]]:
+    """The main model and one model per turn time (see TURN_JUMP), with their log prior masses."""
+    t = data.t_s[data.t_s <= t_anchor]
+    gaps = np.diff(t)
+    big = np.flatnonzero(gaps > TURN_GAP_MIN_S)
+    if len(big) == 0:
+        return [(main, 0.0)]
+    big = np.sort(big[np.argsort(-gaps[big])][:TURN_GAPS])
+    times = 0.5 * (t[big] + t[big + 1])
+    # each turn time stands for the turns nearer to it than to another (between the oldest data and the anchor)
+    edges = np.concatenate([[t[0]], 0.5 * (times[1:] + times[:-1]), [t_anchor]])
+    share = np.diff(edges) / lag
+    p_turn = 1.0 - math.exp(-lag / (TURN_TIME_S or maneuver_time_s))
+    out = [(main, math.log1p(-p_turn))]
+    for t_k, w in zip(times, share):
+        if w <= 0:
+            continue
+        turned = _solve(data, channel, main.q, t_anchor, moving, main.problem.tx, vmax, previous, silence,
+                        turn_at_s=float(t_k))
+        out.append((turned, math.log(p_turn * w)))
+    return out
+
+
 def _solve(data, channel: ChannelModel, q: float, t_anchor: float, moving: bool, tx: bool, vmax: float,
-           previous: "Estimate | None", silence: Silence | None) -> _Solution:
-    """Every mode of the data under the maneuver intensity q, refitted under the hearing bounds."""
+           previous: "Estimate | None", silence: Silence | None, turn_at_s: float | None = None) -> _Solution:
+    """Every mode of the data under the maneuver intensity q (and a turn at ``turn_at_s``, see
+    TURN_JUMP), refitted under the hearing bounds."""
+    passes = find_passes(data.t_s, t_anchor, q)
     problem = Problem(data, moving, tx, vmax, TX_PRIOR_SIGMA_DB * channel.nepers_per_db,
-                      find_passes(data.t_s, t_anchor, q), offset_tail=MANEUVER_TAIL_DOF)
+                      passes, offset_tail=MANEUVER_TAIL_DOF,
+                      turn_at_s=turn_at_s if passes is not None and moving else None,
+                      turn_sigma_m_s=max(TURN_SIGMA_FRACTION * vmax, 1e-3))
     starts = start_points(problem)
     if problem.passes is not None:
         # the CV fit from the best start first: with free pass offsets the maneuver fit has more
@@ -337,6 +385,8 @@ def _offset_prior_norm(problem: Problem) -> float:
     if problem.passes is None:
         return 0.0
     norm = 2.0 * float(np.sum(np.log(np.abs(np.diag(problem.passes.whiten)))))
+    if problem.turn_at_s is not None:  # the turn's velocity change, Gaussian on both axes
+        norm -= 2.0 * math.log(problem.turn_sigma_m_s)
     if problem.offset_tail is not None:  # the t's normalisation beyond the Gaussian's, d = 2m, c = dof + d
         nu, d = problem.offset_tail, 2.0 * problem.passes.count
         norm += math.lgamma(0.5 * (nu + d)) - math.lgamma(0.5 * nu) - 0.5 * d * math.log(0.5 * (nu + d))
@@ -485,9 +535,12 @@ def _mirror_one_pass(problem: Problem, theta: np.ndarray, center, direction, t_l
     tied to the current pass, so the current pass's own mirror is a separate local optimum."""
     d, ps, b = problem.data, problem.passes, problem.base_size
     p, v = theta[:2], theta[2:4]
-    off = theta[b:].reshape(-1, 2)
+    e = problem.offsets_end
+    off = theta[b:e].reshape(-1, 2)
     tau = np.array([np.mean(d.tau_s[ps.index == j]) for j in range(ps.count)])
     where = p + np.outer(tau, v) + off  # the person at each offset pass
+    if problem.turn_at_s is not None:  # the turn's shift stays as it is
+        where = where - np.outer(problem.turn_lead(tau + d.t_c), theta[e:])
     j = int(ps.index[int(np.argmin(np.abs(d.t_s - t_leg_s)))])
     out = theta.copy()
     if j >= 0:
@@ -497,7 +550,7 @@ def _mirror_one_pass(problem: Problem, theta: np.ndarray, center, direction, t_l
     # offsets, say where the person came from, not which way the mirror image walks)
     tau_leg = t_leg_s - d.t_c
     out[:2] = mirror_point(p + v * tau_leg, center, direction) - v * tau_leg
-    out[b:] = (where - out[:2] - np.outer(tau, out[2:4])).ravel()
+    out[b:e] = (where - out[:2] - np.outer(tau, out[2:4])).ravel()
     return out
 
 

@@ -98,6 +98,11 @@ class Problem:
     passes: Passes | None = None  # maneuver offsets per old pass (see .maneuver); None = pure CV
     bounds: Bounds | None = None  # where the phone was heard / not heard (see .evidence); None = unused
     offset_tail: float | None = None  # the offsets' prior is multivariate t with these dof; None = Gaussian
+    # One turn at this time [s] (None: none): before it the person walked with velocity v - u; the
+    # velocity change u (ux, uy) follows the pass offsets, with a Gaussian prior of turn_sigma_m_s
+    # per axis (see estimate.TURN_JUMP).
+    turn_at_s: float | None = None
+    turn_sigma_m_s: float = 1.0
 
     @property
     def base_size(self) -> int:
@@ -105,8 +110,17 @@ class Problem:
         return 2 + 2 * self.moving + self.tx
 
     @property
-    def size(self) -> int:
+    def offsets_end(self) -> int:
+        """End of the pass offsets in theta; the turn's velocity change (when any) follows."""
         return self.base_size + (2 * self.passes.count if self.passes is not None else 0)
+
+    @property
+    def size(self) -> int:
+        return self.offsets_end + (2 if self.turn_at_s is not None else 0)
+
+    def turn_lead(self, t_s: np.ndarray) -> np.ndarray:
+        """How long before the turn each time is (0 after it): the turn's shift there is lead * u."""
+        return np.maximum(self.turn_at_s - np.asarray(t_s, float), 0.0)
 
     @property
     def beta_index(self) -> int:
@@ -126,8 +140,10 @@ class Problem:
         d = self.data
         pos = np.outer(d.tau_s, theta[2:4]) + theta[:2] if self.moving else np.broadcast_to(theta[:2], d.a_xy.shape)
         if self.passes is not None:  # index -1 (no offset) picks the appended zero row
-            off = np.vstack([theta[self.base_size:].reshape(-1, 2), np.zeros((1, 2))])
+            off = np.vstack([theta[self.base_size:self.offsets_end].reshape(-1, 2), np.zeros((1, 2))])
             pos = pos + off[self.passes.index]
+        if self.turn_at_s is not None:
+            pos = pos + np.outer(self.turn_lead(d.t_s), theta[self.offsets_end:])
         g = pos - d.a_xy
         d2 = g[:, 0] * g[:, 0] + g[:, 1] * g[:, 1] + d.h_m * d.h_m
         object.__setattr__(self, "_cache", (key, g, d2))
@@ -139,6 +155,9 @@ class Problem:
         jac = log_range_jacobian(g, d2, d.tau_s, self.moving, self.tx)
         if self.passes is not None:
             jac = np.hstack([jac, offset_jacobian(g, d2, self.passes)])
+        if self.turn_at_s is not None:
+            lead = self.turn_lead(d.t_s) / d2
+            jac = np.hstack([jac, np.column_stack([g[:, 0] * lead, g[:, 1] * lead])])
         return jac
 
     def residuals(self, theta: np.ndarray) -> np.ndarray:
@@ -157,6 +176,8 @@ class Problem:
         if self.passes is not None:
             e = self._whitened_offsets(theta)
             parts.append(e * self._tail(float(e @ e))[0] if self.offset_tail is not None else e)
+        if self.turn_at_s is not None:
+            parts.append(theta[self.offsets_end:] / self.turn_sigma_m_s)
         if self.bounds is not None:
             parts.append(self.bounds.residuals(theta[:2], theta[2:4] if self.moving else None, self._bound_shift(theta)))
         return np.concatenate([np.asarray(p, float).ravel() for p in parts])
@@ -183,13 +204,17 @@ class Problem:
         if self.passes is not None:
             m, b = self.passes.count, self.base_size
             off = np.zeros((2 * m, p))
-            off[:m, b::2] = self.passes.whiten
-            off[m:, b + 1::2] = self.passes.whiten
+            off[:m, b:self.offsets_end:2] = self.passes.whiten
+            off[m:, b + 1:self.offsets_end:2] = self.passes.whiten
             if self.offset_tail is not None:  # d(f(s) e) = f de + 2 f'(s) e e^T de
                 e = self._whitened_offsets(theta)
                 f, df = self._tail(float(e @ e))
                 off = f * off + 2.0 * df * np.outer(e, e @ off)
             rows.append(off)
+        if self.turn_at_s is not None:
+            turn = np.zeros((2, p))
+            turn[0, self.offsets_end] = turn[1, self.offsets_end + 1] = 1.0 / self.turn_sigma_m_s
+            rows.append(turn)
         if self.bounds is not None:
             jb = self.bounds.jacobian(theta[:2], theta[2:4] if self.moving else None, self._bound_shift(theta))
             row = np.zeros((len(self.bounds), p))
@@ -200,19 +225,29 @@ class Problem:
                 k = np.flatnonzero(self.bounds.pass_index >= 0)
                 col = self.base_size + 2 * self.bounds.pass_index[k]
                 row[k, col], row[k, col + 1] = jb[k, 0], jb[k, 1]
+            if self.turn_at_s is not None:
+                lead = self._bound_lead()
+                row[:, self.offsets_end] = jb[:, 0] * lead
+                row[:, self.offsets_end + 1] = jb[:, 1] * lead
             rows.append(row)
         return np.vstack(rows)
 
     def _bound_shift(self, theta: np.ndarray) -> np.ndarray | None:
-        """The pass offsets of the bound rows (K, 2); None without maneuver passes."""
+        """The pass offsets (and the turn's shift) of the bound rows (K, 2); None without maneuver passes."""
         if self.passes is None:
             return None
-        off = np.vstack([theta[self.base_size:].reshape(-1, 2), np.zeros((1, 2))])
-        return off[self.bounds.pass_index]
+        off = np.vstack([theta[self.base_size:self.offsets_end].reshape(-1, 2), np.zeros((1, 2))])
+        shift = off[self.bounds.pass_index]
+        if self.turn_at_s is not None:
+            shift = shift + np.outer(self._bound_lead(), theta[self.offsets_end:])
+        return shift
+
+    def _bound_lead(self) -> np.ndarray:
+        return self.turn_lead(self.bounds.tau_s + self.data.t_c)
 
     def _whitened_offsets(self, theta: np.ndarray) -> np.ndarray:
         """The pass offsets whitened by their Gaussian prior, x axis then y axis (2m,)."""
-        off = theta[self.base_size:].reshape(-1, 2)
+        off = theta[self.base_size:self.offsets_end].reshape(-1, 2)
         return np.concatenate([self.passes.whiten @ off[:, 0], self.passes.whiten @ off[:, 1]])
 
     def _tail_c(self) -> float:
@@ -255,8 +290,11 @@ class Problem:
             if self.offset_tail is not None and theta is not None:
                 e = self._whitened_offsets(theta)
                 ww = ww * self._tail_c() / (self._tail_c() + float(e @ e))
-            j[b::2, b::2] = ww
-            j[b + 1::2, b + 1::2] = ww
+            e = self.offsets_end
+            j[b:e:2, b:e:2] = ww
+            j[b + 1:e:2, b + 1:e:2] = ww
+        if self.turn_at_s is not None:
+            j[self.offsets_end, self.offsets_end] = j[self.offsets_end + 1, self.offsets_end + 1] = self.turn_sigma_m_s**-2
         return j
 
     def data_information(self, theta: np.ndarray) -> np.ndarray:

@@ -106,7 +106,7 @@ def test_one_look_after_a_turn_is_mostly_covered(sc, channel):
     assert new >= 3 and cv <= 1
 
 
-@pytest.mark.parametrize("switch, value", [("TURN_MIXTURE", True), ("MANEUVER_TAIL_DOF", 4.0)])
+@pytest.mark.parametrize("switch, value", [("TURN_MIXTURE", True), ("MANEUVER_TAIL_DOF", 4.0), ("TURN_JUMP", True)])
 def test_a_model_of_turns_covers_one_look_after_a_turn(sc, channel, monkeypatch, switch, value):
     """Two switches of ``estimate`` (off by default; bench localize --switch turn-mixture, tail-4)
     that keep the wrong mirror from taking all the mass after a turn:
@@ -115,9 +115,12 @@ def test_a_model_of_turns_covers_one_look_after_a_turn(sc, channel, monkeypatch,
       covered in 5 of 6 seeds (3 of 6 without), radii after the second look 17-28 m instead of
       11-14 m;
     - ``MANEUVER_TAIL_DOF``, a multivariate t prior on the offsets, so that a turn costs a
-      logarithm instead of a square: 6 of 6 seeds, radii after the second look 15-26 m.
+      logarithm instead of a square: 6 of 6 seeds, radii after the second look 15-26 m;
+    - ``TURN_JUMP``, models in which the person turned once, at one of the longest gaps: 5 of 6
+      seeds, radii after the second look 17-25 m.
 
-    The larger radii (and, for both, a worse fit under correlated shadowing) are why they are off."""
+    The larger radii (and, for the first two, a worse fit under correlated shadowing) are why they
+    are off."""
     from uavloc_gcs.estimation import estimate as estimate_module
 
     monkeypatch.setattr(estimate_module, switch, value)
@@ -162,6 +165,38 @@ def test_the_heavy_tailed_offset_prior_is_a_least_squares_residual_with_its_jaco
     small = theta.copy()
     small[tail.base_size:] *= 1e-4
     assert tail.offset_prior_cost(small) == pytest.approx(gauss.offset_prior_cost(small), rel=1e-6)
+
+
+def test_the_turn_is_a_velocity_change_before_its_time_with_its_jacobian():
+    """With a turn at t_k, a slot before it sees the person shifted by (t_k - t) u, a slot after it
+    not at all; the analytic Jacobian (the prior's rows and the hearing bounds' rows included, some
+    of them binding) matches central differences."""
+    from dataclasses import replace
+
+    from uavloc_gcs.estimation.evidence import Bounds
+
+    plain = _tail_problem(None)
+    turned = replace(plain, turn_at_s=100.0, turn_sigma_m_s=1.5)
+    assert turned.size == plain.size + 2 and turned.offsets_end == plain.size
+    theta = np.random.default_rng(1).normal(0.0, 3.0, turned.size)
+    g0, _ = plain._geometry(theta[:plain.size])
+    g1, _ = turned._geometry(theta)
+    lead = np.maximum(100.0 - turned.data.t_s, 0.0)
+    assert np.allclose(g1 - g0, np.outer(lead, theta[-2:]))
+    assert np.all(lead[turned.data.t_s > 100.0] == 0.0) and np.any(lead > 0)
+    tau = np.array([-80.0, -60.0, 10.0, 60.0, 90.0])
+    bounds = Bounds(tau, np.array([[0.0, 0.0], [100.0, 0.0], [200.0, 50.0], [400.0, 0.0], [500.0, 0.0]]),
+                    np.full(5, 30.0), np.array([1.0, -1.0, 1.0, -1.0, 1.0]), np.full(5, 4.0),
+                    np.array([0, -1, -1, -1, 1]))
+    bounded = replace(turned, bounds=bounds)
+    theta[:2] = (150.0, 20.0)
+    r = bounded.residuals(theta)
+    assert np.any(r[-5:] > 0)  # some bounds bind
+    jac = bounded.jacobian(theta)
+    num = np.column_stack([(bounded.residuals(theta + h) - bounded.residuals(theta - h)) / 2e-6
+                           for h in np.eye(bounded.size) * 1e-6])
+    assert np.max(np.abs(jac - num)) < 1e-6 * np.max(np.abs(jac))
+    assert np.allclose(bounded.prior_information()[-2:, -2:], np.eye(2) / 1.5**2)
 
 
 def test_the_heavy_tailed_offset_prior_is_normalised():
