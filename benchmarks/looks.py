@@ -36,7 +36,13 @@ replanning, return) on paired worlds with each variant of the rules that place a
   freedom (``estimation.estimate.MANEUVER_TAIL_DOF``; by default Gaussian);
 - ``turn-tail``: ``turn-mixture`` and ``tail-4`` together;
 - ``turn-jump``: models in which the person turned once, at one of the longest gaps in the data
-  (``estimation.estimate.TURN_JUMP = True``; off by default).
+  (``estimation.estimate.TURN_JUMP = True``; off by default);
+- ``turn-200``: a turn every 200 s on average in that model's prior (``estimation.estimate.TURN_TIME_S``;
+  by default the maneuver time, 600 s);
+- ``merge-twins``: two modes of one motion model that meet at the reference time are one candidate
+  (``estimation.estimate.TWINS_ACROSS_MODELS_ONLY = False``; by default only modes of different
+  models are merged);
+- ``turns``: ``turn-jump`` and ``merge-twins``; ``turns-200``: those and ``turn-200``.
 
 ``uavloc bench localize --switch`` runs the estimator's switches of this list in the localization
 benchmark (given twice, both).
@@ -88,9 +94,12 @@ SWITCHES = {
     "tail-1": ("estimate", "MANEUVER_TAIL_DOF", 1.0),
     "tail-4": ("estimate", "MANEUVER_TAIL_DOF", 4.0),
     "turn-jump": ("estimate", "TURN_JUMP", True),
+    "turn-200": ("estimate", "TURN_TIME_S", 200.0),
+    "merge-twins": ("estimate", "TWINS_ACROSS_MODELS_ONLY", False),
 }
 # variant -> the switches it turns together
-COMBINED = {"turn-tail": ("turn-mixture", "tail-4")}
+COMBINED = {"turn-tail": ("turn-mixture", "tail-4"), "turns": ("turn-jump", "merge-twins"),
+            "turns-200": ("turn-jump", "merge-twins", "turn-200")}
 VARIANTS = ("default", *SWITCHES, *COMBINED)
 _SHIPPED: dict = {}  # the switches' shipped values, read once per worker before any change
 

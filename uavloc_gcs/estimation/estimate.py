@@ -99,8 +99,19 @@ TURN_JUMP = False
 TURN_GAPS = 3
 TURN_GAP_MIN_S = 5.0
 TURN_SIGMA_FRACTION = 1.0
-TURN_TIME_S: float | None = None  # mean time between turns for TURN_JUMP's prior; None: the maneuver time
-MIRROR_PRIOR_SKIP = 12.0  # extra maneuver-prior cost (chi^2 units) beyond which a one-pass mirror is not tried
+# The mean time between turns in TURN_JUMP's prior; None: the maneuver time. The random-waypoint
+# walkers of a 250 m square turn about every two minutes, those of the paper's area about every
+# eight (bench looks variant "turn-200": 200 s).
+TURN_TIME_S: float | None = None
+MIRROR_PRIOR_SKIP = 12.0
+# Whether only modes of different motion models are merged when they meet at t_ref (closer than
+# PROBE_MERGE_M). Two modes of one model are told apart at the fit's reference time; with
+# different velocities they can meet at t_ref, and the second then takes the mirror's place as a
+# twin of the estimate, hiding a real alternative further down (seen in the small-area family with
+# TURN_JUMP: "mirrors" 0.2-3.7 m from the estimate holding 30-77 % of the mass, the truth 50 m
+# away). False merges those too (bench looks variant "merge-twins"); measured in
+# docs/readme/experiments.md: with TURN_JUMP it lifts the small area + look family 0.90 -> 0.92.
+TWINS_ACROSS_MODELS_ONLY = True  # extra maneuver-prior cost (chi^2 units) beyond which a one-pass mirror is not tried
 
 
 @dataclass(frozen=True)
@@ -406,7 +417,7 @@ def _candidates(solutions: list[tuple[_Solution, float]], moving: bool, dt: floa
     entries.sort(key=lambda e: -e.logmass)
     out: list[_Entry] = []
     for e in entries:
-        twin = next((o for o in out if o.solution is not e.solution
+        twin = next((o for o in out if (not TWINS_ACROSS_MODELS_ONLY or o.solution is not e.solution)
                      and float(np.linalg.norm(o.pos - e.pos)) < PROBE_MERGE_M), None)
         if twin is None:
             out.append(e)

@@ -106,8 +106,9 @@ def test_one_look_after_a_turn_is_mostly_covered(sc, channel):
     assert new >= 3 and cv <= 1
 
 
-@pytest.mark.parametrize("switch, value", [("TURN_MIXTURE", True), ("MANEUVER_TAIL_DOF", 4.0), ("TURN_JUMP", True)])
-def test_a_model_of_turns_covers_one_look_after_a_turn(sc, channel, monkeypatch, switch, value):
+@pytest.mark.parametrize("switches", [{"TURN_MIXTURE": True}, {"MANEUVER_TAIL_DOF": 4.0}, {"TURN_JUMP": True},
+                                      {"TURN_JUMP": True, "TWINS_ACROSS_MODELS_ONLY": False}], ids=str)
+def test_a_model_of_turns_covers_one_look_after_a_turn(sc, channel, monkeypatch, switches):
     """Two switches of ``estimate`` (off by default; bench localize --switch turn-mixture, tail-4)
     that keep the wrong mirror from taking all the mass after a turn:
 
@@ -117,13 +118,14 @@ def test_a_model_of_turns_covers_one_look_after_a_turn(sc, channel, monkeypatch,
     - ``MANEUVER_TAIL_DOF``, a multivariate t prior on the offsets, so that a turn costs a
       logarithm instead of a square: 6 of 6 seeds, radii after the second look 15-26 m;
     - ``TURN_JUMP``, models in which the person turned once, at one of the longest gaps: 5 of 6
-      seeds, radii after the second look 17-25 m.
+      seeds, radii after the second look 17-25 m (the same with twins merged as well).
 
     The larger radii (and, for the first two, a worse fit under correlated shadowing) are why they
     are off."""
     from uavloc_gcs.estimation import estimate as estimate_module
 
-    monkeypatch.setattr(estimate_module, switch, value)
+    for switch, value in switches.items():
+        monkeypatch.setattr(estimate_module, switch, value)
     covered = 0
     for seed in range(6):
         world = World(sc, seed=seed, tracks=TURN)
@@ -165,6 +167,28 @@ def test_the_heavy_tailed_offset_prior_is_a_least_squares_residual_with_its_jaco
     small = theta.copy()
     small[tail.base_size:] *= 1e-4
     assert tail.offset_prior_cost(small) == pytest.approx(gauss.offset_prior_cost(small), rel=1e-6)
+
+
+@pytest.mark.parametrize("across_models_only", [True, False])
+def test_two_modes_of_one_model_that_meet_at_the_reference_time(monkeypatch, across_models_only):
+    """Told apart at the fit's reference time, two modes with different velocities can be at the
+    same place at t_ref: by default they stay two candidates (the second a twin of the first);
+    with TWINS_ACROSS_MODELS_ONLY off they are one, holding both masses, and the real
+    alternative further away becomes the mirror."""
+    from uavloc_gcs.estimation import estimate as estimate_module
+
+    monkeypatch.setattr(estimate_module, "TWINS_ACROSS_MODELS_ONLY", across_models_only)
+    thetas = [np.array([0.0, 0.0, 1.0, 0.0]), np.array([10.0, 0.5, 0.0, 0.0]), np.array([10.0, 60.0, 0.0, 0.0])]
+    sol = estimate_module._Solution(None, [(t, 0.0) for t in thetas],
+                                    [(np.eye(4), -1.0), (np.eye(4), -2.0), (np.eye(4), -3.0)], 1.0, 0.0)
+    entries = estimate_module._candidates([(sol, 0.0)], True, 10.0)  # all at t_c + 10 s
+    if across_models_only:
+        assert len(entries) == 3 and np.linalg.norm(entries[1].pos - entries[0].pos) < 1.0
+    else:
+        assert len(entries) == 2
+        assert entries[0].logmass == pytest.approx(float(np.logaddexp(-1.0, -2.0)))
+        assert np.allclose(entries[1].pos, (10.0, 60.0))
+        assert entries[0].cov[1, 1] > 1.0  # the twins' spread is in the merged covariance
 
 
 def test_the_turn_is_a_velocity_change_before_its_time_with_its_jacobian():
