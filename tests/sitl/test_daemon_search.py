@@ -77,7 +77,8 @@ def test_a_search_with_looks_replans_without_churn(sitl, tmp_path, kind):
     a non-strict xfail until 2026-11-24: look geometry and radius, issue 12. Since that day's
     estimator fixes it passed 24 of 25 runs (the last two: the sixth session's CI run and a full
     suite run of the seventh); the one failure was inside a full suite run and its store was not
-    kept. One person, 38 m off the lane, is the hard one: in 10 runs alone 1.9-15.2 m off inside 10.0-14.9 m, once outside (15.2 m, 11.2 m), which the check allows for one in three.)"""
+    kept. One person, 38 m off the lane, is the hard one: in 10 runs alone 1.9-15.2 m off inside
+    10.0-14.9 m, once outside (15.2 m, 11.2 m), which the check allows for one in three.)"""
     v = dr.start_px4(sitl) if kind == "px4" else dr.start_arducopter(sitl)
     sc = dr.load(dr.scenario_text(f"{kind}-looks", kind, [v], scan=SPARSE_SCAN), tmp_path / "mission.toml")
     with dr.Companions(sc, [v]):
