@@ -87,7 +87,7 @@ MANEUVER_TAIL_DOF: float | None = None
 # Whether models in which the person turned once join the estimate: at each of the longest gaps
 # in the data (``TURN_GAPS``, the turn's time unknown within them) the velocity before it was
 # v - u, with u ~ N(0, (TURN_SIGMA_FRACTION v_max)^2) per axis, beside the Gaussian maneuver
-# noise. The prior probability of a turn since the oldest data, 1 - exp(-lag / maneuver time),
+# noise. The prior probability of a turn since the oldest data, 1 - exp(-lag / TURN_TIME_S),
 # is shared among the gaps by the time each stands for. A turn is one change of velocity: two
 # parameters that correlated shadowing cannot use the way it uses free offsets per pass
 # (MANEUVER_TAIL_DOF). Measured (bench localize --runs 200 --family "small area, lanes + look"
@@ -103,7 +103,7 @@ TURN_SIGMA_FRACTION = 1.0
 # walkers of a 250 m square turn about every two minutes, those of the paper's area about every
 # eight (bench looks variant "turn-200": 200 s).
 TURN_TIME_S: float | None = None
-MIRROR_PRIOR_SKIP = 12.0
+MIRROR_PRIOR_SKIP = 12.0  # extra maneuver-prior cost (chi^2 units) beyond which a one-pass mirror is not tried
 # Whether only modes of different motion models are merged when they meet at t_ref (closer than
 # PROBE_MERGE_M). Two modes of one model are told apart at the fit's reference time; with
 # different velocities they can meet at t_ref, and the second then takes the mirror's place as a
@@ -111,7 +111,7 @@ MIRROR_PRIOR_SKIP = 12.0
 # TURN_JUMP: "mirrors" 0.2-3.7 m from the estimate holding 30-77 % of the mass, the truth 50 m
 # away). False merges those too (bench looks variant "merge-twins"); measured in
 # docs/readme/experiments.md: with TURN_JUMP it lifts the small area + look family 0.90 -> 0.92.
-TWINS_ACROSS_MODELS_ONLY = True  # extra maneuver-prior cost (chi^2 units) beyond which a one-pass mirror is not tried
+TWINS_ACROSS_MODELS_ONLY = True
 
 
 @dataclass(frozen=True)
@@ -549,19 +549,19 @@ def _mirror_one_pass(problem: Problem, theta: np.ndarray, center, direction, t_l
     e = problem.offsets_end
     off = theta[b:e].reshape(-1, 2)
     tau = np.array([np.mean(d.tau_s[ps.index == j]) for j in range(ps.count)])
-    where = p + np.outer(tau, v) + off  # the person at each offset pass
-    if problem.turn_at_s is not None:  # the turn's shift stays as it is
-        where = where - np.outer(problem.turn_lead(tau + d.t_c), theta[e:])
+    # the turn's shift at each offset pass (kept as it is)
+    shift = np.outer(problem.turn_lead(tau + d.t_c), theta[e:]) if problem.turn_at_s is not None else 0.0 * off
+    where = p + np.outer(tau, v) + off + shift  # the person at each offset pass
     j = int(ps.index[int(np.argmin(np.abs(d.t_s - t_leg_s)))])
     out = theta.copy()
     if j >= 0:
-        out[b + 2 * j: b + 2 * j + 2] = mirror_point(where[j], center, direction) - p - v * tau[j]
+        out[b + 2 * j: b + 2 * j + 2] = mirror_point(where[j], center, direction) - p - v * tau[j] - shift[j]
         return out
     # the current pass: its position reflected, the velocity kept (the older passes, through their
     # offsets, say where the person came from, not which way the mirror image walks)
     tau_leg = t_leg_s - d.t_c
     out[:2] = mirror_point(p + v * tau_leg, center, direction) - v * tau_leg
-    out[b:e] = (where - out[:2] - np.outer(tau, out[2:4])).ravel()
+    out[b:e] = (where - out[:2] - np.outer(tau, out[2:4]) - shift).ravel()
     return out
 
 

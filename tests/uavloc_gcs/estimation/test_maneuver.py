@@ -223,6 +223,31 @@ def test_the_turn_is_a_velocity_change_before_its_time_with_its_jacobian():
     assert np.allclose(bounded.prior_information()[-2:, -2:], np.eye(2) / 1.5**2)
 
 
+def test_mirroring_one_pass_keeps_the_others_where_they_were_with_a_turn():
+    """A mirror start of one old pass moves only that pass's person: with a turn model the turn's
+    shift is part of where the person was at the other passes, and stays there."""
+    from dataclasses import replace
+
+    from uavloc_gcs.estimation.estimate import _mirror_one_pass
+
+    problem = replace(_tail_problem(None), turn_at_s=100.0, turn_sigma_m_s=1.5)
+    theta = np.random.default_rng(2).normal(0.0, 3.0, problem.size)
+    theta[:2] = (250.0, 30.0)
+    d = problem.data
+
+    def person(th):
+        g, _ = problem._geometry(th)
+        return g + d.a_xy
+
+    j = int(problem.passes.index[5])
+    assert j >= 0
+    mirrored = _mirror_one_pass(problem, theta, np.array([0.0, 0.0]), np.array([1.0, 0.0]), float(d.t_s[5]))
+    other = problem.passes.index != j
+    assert np.allclose(person(mirrored)[other], person(theta)[other])
+    inside = problem.passes.index == j
+    assert np.allclose(person(mirrored)[inside].mean(axis=0) * (1, -1), person(theta)[inside].mean(axis=0), atol=1e-6)
+
+
 def test_the_heavy_tailed_offset_prior_is_normalised():
     """Two motion models' masses stay comparable with the t prior: for one pass (d = 2) the t's
     integral over the plane is 2 pi c / dof (c = dof + 2), so its normalisation is the Gaussian's
