@@ -132,17 +132,10 @@ def test_unknown_mode_is_a_clear_error():
     assert command.command_name(400) == "MAV_CMD_COMPONENT_ARM_DISARM"
 
 
-@pytest.mark.parametrize("chatter", [True, False], ids=["info-text-first", "denial-only"])
-def test_refused_arm_is_explained_by_the_denial_not_by_chatter(chatter):
-    """CI on PX4 SITL: right after boot PX4's "[logger] ./log/<date>/<time>.ulg" (INFO) arrived
-    between the arm refusal's ACK and "Arming denied: ..." (CRITICAL, 0.6 s later, in two chunks),
-    and the given-up arm named the log file as its reason. Timings and texts as measured there."""
+def _arm_given_up(texts):
+    """The CommandError of an arm given up on against a PX4-style vehicle that refuses every arm
+    and sends ``texts`` (delay after the ACK, severity, text) after each refusal."""
     from uavloc_gcs.link import arm_when_ready
-
-    denial = "Arming denied: Resolve system health failures first"
-    texts = [(0.6, M.MAV_SEVERITY_CRITICAL, denial)]
-    if chatter:
-        texts.insert(0, (0.05, M.MAV_SEVERITY_INFO, "[logger] ./log/2026-11-24/21_08_04.ulg"))
 
     async def go():
         async with ScriptedVehicle(PX4, command_results={M.MAV_CMD_COMPONENT_ARM_DISARM: M.MAV_RESULT_DENIED},
@@ -153,25 +146,25 @@ def test_refused_arm_is_explained_by_the_denial_not_by_chatter(chatter):
                     await arm_when_ready(link, 1, 1, timeout_s=0.1)
                 return caught.value
 
-    err = run(go())
+    return run(go())
+
+
+@pytest.mark.parametrize("chatter", [True, False], ids=["info-text-first", "denial-only"])
+def test_refused_arm_is_explained_by_the_denial_not_by_chatter(chatter):
+    """CI on PX4 SITL: right after boot PX4's "[logger] ./log/<date>/<time>.ulg" (INFO) arrived
+    between the arm refusal's ACK and "Arming denied: ..." (CRITICAL, 0.6 s later, in two chunks),
+    and the given-up arm named the log file as its reason. Timings and texts as measured there."""
+    denial = "Arming denied: Resolve system health failures first"
+    texts = [(0.6, M.MAV_SEVERITY_CRITICAL, denial)]
+    if chatter:
+        texts.insert(0, (0.05, M.MAV_SEVERITY_INFO, "[logger] ./log/2026-11-24/21_08_04.ulg"))
+    err = _arm_given_up(texts)
     assert err.reason == denial and denial in str(err)
 
 
 def test_a_refusal_with_only_chatter_names_no_reason():
     """When the vehicle says nothing that could explain the refusal, the error says none rather
     than quoting an unrelated INFO text."""
-    from uavloc_gcs.link import arm_when_ready
-
-    async def go():
-        async with ScriptedVehicle(PX4, command_results={M.MAV_CMD_COMPONENT_ARM_DISARM: M.MAV_RESULT_DENIED},
-                                   command_texts={M.MAV_CMD_COMPONENT_ARM_DISARM:
-                                                  [(0.05, M.MAV_SEVERITY_INFO, "[logger] ./log/x.ulg")]}) as v:
-            async with await open_link(v.connection) as link:
-                await link.wait_heartbeat(timeout_s=5)
-                with pytest.raises(CommandError) as caught:
-                    await arm_when_ready(link, 1, 1, timeout_s=0.1)
-                return caught.value
-
-    err = run(go())
+    err = _arm_given_up([(0.05, M.MAV_SEVERITY_INFO, "[logger] ./log/x.ulg")])
     assert err.reason is None and "logger" not in str(err)
     assert "MAV_RESULT_DENIED" in str(err)
