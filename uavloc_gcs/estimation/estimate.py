@@ -257,7 +257,9 @@ def estimate_emitter(
             turned = _solve(data, channel, q_turn, t_anchor, moving, main.problem.tx,
                             float(max_speed_m_s), previous, silence)
             solutions = [(main, math.log1p(-p_turn)), (turned, math.log(p_turn))]
-    if TURN_JUMP and main.problem.passes is not None and lag > 0 and math.isfinite(maneuver_time_s):
+    # the two models of a turn are alternatives, not parts of one prior: with both switches on,
+    # the turn mixture is used
+    elif TURN_JUMP and main.problem.passes is not None and lag > 0 and math.isfinite(maneuver_time_s):
         solutions = _with_turns(main, data, channel, t_anchor, moving, float(max_speed_m_s), previous, silence,
                                 lag, maneuver_time_s)
     entries = _candidates(solutions, moving, t_ref - data.t_c)

@@ -290,11 +290,12 @@ class Problem:
             if self.offset_tail is not None and theta is not None:
                 e = self._whitened_offsets(theta)
                 ww = ww * self._tail_c() / (self._tail_c() + float(e @ e))
-            e = self.offsets_end
-            j[b:e:2, b:e:2] = ww
-            j[b + 1:e:2, b + 1:e:2] = ww
+            end = self.offsets_end
+            j[b:end:2, b:end:2] = ww
+            j[b + 1:end:2, b + 1:end:2] = ww
         if self.turn_at_s is not None:
-            j[self.offsets_end, self.offsets_end] = j[self.offsets_end + 1, self.offsets_end + 1] = self.turn_sigma_m_s**-2
+            u = self.offsets_end
+            j[u, u] = j[u + 1, u + 1] = self.turn_sigma_m_s**-2
         return j
 
     def data_information(self, theta: np.ndarray) -> np.ndarray:

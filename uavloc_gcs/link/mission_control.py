@@ -90,9 +90,9 @@ class StatusWatch:
     reason."""
 
     def __init__(self, link: Link, system: int):
-        self.texts: list[str] = []
-        self._explains: list[bool] = []  # per text: could it say why a command was refused?
-        self._since_mark: list[bool] = []  # per text: arrived after the last mark()
+        # the latest texts, oldest first: [text, could it explain a refusal, mark() count when it came]
+        self._texts: list[list] = []
+        self._marks = 0
         self._last_id = 0
         self._arrived = asyncio.Event()  # an explaining text arrived since mark()
         self._sub = link.subscribe("STATUSTEXT", source_system=system, callback=self._on)
@@ -109,32 +109,28 @@ class StatusWatch:
         text = str(msg.text).rstrip("\x00")
         severity = int(getattr(msg, "severity", mavlink.MAV_SEVERITY_INFO))
         chunk_id = int(getattr(msg, "id", 0) or 0)
-        if chunk_id and chunk_id == self._last_id and int(getattr(msg, "chunk_seq", 0) or 0) > 0 and self.texts:
-            self.texts[-1] = (self.texts[-1] + text).strip()
-            self._explains[-1] = self._explains[-1] or self.explains(self.texts[-1], severity)
+        if chunk_id and chunk_id == self._last_id and int(getattr(msg, "chunk_seq", 0) or 0) > 0 and self._texts:
+            last = self._texts[-1]
+            last[0] = (last[0] + text).strip()
+            last[1] = last[1] or self.explains(last[0], severity)
         else:
-            self.texts.append(text.strip())
-            self._explains.append(self.explains(text, severity))
-            self._since_mark.append(True)
+            self._texts.append([text.strip(), self.explains(text, severity), self._marks])
+            del self._texts[:-20]
         self._last_id = chunk_id
-        del self.texts[:-20], self._explains[:-20], self._since_mark[:-20]
-        if self._explains[-1]:
+        if self._texts[-1][1]:
             self._arrived.set()
 
     def mark(self) -> None:
         """Forget that a text arrived (call before sending the command whose refusal to explain)."""
         self._arrived.clear()
-        self._since_mark = [False] * len(self.texts)
+        self._marks += 1
 
     def reason(self) -> str | None:
         """The latest text that could explain a refusal, preferring one that came since :meth:`mark`;
         None when the vehicle said nothing of the kind (its INFO chatter is not a reason)."""
-        for fresh_only in (True, False):
-            for text, explains, fresh in zip(reversed(self.texts), reversed(self._explains),
-                                             reversed(self._since_mark)):
-                if explains and (fresh or not fresh_only):
-                    return text
-        return None
+        explaining = [(text, marks == self._marks) for text, explains, marks in self._texts if explains]
+        fresh = [text for text, new in explaining if new]
+        return fresh[-1] if fresh else (explaining[-1][0] if explaining else None)
 
     async def reason_soon(self, wait_s: float = STATUSTEXT_GRACE_S) -> str | None:
         """:meth:`reason`, after waiting up to ``wait_s`` for an explaining text when none came
