@@ -224,8 +224,11 @@ class FakeVehicle(TelemetryMixin):
             return False
         elif mode in ("GUIDED", "LOITER", "STABILIZE"):
             self.hold_xyz_m = self.kin.pos.copy()
-        if mode == "RTL" or (mode == "AUTO" and self.mode != "AUTO"):  # a return cut short by a
-            self.rtl_phase = "climb"  # mode change starts afresh next time
+        # A return cut short by a mode change starts afresh next time. RTL commanded in RTL
+        # changes nothing: both autopilots keep descending (measured on SITL,
+        # tests/sitl/test_behaviours.py::test_return_home_sent_again_while_landing).
+        if mode != self.mode and mode in ("RTL", "AUTO"):
+            self.rtl_phase = "climb"
         log.debug("uav%d: mode %s -> %s", self.sysid, self.mode, mode)
         self.mode = mode
         self._out.append(self.heartbeat_reply())

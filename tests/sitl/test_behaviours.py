@@ -9,6 +9,7 @@ the ones the daemon cannot handle yet off (see sim_link/vehicles/vehicle.py Vehi
 from __future__ import annotations
 
 import math
+import time
 from pathlib import Path
 
 import pytest
@@ -16,13 +17,13 @@ import pytest
 from uavloc_gcs.dialect import mavlink
 from uavloc_gcs.errors import CommandError
 from uavloc_gcs.link import (arm, arm_when_ready, command_long, download_mission, flavour_for, open_link,
-                             request_streams, start_mission_from, switch_mission, upload_mission)
+                             request_streams, return_home, start_mission_from, switch_mission, upload_mission)
 from uavloc_gcs.mission import NAV_WAYPOINT, POSITIONAL_COMMANDS, flight_mission, to_wire
 from uavloc_gcs.scenario import load_scenario
 
 from . import harness
 from .conftest import require
-from .flying import Watch
+from .flying import Watch, distance_m
 
 ROOT = Path(__file__).resolve().parents[2]
 REALISTIC = {"realistic_streams": True, "arm_refused_after_boot_s": None}
@@ -344,3 +345,36 @@ def test_new_mission_uploaded_while_flying_home_in_the_old_one(target):
     else:
         assert before == (mavlink.MISSION_STATE_ACTIVE, last, "AUTO"), before
         assert after_upload == (mavlink.MISSION_STATE_ACTIVE, last, "AUTO"), after_upload
+
+
+def test_return_home_sent_again_while_landing(target):
+    """RTL commanded again while the vehicle already descends over home in RTL (a retried command
+    whose first ACK was lost does exactly this). Seen in the fast suite under 20 % loss: the fake
+    climbed back to its return altitude and flew the RTL again, and the daemon, having judged the
+    low, slow vehicle landed, was left with a vehicle neither home nor returning. The real
+    autopilots keep descending: a mode change to the mode already in force changes nothing."""
+    async def go():
+        import asyncio
+
+        link, flavour = await _connect(target)
+        async with link:
+            watch = Watch(link, target.sysid)
+            await _airborne(link, target, flavour, watch, _mission(target.kind, rtl=False, n=1))
+            await return_home(link, target.sysid, 1)
+            home = harness.HOME[:2]
+            await watch.until("descending over home", lambda: (
+                distance_m(*watch.latlon, *home) < 5 and 1.0 < watch.rel_alt_m < 8.0), 240)
+            again_at = watch.rel_alt_m
+            await return_home(link, target.sysid, 1)
+            highest, deadline = again_at, time.monotonic() + 120
+            while watch.armed and time.monotonic() < deadline:
+                highest = max(highest, watch.rel_alt_m)
+                await asyncio.sleep(0.05)
+            await watch.until("disarmed on the ground", lambda: not watch.armed, 5)
+            return again_at, highest, watch.mode
+    again_at, highest, mode = harness.run(go(), 480)
+    print(f"{target.backend}-{target.kind}: RTL sent again at {again_at:.1f} m; highest after {highest:.1f} m; "
+          f"mode on the ground {mode}")
+    # PX4 SITL rose 0.9 m once (its land controller settling); a restarted return climbs to the
+    # return altitude (ArduCopter RTL_ALT 15 m, PX4 RTL_RETURN_ALT), well above 2 m more
+    assert highest < again_at + 2.0, f"RTL again at {again_at:.1f} m climbed back to {highest:.1f} m"

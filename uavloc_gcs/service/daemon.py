@@ -706,6 +706,11 @@ class Daemon:
             self._event("landed", f"vehicle {v.id} landed", v.id)
         if v.home and not a.on_ground() and a.tel.armed:
             v.home = False  # sent out again
+            if v.phase == "landed" and a.tel.mode in HOMING_MODES:
+                # Judged landed while still armed, low and slow, it is flying its return again
+                # (a return restarted by the pilot, a landing aborted): it is returning, not home.
+                self._returning(v)
+                self._event("home", f"vehicle {v.id} is airborne again in {a.tel.mode}: returning home", v.id)
 
     def _returning(self, v: _Vehicle) -> None:
         v.phase = "returning"

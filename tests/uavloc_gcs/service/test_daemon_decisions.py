@@ -7,7 +7,7 @@ import numpy as np
 
 from tests.e2e_helpers import small_scenario
 from uavloc_gcs.service.daemon import Daemon, DaemonOptions
-from uavloc_gcs.service.store import Store
+from uavloc_gcs.service.store import Store, StoreReader
 from uavloc_gcs.service.vehicle import Telemetry
 
 
@@ -214,5 +214,50 @@ def test_replans_that_only_shift_the_looks_a_little_are_not_uploaded_and_one_upl
         assert len(v.agent.uploads) == 3 and v.targets == (7, 9, 11)
         outcome_rows = (v.id, v.plans, v.uploads, v.skipped)
         assert outcome_rows == (1, 3, 3, 3)
+    finally:
+        d.store.close()
+
+
+class _LandingAgent(_Agent):
+    """Descends in RTL; ``ground`` says whether it is low and slow enough to count as landed."""
+
+    def __init__(self, xy):
+        super().__init__(xy)
+        self.tel.mode, self.ground = "RTL", False
+
+    def on_ground(self):
+        return self.ground
+
+    def silent_for_s(self):
+        return 0.0
+
+    @property
+    def in_mission_mode(self):
+        return self.tel.mode == "AUTO"
+
+
+def test_a_vehicle_judged_landed_that_climbs_again_in_rtl_is_returning_not_home(tmp_path):
+    """Under 20 % loss a retried RTL reached a fake vehicle 1.2 m above home, still armed: the
+    daemon took it for landed, the vehicle climbed back, and the search ended with it "not
+    confirmed returning home" after waiting the whole landing allowance. Airborne again in a
+    homing mode, it is returning."""
+    d, _policy = _daemon(tmp_path)
+    try:
+        v = d.vehicles[1]
+        v.agent = _LandingAgent((0.0, 2.0))
+        v.flew = True
+        d._returning(v)
+        v.agent.ground = True  # 1.2 m, armed, slow
+        d._update_phase(v)
+        assert v.home and v.phase == "landed"
+        v.agent.ground = False  # climbing again in RTL
+        d._update_phase(v)
+        assert not v.home and v.phase == "returning"
+        d.store.flush()
+        with StoreReader(tmp_path / "s.sqlite") as rd:
+            assert [e.text for e in rd.events("home")] == ["vehicle 1 is airborne again in RTL: returning home"]
+        v.agent.tel.armed, v.agent.ground = False, True  # down and disarmed
+        d._update_phase(v)
+        assert v.home and v.phase == "landed"
     finally:
         d.store.close()
