@@ -42,7 +42,11 @@ replanning, return) on paired worlds with each variant of the rules that place a
 - ``merge-twins``: two modes of one motion model that meet at the reference time are one candidate
   (``estimation.estimate.TWINS_ACROSS_MODELS_ONLY = False``; by default only modes of different
   models are merged);
-- ``turns``: ``turn-jump`` and ``merge-twins``; ``turns-200``: those and ``turn-200``.
+- ``turns``: ``turn-jump`` and ``merge-twins``; ``turns-200``: those and ``turn-200``;
+- ``turn-grid``: ``turn-jump``'s models start from the whole start grid instead of the main
+  model's modes (``estimation.estimate.TURN_STARTS_FROM_MAIN = False``);
+- ``turn-mirrors``: ``turn-jump``'s models also start from their own best mode's mirrors
+  (``estimation.estimate.TURN_MIRRORS = True``).
 
 ``uavloc bench localize --switch`` runs the estimator's switches of this list in the localization
 benchmark (given twice, both).
@@ -96,6 +100,8 @@ SWITCHES = {
     "turn-jump": ("estimate", "TURN_JUMP", True),
     "turn-200": ("estimate", "TURN_TIME_S", 200.0),
     "merge-twins": ("estimate", "TWINS_ACROSS_MODELS_ONLY", False),
+    "turn-grid": ("estimate", "TURN_STARTS_FROM_MAIN", False),
+    "turn-mirrors": ("estimate", "TURN_MIRRORS", True),
 }
 # variant -> the switches it turns together
 COMBINED = {"turn-tail": ("turn-mixture", "tail-4"), "turns": ("turn-jump", "merge-twins"),

@@ -90,18 +90,23 @@ MANEUVER_TAIL_DOF: float | None = None
 # noise. The prior probability of a turn since the oldest data, 1 - exp(-lag / TURN_TIME_S),
 # is shared among the gaps by the time each stands for. A turn is one change of velocity: two
 # parameters that correlated shadowing cannot use the way it uses free offsets per pass
-# (MANEUVER_TAIL_DOF). Measured (bench localize --runs 200 --family "small area, lanes + look"
-# [--switch turn-jump]; docs/readme/experiments.md): 0.81 -> 0.90 covered, but the median radius
-# 24.4 -> 46.2 m (with TURN_TIME_S = 200 s: 0.92 at 50.0 m); correlated shadowing's RMSE / bound
-# stays 0.46-0.48 (0.43-0.44 without; the t prior: 0.8-1.2), and the solve takes 2x (4-5x under
-# correlated shadowing). Short of 93 % at twice the radius, so off.
+# (MANEUVER_TAIL_DOF). Without it the Gaussian maneuver noise has light tails and, after a turn,
+# the look families' radii are 1.7-2.6x too small at the 95th percentile. Measured with
+# TWINS_ACROSS_MODELS_ONLY = False and TURN_TIME_S = 200 (bench localize --runs 100, the "need"
+# column; docs/readme/experiments.md): every random-waypoint family covered 0.94-0.98 with radii
+# 0.82-1.10 of what 95 % needs (without: small area + look 0.83, need 2.61); correlated
+# shadowing's RMSE / bound 0.46 (0.43-0.44 without); 1,000 slots in 7.1 ms instead of 6.2 ms. Off
+# because a person who turned and was then looked at twice keeps a 17-25 m radius where 11-14 m
+# covered them (test_maneuver.py: a twin a few metres off the estimate holds over 5 % and the
+# radius reaches over its whole circle), so missions fly more looks: 6.4 s longer in
+# bench looks --runs 20 (0.975 inside instead of 0.965).
 TURN_JUMP = False
 TURN_GAPS = 3
 TURN_GAP_MIN_S = 5.0
 TURN_SIGMA_FRACTION = 1.0
 # The mean time between turns in TURN_JUMP's prior; None: the maneuver time. The random-waypoint
 # walkers of a 250 m square turn about every two minutes, those of the paper's area about every
-# eight (bench looks variant "turn-200": 200 s).
+# eight; 200 s covers the small area at 0.94 instead of 0.92 (bench looks variant "turn-200").
 TURN_TIME_S: float | None = None
 MIRROR_PRIOR_SKIP = 12.0  # extra maneuver-prior cost (chi^2 units) beyond which a one-pass mirror is not tried
 # Whether only modes of different motion models are merged when they meet at t_ref (closer than
@@ -112,6 +117,12 @@ MIRROR_PRIOR_SKIP = 12.0  # extra maneuver-prior cost (chi^2 units) beyond which
 # away). False merges those too (bench looks variant "merge-twins"); measured in
 # docs/readme/experiments.md: with TURN_JUMP it lifts the small area + look family 0.90 -> 0.92.
 TWINS_ACROSS_MODELS_ONLY = True
+# Whether TURN_JUMP's turn models start from the main model's modes (the turn's velocity change
+# zero; the main model's mirrors among them) instead of the start grid, the CV fit and their own
+# mirror starts (TURN_MIRRORS). Measured (docs/readme/experiments.md): the same coverage, and the
+# solve for 1,000 slots 7.5 ms instead of 13 ms (the main model alone 6.8 ms).
+TURN_STARTS_FROM_MAIN = True
+TURN_MIRRORS = False
 
 
 @dataclass(frozen=True)
@@ -343,21 +354,49 @@ def _with_turns(main: "_Solution", data, channel: ChannelModel, t_anchor: float,
     for t_k, w in zip(times, share):
         if w <= 0:
             continue
+        seeds = [np.concatenate([theta, np.zeros(2)]) for theta, _ in main.modes] if TURN_STARTS_FROM_MAIN else None
         turned = _solve(data, channel, main.q, t_anchor, moving, main.problem.tx, vmax, previous, silence,
-                        turn_at_s=float(t_k))
+                        turn_at_s=float(t_k), starts=seeds)
         out.append((turned, math.log(p_turn * w)))
     return out
 
 
 def _solve(data, channel: ChannelModel, q: float, t_anchor: float, moving: bool, tx: bool, vmax: float,
-           previous: "Estimate | None", silence: Silence | None, turn_at_s: float | None = None) -> _Solution:
+           previous: "Estimate | None", silence: Silence | None, turn_at_s: float | None = None,
+           starts: list[np.ndarray] | None = None) -> _Solution:
     """Every mode of the data under the maneuver intensity q (and a turn at ``turn_at_s``, see
-    TURN_JUMP), refitted under the hearing bounds."""
+    TURN_JUMP), refitted under the hearing bounds. ``starts`` (best first) replace the start
+    grid, the constant-velocity start and ``previous``: a turn model starts from the main model's
+    modes (see TURN_STARTS_FROM_MAIN)."""
     passes = find_passes(data.t_s, t_anchor, q)
     problem = Problem(data, moving, tx, vmax, TX_PRIOR_SIGMA_DB * channel.nepers_per_db,
                       passes, offset_tail=MANEUVER_TAIL_DOF,
                       turn_at_s=turn_at_s if passes is not None and moving else None,
                       turn_sigma_m_s=max(TURN_SIGMA_FRACTION * vmax, 1e-3))
+    if starts is not None and len(starts) and len(starts[0]) == problem.size:
+        modes = _distinct_modes(problem, list(starts), mirrors=TURN_MIRRORS)
+    else:
+        modes = _distinct_modes(problem, _fresh_starts(problem, data, channel, moving, previous))
+    heard_xyz = np.column_stack([data.a_xy, data.h_m])
+    heard_pass = problem.passes.index if problem.passes is not None else np.full(len(data.t_s), -1)
+    heard_mid = np.where(heard_pass >= 0, t_anchor + (problem.passes.lags_s[heard_pass] if problem.passes is not None
+                                                     else 0.0), data.t_s)
+    bounds = build_bounds(data.t_c, t_anchor, data.t_s, heard_xyz, heard_pass, heard_mid, silence,
+                          channel.comm_range_m, q,
+                          np.array([m[0][:2] for m in modes]), vmax, moving)
+    if bounds is not None and silence is not None:
+        problem = replace(problem, bounds=bounds)
+        modes = _refit_bounded(problem, modes)
+    factor = inflation_factor(problem, modes[0][0])
+    laplace = [_laplace(problem, theta, cost, factor) for theta, cost in modes]
+    order = np.argsort([-lm for _, lm in laplace])
+    return _Solution(problem, [modes[i] for i in order], [laplace[i] for i in order], factor, q)
+
+
+def _fresh_starts(problem: Problem, data, channel: ChannelModel, moving: bool,
+                  previous: "Estimate | None") -> list[np.ndarray]:
+    """Start points of a model fitted from scratch, best first: ``previous`` (warm), the
+    constant-velocity fit from the best grid start (with the maneuver model), the grid."""
     starts = start_points(problem)
     if problem.passes is not None:
         # the CV fit from the best start first: with free pass offsets the maneuver fit has more
@@ -374,21 +413,7 @@ def _solve(data, channel: ChannelModel, q: float, t_anchor: float, moving: bool,
         if problem.tx:
             warm[problem.beta_index] = previous.tx_offset_db * channel.nepers_per_db
         starts.insert(0, warm)
-    modes = _distinct_modes(problem, starts)
-    heard_xyz = np.column_stack([data.a_xy, data.h_m])
-    heard_pass = problem.passes.index if problem.passes is not None else np.full(len(data.t_s), -1)
-    heard_mid = np.where(heard_pass >= 0, t_anchor + (problem.passes.lags_s[heard_pass] if problem.passes is not None
-                                                     else 0.0), data.t_s)
-    bounds = build_bounds(data.t_c, t_anchor, data.t_s, heard_xyz, heard_pass, heard_mid, silence,
-                          channel.comm_range_m, q,
-                          np.array([m[0][:2] for m in modes]), vmax, moving)
-    if bounds is not None and silence is not None:
-        problem = replace(problem, bounds=bounds)
-        modes = _refit_bounded(problem, modes)
-    factor = inflation_factor(problem, modes[0][0])
-    laplace = [_laplace(problem, theta, cost, factor) for theta, cost in modes]
-    order = np.argsort([-lm for _, lm in laplace])
-    return _Solution(problem, [modes[i] for i in order], [laplace[i] for i in order], factor, q)
+    return starts
 
 
 def _offset_prior_norm(problem: Problem) -> float:
@@ -446,7 +471,7 @@ def estimate_all(slots: SlotBatch, channel: ChannelModel, *, max_speed_m_s: floa
 # ---------------------------------------------------------------------------------------------
 
 
-def _distinct_modes(problem: Problem, starts: list[np.ndarray]) -> list[tuple[np.ndarray, float]]:
+def _distinct_modes(problem: Problem, starts: list[np.ndarray], mirrors: bool = True) -> list[tuple[np.ndarray, float]]:
     """Local optima from all starts, best first, duplicates (< 1 m apart) removed.
 
     The solution from the first start is also mirrored across every straight leg (person and
@@ -456,7 +481,7 @@ def _distinct_modes(problem: Problem, starts: list[np.ndarray]) -> list[tuple[np
     iterations; one that is by then next to a known optimum is dropped (it was converging there).
     """
     modes = [problem.fit(starts[0])]
-    _fit_more(problem, modes, list(starts[1:]) + _mirror_starts(problem, modes[0][0]))
+    _fit_more(problem, modes, list(starts[1:]) + (_mirror_starts(problem, modes[0][0]) if mirrors else []))
     out = _merged(modes)
     if not out:
         raise EstimationError("the fit diverged from every start point")
