@@ -477,7 +477,8 @@ def _distinct_modes(problem: Problem, starts: list[np.ndarray], mirrors: bool = 
     The solution from the first start is also mirrored across every straight leg (person and
     velocity reflected at the leg's time): a person close to one leg of several has a local
     mirror there that the global mirror start does not reach, and a person near a single track
-    has one just across it. Later starts first get a few
+    has one just across it (``mirrors=False``: not; a turn model started from the main model's
+    modes has those mirrors among its starts already). Later starts first get a few
     iterations; one that is by then next to a known optimum is dropped (it was converging there).
     """
     modes = [problem.fit(starts[0])]
