@@ -46,7 +46,10 @@ replanning, return) on paired worlds with each variant of the rules that place a
 - ``turn-grid``: ``turn-jump``'s models start from the whole start grid instead of the main
   model's modes (``estimation.estimate.TURN_STARTS_FROM_MAIN = False``);
 - ``turn-mirrors``: ``turn-jump``'s models also start from their own best mode's mirrors
-  (``estimation.estimate.TURN_MIRRORS = True``).
+  (``estimation.estimate.TURN_MIRRORS = True``);
+- ``cover-mirror``: a second mode holding over 5 % of the mass is covered by reaching over its
+  whole 95 % circle, not by the 95 % circle of the two modes' mixture
+  (``estimation.estimate.MIXTURE_RADIUS = False``).
 
 ``uavloc bench localize --switch`` runs the estimator's switches of this list in the localization
 benchmark (given twice, both).
@@ -102,6 +105,7 @@ SWITCHES = {
     "merge-twins": ("estimate", "TWINS_ACROSS_MODELS_ONLY", False),
     "turn-grid": ("estimate", "TURN_STARTS_FROM_MAIN", False),
     "turn-mirrors": ("estimate", "TURN_MIRRORS", True),
+    "cover-mirror": ("estimate", "MIXTURE_RADIUS", False),
 }
 # variant -> the switches it turns together
 COMBINED = {"turn-tail": ("turn-mixture", "tail-4"), "turns": ("turn-jump", "merge-twins"),

@@ -6,9 +6,10 @@ across the slots' principal line, keeps the distinct local optima as candidates,
 
 - ``radius95_m``: the radius of the circle about the estimate holding 95 % of the posterior
   (Laplace approximation, information deflated when the residuals show correlated shadowing or a
-  misfit). When a mirror candidate holds more than 5 % of the posterior mass the radius reaches
-  over it, because a 95 % circle must, and if it lies outside the best candidate's own circle the
-  estimate is ``ambiguous`` (a look has to tell them apart).
+  misfit). When a mirror candidate holds more than 5 % of the posterior mass the radius takes it
+  in, because a 95 % circle must: if it lies outside the best candidate's own circle the estimate
+  is ``ambiguous`` (a look has to tell them apart) and the radius reaches over its whole circle;
+  a near twin inside it is covered by the 95 % circle of the two candidates' mixture.
   ``mode_radius95_m`` is the radius of the best candidate alone.
 - ``annulus_bound_m``: the paper's annulus-intersection bound (:mod:`.annulus`).
 
@@ -41,7 +42,7 @@ from .fit import (
     start_points,
 )
 from .maneuver import MANEUVER_TIME_S, find_passes, intensity_m2_s3, state_noise
-from .model import ChannelModel, radius_of_probability
+from .model import ChannelModel, mixture_radius, radius_of_probability
 
 log = logging.getLogger(__name__)
 
@@ -123,6 +124,13 @@ TWINS_ACROSS_MODELS_ONLY = True
 # solve for 1,000 slots 7.5 ms instead of 13 ms (the main model alone 6.8 ms).
 TURN_STARTS_FROM_MAIN = True
 TURN_MIRRORS = False
+# How the 95 % radius takes in a second mode holding more than AMBIGUITY_MASS inside the estimate's
+# own circle (a near twin; an ambiguous mirror further off is always covered whole): True, the
+# radius of the circle about the estimate holding 95 % of the two modes' mixture (each a Gaussian
+# with its own 95 % radius, weighed by its mass); False, the circle reaching over the twin's whole
+# 95 % circle (distance + its radius), as if the twin held all the mass. Measured in
+# docs/readme/experiments.md (bench looks variant "cover-mirror" is False).
+MIXTURE_RADIUS = True
 
 
 @dataclass(frozen=True)
@@ -182,10 +190,44 @@ class Estimate:
                                t_s - self.t_ref_s, self.max_speed_m_s, self.model_motion, q)
         m = self.mirror
         if m is not None and (self.ambiguous or m.holds_mass):
+            dt = t_s - self.t_ref_s
             mpos, mr = _predict_mode(m.position_xy_m, m.velocity_m_s, m.covariance, m.radius95_m,
-                                     t_s - self.t_ref_s, self.max_speed_m_s, self.model_motion, q)
-            r = max(r, float(np.linalg.norm(mpos - pos)) + mr)
+                                     dt, self.max_speed_m_s, self.model_motion, q)
+            r = _pair_radius(pos, _moved_cov(self.covariance, dt, self.model_motion, q), r,
+                             mpos, _moved_cov(m.covariance, dt, self.model_motion, q), mr, m.relative_likelihood,
+                             self.ambiguous)
         return pos, r
+
+
+def _moved_cov(cov, dt, moving, q) -> np.ndarray:
+    """The 2x2 position covariance dt later (its shape; its size is set by the mode's radius)."""
+    if not moving or not np.all(np.isfinite(cov)):
+        return cov[:2, :2]
+    a = np.eye(4)
+    a[0, 2] = a[1, 3] = dt
+    return (a @ cov @ a.T + state_noise(q, dt))[:2, :2]
+
+
+def _pair_radius(pos, cov, r, mpos, mcov, mr, rel: float, ambiguous: bool) -> float:
+    """The 95 % radius about ``pos`` of the estimate's mode (covariance ``cov``, own radius ``r``)
+    and a second mode holding ``rel`` times its mass (see MIXTURE_RADIUS). Each mode's Gaussian is
+    scaled to its own radius, which carries what the covariance does not (a static person's walk
+    since the data, the floors of a prediction). An ``ambiguous`` pair (the second mode outside the
+    estimate's own circle) is always covered whole: how the mass splits between two sides of a
+    pass rests on what the motion model says of turns, the least certain part of the estimate."""
+    apart = float(np.linalg.norm(np.asarray(mpos) - np.asarray(pos)))
+    if ambiguous or not MIXTURE_RADIUS or not (math.isfinite(r) and math.isfinite(mr)):
+        return max(r, apart + mr)
+    w = rel / (1.0 + rel)
+    return mixture_radius(pos, [(1.0 - w, pos, _scaled(cov, r)), (w, mpos, _scaled(mcov, mr))])
+
+
+def _scaled(cov2: np.ndarray, r: float) -> np.ndarray:
+    """``cov2`` scaled so that its centred 95 % circle has radius ``r``."""
+    g = radius_of_probability(cov2)
+    if not (math.isfinite(g) and g > 0):
+        return np.eye(2) * (r / math.sqrt(-2.0 * math.log(0.05))) ** 2
+    return np.asarray(cov2, float) * (r / g) ** 2
 
 
 def _predict_mode(p, v, cov, r0, dt, vmax, moving, q=0.0) -> tuple[np.ndarray, float]:
@@ -299,8 +341,9 @@ def estimate_emitter(
     ambiguous = False
     if mirror is not None and mirror.holds_mass:
         apart = float(np.linalg.norm(mirror.position_xy_m - pos))
-        radius = max(mode_r, apart + mirror.radius95_m)
         ambiguous = apart > mode_r
+        radius = _pair_radius(pos, cov[:2, :2], mode_r, mirror.position_xy_m, m_cov[:2, :2], mirror.radius95_m, rel,
+                              ambiguous)
     if math.isfinite(reach):
         radius, mode_r = min(radius, reach), min(mode_r, reach)
     bound = annulus_bound_m(pos, t_ref, data.t_s, data.a_xy, data.h_m, data.y + beta, data.n_samples,

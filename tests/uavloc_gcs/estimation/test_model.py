@@ -8,7 +8,7 @@ import pytest
 
 from uavloc_gcs.estimation import ChannelModel, access_radius_m, data_information, position_rmse_bound_m
 from uavloc_gcs.estimation.annulus import annulus_bound_m, reach_bound_m
-from uavloc_gcs.estimation.model import circle_probability, radius_of_probability
+from uavloc_gcs.estimation.model import circle_probability, mixture_radius, radius_of_probability
 from uavloc_gcs.observations import SlotBatch
 
 CH = ChannelModel(comm_range_m=150.0)
@@ -23,6 +23,25 @@ def test_radius_of_probability_known_values():
     assert np.mean(np.hypot(*x.T) <= r) == pytest.approx(0.95, abs=0.003)
     assert circle_probability(cov, r) == pytest.approx(0.95, abs=1e-4)
     assert radius_of_probability(np.full((2, 2), np.inf)) == math.inf
+
+
+def test_mixture_radius_against_sampling():
+    """The circle about a point holding 95 % of a Gaussian mixture (a near twin of the estimate):
+    the centred single Gaussian agrees with radius_of_probability, and off-centre and two-part
+    mixtures with a large sample, to 1 % of the radius."""
+    cov = np.array([[3.0, 1.0], [1.0, 2.0]])
+    assert mixture_radius([0, 0], [(1.0, [0, 0], cov)]) == pytest.approx(radius_of_probability(cov), rel=0.01)
+    assert mixture_radius([0, 0], [(1.0, [0, 0], np.diag([9.0, 1e-10]))]) == pytest.approx(1.96 * 3, rel=0.01)
+    rng = np.random.default_rng(1)
+    main = rng.multivariate_normal([1.0, 0.5], cov, 300_000)
+    twin = rng.multivariate_normal([6.0, 0.0], np.diag([4.0, 4.0]), 100_000)  # a quarter of the mass
+    for parts, x in [([(1.0, [1.0, 0.5], cov)], main),
+                     ([(0.75, [1.0, 0.5], cov), (0.25, [6.0, 0.0], np.diag([4.0, 4.0]))], np.vstack([main, twin]))]:
+        r = mixture_radius([0, 0], parts)
+        assert r == pytest.approx(float(np.quantile(np.hypot(*x.T), 0.95)), rel=0.01)
+    # a twin holding a quarter of the mass needs far less than a circle over its whole 95 % circle
+    assert mixture_radius([0, 0], parts) < 6.0 + radius_of_probability(np.diag([4.0, 4.0]))
+    assert mixture_radius([0, 0], [(1.0, [0, 0], np.full((2, 2), np.nan))]) == math.inf
 
 
 def test_channel_inversion_matches_the_paper_numbers():
