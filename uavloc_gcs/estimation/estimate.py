@@ -93,31 +93,30 @@ MANEUVER_TAIL_DOF: float | None = None
 # parameters that correlated shadowing cannot use the way it uses free offsets per pass
 # (MANEUVER_TAIL_DOF). Without it the Gaussian maneuver noise has light tails and, after a turn,
 # the look families' radii are 1.7-2.6x too small at the 95th percentile. Measured with
-# TWINS_ACROSS_MODELS_ONLY = False and TURN_TIME_S = 200 (bench localize --runs 100, the "need"
-# column; docs/readme/experiments.md): every random-waypoint family covered 0.94-0.98 with radii
-# 0.82-1.10 of what 95 % needs (without: small area + look 0.83, need 2.61); correlated
-# shadowing's RMSE / bound 0.46 (0.43-0.44 without); 1,000 slots in 7.1 ms instead of 6.2 ms. Off
-# because a person who turned and was then looked at twice keeps a 17-25 m radius where 11-14 m
-# covered them (test_maneuver.py: a twin a few metres off the estimate holds over 5 % and the
-# radius reaches over its whole circle), so missions fly more looks: 6.4 s longer in
-# bench looks --runs 20 (0.975 inside instead of 0.965).
-TURN_JUMP = False
+# TWINS_ACROSS_MODELS_ONLY = False, TURN_TIME_S = 200 and MIXTURE_RADIUS (bench localize --runs
+# 100, the "need" column; docs/readme/experiments.md): every random-waypoint family covered
+# 0.93-0.98 with radii 0.85-1.11 of what 95 % needs (without: small area + look 0.83, need 2.61);
+# correlated shadowing's RMSE / bound 0.46 (0.43-0.44 without); 1,000 slots in 8 ms instead of
+# 6.4 ms; in missions (bench looks --runs 20, variant "no-turns" is the main model alone) 0.6 s
+# longer, 0.973 inside instead of 0.963, on the SITL suite's scenario 0.4 s.
+TURN_JUMP = True
 TURN_GAPS = 3
 TURN_GAP_MIN_S = 5.0
 TURN_SIGMA_FRACTION = 1.0
 # The mean time between turns in TURN_JUMP's prior; None: the maneuver time. The random-waypoint
 # walkers of a 250 m square turn about every two minutes, those of the paper's area about every
-# eight; 200 s covers the small area at 0.94 instead of 0.92 (bench looks variant "turn-200").
-TURN_TIME_S: float | None = None
+# eight; 200 s covers the small area at 0.94 instead of 0.92 (bench looks variant "turn-600" is the
+# maneuver time).
+TURN_TIME_S: float | None = 200.0
 MIRROR_PRIOR_SKIP = 12.0  # extra maneuver-prior cost (chi^2 units) beyond which a one-pass mirror is not tried
 # Whether only modes of different motion models are merged when they meet at t_ref (closer than
 # PROBE_MERGE_M). Two modes of one model are told apart at the fit's reference time; with
 # different velocities they can meet at t_ref, and the second then takes the mirror's place as a
 # twin of the estimate, hiding a real alternative further down (seen in the small-area family with
 # TURN_JUMP: "mirrors" 0.2-3.7 m from the estimate holding 30-77 % of the mass, the truth 50 m
-# away). False merges those too (bench looks variant "merge-twins"); measured in
+# away). False merges those too (bench looks variant "split-twins" is True); measured in
 # docs/readme/experiments.md: with TURN_JUMP it lifts the small area + look family 0.90 -> 0.92.
-TWINS_ACROSS_MODELS_ONLY = True
+TWINS_ACROSS_MODELS_ONLY = False
 # Whether TURN_JUMP's turn models start from the main model's modes (the turn's velocity change
 # zero; the main model's mirrors among them) instead of the start grid, the CV fit and their own
 # mirror starts (TURN_MIRRORS). Measured (docs/readme/experiments.md): the same coverage, and the
