@@ -35,17 +35,17 @@ replanning, return) on paired worlds with each variant of the rules that place a
 - ``tail-1``, ``tail-4``: the maneuver offsets' prior a multivariate t with 1 or 4 degrees of
   freedom (``estimation.estimate.MANEUVER_TAIL_DOF``; by default Gaussian);
 - ``turn-tail``: ``turn-mixture`` and ``tail-4`` together;
-- the turn models, shipped on since 2026-11-25 (``turn-jump``, ``merge-twins``, ``turn-200``, and
-  ``turns``, ``turns-200`` together, are now the default): ``no-turn-jump``, no models in which the
-  person turned once at one of the longest gaps in the data (``estimation.estimate.TURN_JUMP =
-  False``); ``turn-600``, a turn every 600 s (the maneuver time) on average in their prior instead
-  of 200 s (``estimation.estimate.TURN_TIME_S = None``); ``split-twins``, only modes of different
-  motion models that meet at the reference time are one candidate
-  (``estimation.estimate.TWINS_ACROSS_MODELS_ONLY = True``); ``no-turns``, all three: the
-  estimator as it was before;
-- ``turn-grid``: ``turn-jump``'s models start from the whole start grid instead of the main
+- the turn models, shipped on since 2026-11-25 (the variants ``turn-jump``, ``merge-twins``,
+  ``turn-200``, ``turns`` and ``turns-200`` that switched them on are gone): ``no-turn-jump``, no
+  models in which the person turned once at one of the longest gaps in the data
+  (``estimation.estimate.TURN_JUMP = False``); ``turn-600``, a turn every 600 s (the maneuver
+  time) on average in their prior instead of 200 s (``estimation.estimate.TURN_TIME_S = None``);
+  ``split-twins``, only modes of different motion models that meet at the reference time are one
+  candidate (``estimation.estimate.TWINS_ACROSS_MODELS_ONLY = True``); ``no-turns``, all three:
+  the estimator as it was before;
+- ``turn-grid``: the turn models start from the whole start grid instead of the main
   model's modes (``estimation.estimate.TURN_STARTS_FROM_MAIN = False``);
-- ``turn-mirrors``: ``turn-jump``'s models also start from their own best mode's mirrors
+- ``turn-mirrors``: the turn models also start from their own best mode's mirrors
   (``estimation.estimate.TURN_MIRRORS = True``);
 - ``cover-mirror``: a second mode holding over 5 % of the mass is covered by reaching over its
   whole 95 % circle, not by the 95 % circle of the two modes' mixture
@@ -100,9 +100,6 @@ SWITCHES = {
     "turn-mixture": ("estimate", "TURN_MIXTURE", True),
     "tail-1": ("estimate", "MANEUVER_TAIL_DOF", 1.0),
     "tail-4": ("estimate", "MANEUVER_TAIL_DOF", 4.0),
-    "turn-jump": ("estimate", "TURN_JUMP", True),
-    "turn-200": ("estimate", "TURN_TIME_S", 200.0),
-    "merge-twins": ("estimate", "TWINS_ACROSS_MODELS_ONLY", False),
     "no-turn-jump": ("estimate", "TURN_JUMP", False),
     "turn-600": ("estimate", "TURN_TIME_S", None),
     "split-twins": ("estimate", "TWINS_ACROSS_MODELS_ONLY", True),
@@ -111,9 +108,7 @@ SWITCHES = {
     "cover-mirror": ("estimate", "MIXTURE_RADIUS", False),
 }
 # variant -> the switches it turns together
-COMBINED = {"turn-tail": ("turn-mixture", "tail-4"), "turns": ("turn-jump", "merge-twins"),
-            "turns-200": ("turn-jump", "merge-twins", "turn-200"),
-            "no-turns": ("no-turn-jump", "split-twins", "turn-600")}
+COMBINED = {"turn-tail": ("turn-mixture", "tail-4"), "no-turns": ("no-turn-jump", "split-twins", "turn-600")}
 VARIANTS = ("default", *SWITCHES, *COMBINED)
 _SHIPPED: dict = {}  # the switches' shipped values, read once per worker before any change
 
