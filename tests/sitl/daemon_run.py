@@ -41,7 +41,7 @@ altitude_m = 40.0
 comm_range_m = 120.0
 energy_budget_j = 400000.0
 [people]
-required_accuracy_m = 15.0
+required_accuracy_m = {required}
 [planner]
 time_limit_s = 0.2
 {scan}
@@ -89,13 +89,14 @@ def start_px4(sitl_factory, **kw) -> Vehicle:
                    f"udpin:127.0.0.1:{rport}")
 
 
-def scenario_text(name: str, autopilot: str, vehicles: list[Vehicle], seed: int = 3, scan: str = "") -> str:
+def scenario_text(name: str, autopilot: str, vehicles: list[Vehicle], seed: int = 3, scan: str = "",
+                  required_m: float = 15.0) -> str:
     """``scan``: extra TOML, e.g. a sparser scan (``[scan]\nlane_spacing_m = 150``) that leaves
-    people for the look phase."""
+    people for the look phase; ``required_m``: the accuracy asked for (95 % radius)."""
     lat, lon = vehicles[0].sitl.home[:2]
     q = lambda xs: "[" + ", ".join(f'"{x}"' for x in xs) + "]"  # noqa: E731
     return SCENARIO.format(name=name, lat=lat, lon=lon, n=len(vehicles), autopilot=autopilot, speed=SPEED_M_S,
-                           seed=seed, scan=scan, connections=q(v.connection for v in vehicles),
+                           seed=seed, scan=scan, required=required_m, connections=q(v.connection for v in vehicles),
                            rssi=q(v.daemon_rssi for v in vehicles))
 
 

@@ -68,6 +68,7 @@ def test_two_arducopters_together(sitl, tmp_path):
 
 
 SPARSE_SCAN = "[scan]\nlane_spacing_m = 220.0\ncoverage = \"single\""  # two lanes: people are left for looks
+LOOKS_REQUIRED_M = 10.0  # the accuracy asked for in the look test: the scan alone must not meet it
 
 
 @pytest.mark.parametrize("kind", ["ardupilot", "px4"])
@@ -78,9 +79,15 @@ def test_a_search_with_looks_replans_without_churn(sitl, tmp_path, kind):
     estimator fixes it passed 24 of 25 runs (the last two: the sixth session's CI run and a full
     suite run of the seventh); the one failure was inside a full suite run and its store was not
     kept. One person, 38 m off the lane, is the hard one: in 10 runs alone 1.9-15.2 m off inside
-    10.0-14.9 m, once outside (15.2 m, 11.2 m), which the check allows for one in three.)"""
+    10.0-14.9 m, once outside (15.2 m, 11.2 m), which the check allows for one in three.)
+    Since the turn models and the near-twin radius (2026-11-25) ArduCopter's sparse scan alone
+    located all three within 15 m (radii 5.9-10.6 m, no look), so the test asks for 10 m: in the
+    simulator, on the same geometry, 120 of 120 people located with looks, 0.958 inside
+    (``uavloc bench looks --scenario benchmarks/scenarios/sitl_sparse_scan.toml --people 3
+    --runs 40`` with ``required_accuracy_m = 10``)."""
     v = dr.start_px4(sitl) if kind == "px4" else dr.start_arducopter(sitl)
-    sc = dr.load(dr.scenario_text(f"{kind}-looks", kind, [v], scan=SPARSE_SCAN), tmp_path / "mission.toml")
+    sc = dr.load(dr.scenario_text(f"{kind}-looks", kind, [v], scan=SPARSE_SCAN, required_m=LOOKS_REQUIRED_M),
+                 tmp_path / "mission.toml")
     with dr.Companions(sc, [v]):
         run = dr.run_daemon(tmp_path / "mission.toml", tmp_path / "out")
     print(f"{kind} with looks: {run.wall_s:.0f} s wall")
