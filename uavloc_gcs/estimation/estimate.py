@@ -185,26 +185,14 @@ class Estimate:
         which holds whatever the person does. Static model: the radius grows by v_max |dt|.
         """
         q = self.process_noise_m2_s3
-        pos, r = _predict_mode(self.position_xy_m, self.velocity_m_s, self.covariance, self.mode_radius95_m,
-                               t_s - self.t_ref_s, self.max_speed_m_s, self.model_motion, q)
+        pos, r, cov2 = _predict_mode(self.position_xy_m, self.velocity_m_s, self.covariance, self.mode_radius95_m,
+                                     t_s - self.t_ref_s, self.max_speed_m_s, self.model_motion, q)
         m = self.mirror
         if m is not None and (self.ambiguous or m.holds_mass):
-            dt = t_s - self.t_ref_s
-            mpos, mr = _predict_mode(m.position_xy_m, m.velocity_m_s, m.covariance, m.radius95_m,
-                                     dt, self.max_speed_m_s, self.model_motion, q)
-            r = _pair_radius(pos, _moved_cov(self.covariance, dt, self.model_motion, q), r,
-                             mpos, _moved_cov(m.covariance, dt, self.model_motion, q), mr, m.relative_likelihood,
-                             self.ambiguous)
+            mpos, mr, mcov2 = _predict_mode(m.position_xy_m, m.velocity_m_s, m.covariance, m.radius95_m,
+                                            t_s - self.t_ref_s, self.max_speed_m_s, self.model_motion, q)
+            r = _pair_radius(pos, cov2, r, mpos, mcov2, mr, m.relative_likelihood, self.ambiguous)
         return pos, r
-
-
-def _moved_cov(cov, dt, moving, q) -> np.ndarray:
-    """The 2x2 position covariance dt later (its shape; its size is set by the mode's radius)."""
-    if not moving or not np.all(np.isfinite(cov)):
-        return cov[:2, :2]
-    a = np.eye(4)
-    a[0, 2] = a[1, 3] = dt
-    return (a @ cov @ a.T + state_noise(q, dt))[:2, :2]
 
 
 def _pair_radius(pos, cov, r, mpos, mcov, mr, rel: float, ambiguous: bool) -> float:
@@ -229,11 +217,13 @@ def _scaled(cov2: np.ndarray, r: float) -> np.ndarray:
     return np.asarray(cov2, float) * (r / g) ** 2
 
 
-def _predict_mode(p, v, cov, r0, dt, vmax, moving, q=0.0) -> tuple[np.ndarray, float]:
+def _predict_mode(p, v, cov, r0, dt, vmax, moving, q=0.0) -> tuple[np.ndarray, float, np.ndarray]:
+    """One mode dt later: position, 95 % radius and the 2x2 position covariance (its shape, for
+    _pair_radius; the radius carries the floors and caps below)."""
     if not math.isfinite(r0):
-        return p + v * dt, math.inf
+        return p + v * dt, math.inf, cov[:2, :2]
     if not moving:
-        return p.copy(), r0 + vmax * abs(dt)
+        return p.copy(), r0 + vmax * abs(dt), cov[:2, :2]
     a = np.eye(4)
     a[0, 2] = a[1, 3] = dt
     c = a @ cov @ a.T + state_noise(q, dt)
@@ -241,7 +231,7 @@ def _predict_mode(p, v, cov, r0, dt, vmax, moving, q=0.0) -> tuple[np.ndarray, f
     if q > 0:  # a stop or a turn at any moment moves the person off the CV prediction
         r = max(r, r0 + vmax * abs(dt))
     r = min(r, r0 + (float(np.hypot(*v)) + vmax) * abs(dt))
-    return p + v * dt, max(r, r0 if dt == 0 else 0.0)
+    return p + v * dt, max(r, r0 if dt == 0 else 0.0), c[:2, :2]
 
 
 def estimate_emitter(

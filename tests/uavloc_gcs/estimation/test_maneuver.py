@@ -107,9 +107,10 @@ def test_the_constant_velocity_model_misses_the_turn(sc, channel):
 def test_one_look_after_a_turn_is_mostly_covered(sc, channel):
     """A single look pass after the turn: its mirror is resolved only by the old lanes, which
     point the wrong way after a sharp turn at full speed (a tail event for the Gaussian random
-    walk). Known limit (measured): covered in 3 of 6 seeds, all three flagged ambiguous with the
-    radius over both mirrors; in the other 3 the wrong mirror wins (~60 m off, radius ~9 m). The
-    CV model is covered in none (errors ~50 m, radii 9-16 m). A second look fixes all 6 (above)."""
+    walk). Measured with the turn models (shipped): covered in 6 of 6 seeds, all flagged ambiguous
+    with the radius over both mirrors (errors 55-65 m, radii 60-81 m); with the main model alone
+    3 of 6, in the other 3 the wrong mirror winning (~60 m off, radius ~9 m). The CV model is
+    covered in none (errors ~50 m, radii 9-16 m). A second look fixes all 6 (above)."""
     new = cv = 0
     for seed in range(6):
         world = World(sc, seed=seed, tracks=TURN)
@@ -124,8 +125,9 @@ def test_one_look_after_a_turn_is_mostly_covered(sc, channel):
 @pytest.mark.parametrize("switches", [{"TURN_MIXTURE": True}, {"MANEUVER_TAIL_DOF": 4.0}, {"TURN_JUMP": True},
                                       {"TURN_JUMP": True, "TWINS_ACROSS_MODELS_ONLY": False}], ids=str)
 def test_a_model_of_turns_covers_one_look_after_a_turn(sc, channel, monkeypatch, switches):
-    """Two switches of ``estimate`` (off by default; bench localize --switch turn-mixture, tail-4)
-    that keep the wrong mirror from taking all the mass after a turn:
+    """Switches of ``estimate`` that keep the wrong mirror from taking all the mass after a turn
+    (the first two off; bench localize --switch turn-mixture, tail-4; the turn models on since
+    2026-11-25):
 
     - ``TURN_MIXTURE``, a second model in which the person turned since the lanes: one look
       covered in 5 of 6 seeds (3 of 6 without), radii after the second look 17-28 m instead of
@@ -135,8 +137,8 @@ def test_a_model_of_turns_covers_one_look_after_a_turn(sc, channel, monkeypatch,
     - ``TURN_JUMP``, models in which the person turned once, at one of the longest gaps: 5 of 6
       seeds, radii after the second look 17-25 m (the same with twins merged as well).
 
-    The larger radii (and, for the first two, a worse fit under correlated shadowing) are why they
-    are off. The first two were measured with a near twin covered over its whole circle: with the
+    The larger radii (and, for the first two, a worse fit under correlated shadowing) are why the
+    first two are off; the turn models' radii after two looks are 12-19 m with the near-twin radius. The first two were measured with a near twin covered over its whole circle: with the
     two modes' mixture (MIXTURE_RADIUS) each leaves one seed 1.05-1.1x outside after two looks
     (its twins' masses are less reliable), so they are checked as measured."""
     from uavloc_gcs.estimation import estimate as estimate_module
