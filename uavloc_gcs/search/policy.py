@@ -687,6 +687,7 @@ class SearchPolicy:
             return "not estimated yet"
         if not self._ok(p):
             return f"estimate status {getattr(p.estimate, 'status', '?')}"
+        unplanned = "; the last plan had no look for it" if p.emitter_id in self._unplanned else ""
         if self._ambiguous(p):
-            return "mirror ambiguity: needs a look off the flight line"
-        return f"95 % radius {self._radius95(p):.1f} m > {self.required_m:g} m"
+            return "mirror ambiguity: needs a look off the flight line" + unplanned
+        return f"95 % radius {self._radius95(p):.1f} m > {self.required_m:g} m" + unplanned

@@ -45,14 +45,15 @@ from .vehicle import VehicleAgent
 log = logging.getLogger(__name__)
 
 MISSION_STATE_COMPLETE = 5
-WAYPOINT_TOLERANCE_M = 10.0
-REPLAN_BACKOFF_S = 10.0  # mission seconds before planning again after the planner failed  # a replanned look this close to the uploaded one is "unchanged"
+WAYPOINT_TOLERANCE_M = 10.0  # a replanned look this close to the uploaded one is "unchanged"
+REPLAN_BACKOFF_S = 10.0  # mission seconds before planning again after the planner failed
 LAND_WAIT_S = 300.0  # mission seconds to wait at most for the fleet to land after sending it home
 LANDING_MARGIN_S = 30.0  # beyond the flight home and the descent at LANDING_RATE_M_S
 LANDING_RATE_M_S = 1.0
 HOLD_WALL_S = 30.0  # a finished scan holds at least this many wall seconds for the next mission
 JOB_WAIT_S = 3.0  # wall seconds the brain waits for a vehicle's exchanges before leaving them to it
 START_WAIT_S = 10.0  # the same for the scan starts
+IDLE_END_S = 10.0  # mission seconds with every vehicle home and no look planned before the search ends
 STOP_WAIT_S = 15.0  # wall seconds to send everyone home when stopped
 HOMING_MODES = ("RTL", "SMART_RTL", "LAND", "AUTO.RTL", "AUTO.LAND")  # ArduPilot, PX4
 
@@ -155,7 +156,8 @@ class Daemon:
         self._n_slots = 0
         self._replans = 0
         self._last_fleet: frozenset | None = None
-        self._finishing_since: float | None = None
+        self._finishing_since: float | None = None  # mission time of "done" (everyone sent home)
+        self._idle_since: float | None = None  # mission time since which nobody flies and nothing is sent
         self._stop = asyncio.Event()
         self._rate = ClockRate()
         self._last_tel_store: dict[int, float] = {}
@@ -795,22 +797,31 @@ class Daemon:
         if not all(v.scan_done or v.home for v in active):
             return False
         if self.policy.done(t):
-            return await self._finish(active)
+            return await self._finish()
         fleet = frozenset(v.id for v in active)
         usable = active
+        idle = all(v.home and v.job is None for v in active)
+        if idle and self._idle_since is None:
+            # Nobody is flying, people are still pending: plan once more with the whole fleet on
+            # the ground. Without it a look flown and judged a miss, with nothing else changing,
+            # ended the search with the person unlooked-at and no reason given.
+            self._idle_since = t
+            self._replan_due = True
         if (self.policy.needs_replan(t, changed) or fleet != self._last_fleet or self._replan_due) \
                 and t >= self._replan_not_before_s:
             self._last_fleet = fleet
             self._replan_due = False
             await self._replan(t, usable)
-        if all(v.home for v in active):
-            # nobody is flying and nothing more can be planned: stop with who is not located
-            if self._finishing_since is None:
-                self._finishing_since = t
-            elif t - self._finishing_since > 10.0:
+        # (an exchange still under way, e.g. a look's upload being retried, is not idle: it may send
+        # the vehicle out; the search does not end under it)
+        if all(v.home and v.job is None for v in active):
+            if self._idle_since is not None and t - self._idle_since > IDLE_END_S and not self._replan_due:
+                pending = [str(p.emitter_id) for p in self.policy.people(t) if not p.located]
+                self._event("end", "every vehicle is home and no look could be planned for person(s) "
+                            f"{', '.join(pending) or '-'}: stopping the search")
                 return True
         else:
-            self._finishing_since = None
+            self._idle_since = None
         return False
 
     def _vehicle_state(self, v: _Vehicle):
@@ -912,15 +923,22 @@ class Daemon:
         self._returning(v)
         self._event("home", f"vehicle {v.id} has nothing left to look at: returning home", v.id)
 
-    async def _finish(self, active: list[_Vehicle]) -> bool:
+    async def _finish(self) -> bool:
         if self._finishing_since is None:
             self._finishing_since = self.now_s()
             self._finish_wall = self.wall()
             self._event("done", "every person heard is located or given up: all vehicles return home")
-            going = [v for v in active if not v.home and not v.phase.startswith("returning")]
-            for v in going:
-                if v.job is not None:
-                    v.job.cancel()  # home instead of whatever it was being told
+            # Whatever a vehicle was being told (a look's upload or start) is moot now, also for a
+            # vehicle on the ground: left running, a start whose ACK is late sends it out again.
+            moot = [v.job for v in self._active() if v.job is not None]
+            for job in moot:
+                job.cancel()
+            if moot:
+                await asyncio.wait(moot, timeout=JOB_WAIT_S)
+        # Every call, not only the first: a vehicle can be airborne again after "done" (a start
+        # that was on its way when its exchange was cancelled); it is sent home like the others.
+        going = [v for v in self._active() if v.job is None and not v.home and not v.phase.startswith("returning")]
+        if going:
             await self._jobs([(v, self._send_home(v)) for v in going])
         if any(v.job is not None for v in self._active()) and self.wall() - self._finish_wall < STOP_WAIT_S:
             return False  # a return-home exchange is still being retried: its outcome goes in the statement

@@ -78,18 +78,28 @@ async def persist(action: Callable[[], Awaitable[None]], done: Callable[[], bool
     than wall time ``t`` has arrived (so the judgement is not made on what was known before);
     ``check()`` is an optional slower judgement that talks to the vehicle (e.g. reading the
     mission back). Raises :class:`ExchangeFailed` naming the last error.
+
+    ``done()`` is also watched while the action runs: a command whose ACKs are lost is resent
+    for seconds, and a vehicle can do what it was told, and be done with it, before the action
+    gives up (a short look flown and landed from while MISSION_START waited for its ACK, at a
+    simulator's speed-up). Judging only afterwards would then find it not doing it and tell it
+    again: a landed vehicle sent out a second time.
     """
     last: LinkError | None = None
     for attempt in range(tries):
         if attempt:
             await asyncio.sleep(backoff_s[min(attempt - 1, len(backoff_s) - 1)])
+        seen = _Seen(done, wall(), heard_since)
+        watcher = asyncio.ensure_future(seen.watch())
         try:
             await action()
             return "acked"
         except LinkError as exc:
             last = exc
             failed_at = wall()
-        if await _judged(done, failed_at, settle_s, heard_since, wall):
+        finally:
+            watcher.cancel()
+        if seen.flag or await _judged(done, failed_at, settle_s, heard_since, wall):
             log.info("vehicle %d %s: %s, but the vehicle does it", vehicle, what, last)
             return "judged"
         if check is not None:
@@ -102,6 +112,20 @@ async def persist(action: Callable[[], Awaitable[None]], done: Callable[[], bool
             on_retry(f"vehicle {vehicle} {what}: {last}; trying again")
     raise ExchangeFailed(f"{what} failed {tries} times and the vehicle does not do it; last: {last}",
                          vehicle=str(vehicle))
+
+
+class _Seen:
+    """Whether ``done()`` was true on telemetry heard after wall time ``since``, at any moment."""
+
+    def __init__(self, done, since: float, heard_since) -> None:
+        self.done, self.since, self.heard_since, self.flag = done, since, heard_since, False
+
+    async def watch(self) -> None:
+        while not self.flag:
+            if (self.heard_since is None or self.heard_since(self.since)) and self.done():
+                self.flag = True
+                return
+            await asyncio.sleep(0.05)
 
 
 async def _judged(done, since: float, settle_s: float, heard_since, wall) -> bool:

@@ -326,6 +326,10 @@ def test_unplanned_people_wait_for_new_data_instead_of_a_replan_every_tick(small
     policy._unplanned = {victim}
     assert not policy.needs_replan(t_end + 1.0, set())
     assert policy.needs_replan(t_end + 1.0, {victim})  # new data about them: plan again
+    # and if the search ends like this, the statement says why nobody looked at them
+    reasons = {p.emitter_id: p.reason for p in policy.people(t_end + 1.0)}
+    assert reasons[victim].endswith("; the last plan had no look for it"), reasons[victim]
+    assert not any(r.endswith("no look for it") for e, r in reasons.items() if e != victim), reasons
 
 
 def _a_person_needing_a_look(small):

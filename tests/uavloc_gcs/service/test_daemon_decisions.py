@@ -261,3 +261,101 @@ def test_a_vehicle_judged_landed_that_climbs_again_in_rtl_is_returning_not_home(
         assert v.home and v.phase == "landed"
     finally:
         d.store.close()
+
+
+def test_done_cancels_a_landed_vehicles_start_and_sends_home_one_airborne_again(tmp_path):
+    """Reproduces a CI failure (tests/test_e2e_vehicle_faults.py, ArduCopter fake at 25x): a look
+    started on landed vehicle 1 waited seconds for MISSION_START ACKs that never came; the
+    vehicle flew the look and landed meanwhile, the person was located, and "done" cancelled the
+    exchanges of the vehicles still out only. The start went on, sent vehicle 1 out again, and the
+    search ended with it "not confirmed returning home". Now every exchange is cancelled at
+    "done", and a vehicle airborne again after it is sent home."""
+    d, policy = _daemon(tmp_path)
+    policy.done = lambda t: True
+
+    async def go():
+        v1, v2 = d.vehicles[1], d.vehicles[2]
+        for v in (v1, v2):
+            v.agent = _LandingAgent((0.0, 2.0))
+        v1.agent.ground, v1.agent.tel.armed, v1.home, v1.phase = True, False, True, "landed"
+        v2.agent.tel.mode, v2.home, v2.phase = "AUTO", False, "localizing"  # out on a look
+        launched = []
+
+        async def slow_start():  # the MISSION_START still waiting for its ACK
+            await asyncio.sleep(5.0)
+            launched.append(1)
+
+        d._launch(v1, slow_start())
+        d.now_s = lambda: 500.0
+        assert await d._step(500.0, set()) is False  # done: waiting for vehicle 2 to land
+        await asyncio.sleep(0.1)
+        assert v1.job is None and not launched, "the landed vehicle's start was cancelled"
+        assert (v1.agent.homes, v2.agent.homes) == (0, 1) and v2.phase == "returning"
+
+        # vehicle 1 is airborne again (a start that was already on its way): it is sent home too
+        v1.agent.ground, v1.agent.tel.armed, v1.agent.tel.mode = False, True, "AUTO"
+        d._update_phase(v1)
+        assert not v1.home
+        d.now_s = lambda: 510.0
+        assert await d._step(510.0, set()) is False
+        assert v1.agent.homes == 1 and v1.phase == "returning"
+        return launched
+
+    try:
+        assert asyncio.run(go()) == []
+        d.store.flush()
+        with StoreReader(tmp_path / "s.sqlite") as rd:
+            assert [e.text for e in rd.events("done")] == [
+                "every person heard is located or given up: all vehicles return home"]
+    finally:
+        d.store.close()
+
+
+def _all_landed(d):
+    for v in d.vehicles.values():
+        v.agent = _LandingAgent((0.0, 2.0))
+        v.agent.ground, v.agent.tel.armed, v.home, v.phase = True, False, True, "landed"
+    d._last_fleet = frozenset(v.id for v in d.vehicles.values())  # no fleet change to replan for
+
+
+def test_with_everyone_home_and_people_pending_the_daemon_plans_once_more(tmp_path):
+    """Seen in the fault test's store: a look flown and judged, nothing else changing, every vehicle
+    landed -- and the search ended 10 s later with the person "95 % radius 283 m > 15 m", never
+    planned for again. Nobody flying and people pending asks for one more plan."""
+    d, policy = _daemon(tmp_path)
+    _all_landed(d)
+    try:
+        assert asyncio.run(d._step(700.0, set())) is False
+        assert policy.offered == [["1", "2"]]
+        assert all(len(v.agent.uploads) == 1 and not v.home for v in d.vehicles.values())
+    finally:
+        d.store.close()
+
+
+def test_the_search_does_not_end_idle_while_an_exchange_is_under_way(tmp_path):
+    """A look's upload being retried to a landed vehicle is not "nobody is flying": the search ended
+    under such an exchange before. When no look can be planned it ends, and says so."""
+    d, policy = _daemon(tmp_path)
+    _all_landed(d)
+    policy.replan = lambda t, vehicles: SimpleNamespace(
+        tasks=tuple(SimpleNamespace(vehicle_id=v.id, target_ids=(), eta_s=t, access_times_s=(),
+                                    waypoints_xy_m=np.zeros((1, 2))) for v in vehicles),
+        makespan_s=0.0, planner_runtime_s=0.0)
+    policy.people = lambda t: [SimpleNamespace(emitter_id=7, located=False)]
+
+    async def go():
+        job = d._launch(d.vehicles[1], asyncio.sleep(30.0))
+        ends = [await d._step(t, set()) for t in (700.0, 705.0, 720.0)]
+        job.cancel()
+        await asyncio.sleep(0.01)
+        ends += [await d._step(t, set()) for t in (721.0, 725.0, 732.0)]
+        return ends
+
+    try:
+        assert asyncio.run(go()) == [False] * 5 + [True]
+        d.store.flush()
+        with StoreReader(tmp_path / "s.sqlite") as rd:
+            assert [e.text for e in rd.events("end")] == [
+                "every vehicle is home and no look could be planned for person(s) 7: stopping the search"]
+    finally:
+        d.store.close()

@@ -92,3 +92,32 @@ def test_a_lost_ack_is_judged_from_what_the_vehicle_does_and_a_refusal_fails_aft
     assert (r1, ok_calls) == ("acked", 1)
     assert (r2, lost_calls) == ("judged", 1)  # not sent again: the vehicle was seen doing it
     assert refused_calls == 3 and len(retries) == 2
+
+
+class _ShortLook:
+    """Takes off on the command, flies a look shorter than the command's wait for its ACK, lands,
+    and never acknowledges: by the time the command gives up, the vehicle is done and on the ground."""
+
+    def __init__(self):
+        self.calls, self.flying, self.heard = 0, False, 0.0
+
+    async def command(self):
+        self.calls += 1
+        loop = asyncio.get_running_loop()
+        self.flying, self.heard = True, loop.time()
+        await asyncio.sleep(0.2)
+        self.flying, self.heard = False, loop.time()
+        await asyncio.sleep(0.2)
+        raise CommandError("MAV_CMD_MISSION_START: no COMMAND_ACK after 6 tries")
+
+
+def test_a_vehicle_seen_doing_it_while_the_ack_was_awaited_is_not_told_again():
+    async def go():
+        v = _ShortLook()
+        loop = asyncio.get_running_loop()
+        how = await persist(v.command, lambda: v.flying, what="start", vehicle=1, backoff_s=(0.01,),
+                            settle_s=0.2, heard_since=lambda t: v.heard >= t, wall=loop.time)
+        return how, v.calls
+
+    # judged only after the command failed, it looked landed, and was started a second time
+    assert asyncio.run(go()) == ("judged", 1)
