@@ -10,6 +10,7 @@ import time
 from uavloc_gcs.link import flavour_for
 
 ARMED = 128
+LANDED_STATE_ON_GROUND = 1  # MAV_LANDED_STATE_ON_GROUND
 
 
 def distance_m(lat1: float, lon1: float, lat2: float, lon2: float) -> float:
@@ -65,6 +66,18 @@ class Watch:
     def rel_alt_m(self) -> float:
         pos = self.last.get("GLOBAL_POSITION_INT")
         return pos.relative_alt / 1000.0 if pos else math.nan
+
+    @property
+    def landed(self) -> bool:
+        """Disarmed on the ground: by the vehicle's own landed state (EXTENDED_SYS_STATE) where it
+        sends one, else by its relative altitude. Measured on PX4 SIH (full run, 2026-11-25):
+        "Landing detected", "Disarmed by landing", and GLOBAL_POSITION_INT still 1.8 m above home."""
+        if self.armed:
+            return False
+        ext = self.last.get("EXTENDED_SYS_STATE")
+        if ext is not None and ext.landed_state == LANDED_STATE_ON_GROUND:
+            return True
+        return self.rel_alt_m < 1.0
 
     @property
     def latlon(self) -> tuple[float, float]:

@@ -133,7 +133,7 @@ async def _fly(sitl, kind: str, plan_path: Path) -> None:
         assert (watch.mission_seq or 0) >= first_wp
 
         await return_home(link, system, 1)
-        await watch.until("landing and disarm", lambda: not watch.armed and watch.rel_alt_m < 1.0, 150)
+        await watch.until("landing and disarm", lambda: watch.landed, 150)
         marks["landed"] = time.monotonic() - t0
         assert distance_m(*watch.latlon, *home) < 5.0, (watch.latlon, home)
         watch.close()

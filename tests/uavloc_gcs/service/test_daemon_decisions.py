@@ -303,12 +303,15 @@ def test_done_cancels_a_landed_vehicles_start_and_sends_home_one_airborne_again(
 
     try:
         assert asyncio.run(go()) == []
-        d.store.flush()
-        with StoreReader(tmp_path / "s.sqlite") as rd:
-            assert [e.text for e in rd.events("done")] == [
-                "every person heard is located or given up: all vehicles return home"]
+        assert _texts(d, tmp_path, "done") == ["every person heard is located or given up: all vehicles return home"]
     finally:
         d.store.close()
+
+
+def _texts(d, tmp_path, kind):
+    d.store.flush()
+    with StoreReader(tmp_path / "s.sqlite") as rd:
+        return [e.text for e in rd.events(kind)]
 
 
 def _all_landed(d):
@@ -353,9 +356,7 @@ def test_the_search_does_not_end_idle_while_an_exchange_is_under_way(tmp_path):
 
     try:
         assert asyncio.run(go()) == [False] * 5 + [True]
-        d.store.flush()
-        with StoreReader(tmp_path / "s.sqlite") as rd:
-            assert [e.text for e in rd.events("end")] == [
-                "every vehicle is home and no look could be planned for person(s) 7: stopping the search"]
+        assert _texts(d, tmp_path, "end") == [
+            "every vehicle is home and no look could be planned for person(s) 7: stopping the search"]
     finally:
         d.store.close()
