@@ -128,6 +128,12 @@ class _Vehicle:
         return self.agent is not None and not self.agent.on_ground() and math.isfinite(self.agent.tel.rel_alt_m)
 
 
+def _idle(vehicles) -> bool:
+    """Every vehicle home with no exchange under way (a look's upload being retried may still send
+    it out: the search does not end under it)."""
+    return all(v.home and v.job is None for v in vehicles)
+
+
 class Daemon:
     """One search. ``connections``: [(vehicle system id, connection string)]."""
 
@@ -800,8 +806,7 @@ class Daemon:
             return await self._finish()
         fleet = frozenset(v.id for v in active)
         usable = active
-        idle = all(v.home and v.job is None for v in active)
-        if idle and self._idle_since is None:
+        if _idle(active) and self._idle_since is None:
             # Nobody is flying, people are still pending: plan once more with the whole fleet on
             # the ground. Without it a look flown and judged a miss, with nothing else changing,
             # ended the search with the person unlooked-at and no reason given.
@@ -812,9 +817,7 @@ class Daemon:
             self._last_fleet = fleet
             self._replan_due = False
             await self._replan(t, usable)
-        # (an exchange still under way, e.g. a look's upload being retried, is not idle: it may send
-        # the vehicle out; the search does not end under it)
-        if all(v.home and v.job is None for v in active):
+        if _idle(active):  # (again: the replan may have sent vehicles out)
             if self._idle_since is not None and t - self._idle_since > IDLE_END_S and not self._replan_due:
                 pending = [str(p.emitter_id) for p in self.policy.people(t) if not p.located]
                 self._event("end", "every vehicle is home and no look could be planned for person(s) "

@@ -27,6 +27,7 @@ vehicle unusable.
 from __future__ import annotations
 
 import asyncio
+import math
 import logging
 import time
 from typing import Awaitable, Callable
@@ -89,8 +90,8 @@ async def persist(action: Callable[[], Awaitable[None]], done: Callable[[], bool
     for attempt in range(tries):
         if attempt:
             await asyncio.sleep(backoff_s[min(attempt - 1, len(backoff_s) - 1)])
-        seen = _Seen(done, wall(), heard_since)
-        watcher = asyncio.ensure_future(seen.watch())
+        # the same judgement, with no deadline, for as long as the action runs
+        watcher = asyncio.ensure_future(_judged(done, wall(), math.inf, heard_since, wall))
         try:
             await action()
             return "acked"
@@ -98,8 +99,9 @@ async def persist(action: Callable[[], Awaitable[None]], done: Callable[[], bool
             last = exc
             failed_at = wall()
         finally:
+            seen = watcher.done() and watcher.result()
             watcher.cancel()
-        if seen.flag or await _judged(done, failed_at, settle_s, heard_since, wall):
+        if seen or await _judged(done, failed_at, settle_s, heard_since, wall):
             log.info("vehicle %d %s: %s, but the vehicle does it", vehicle, what, last)
             return "judged"
         if check is not None:
@@ -112,20 +114,6 @@ async def persist(action: Callable[[], Awaitable[None]], done: Callable[[], bool
             on_retry(f"vehicle {vehicle} {what}: {last}; trying again")
     raise ExchangeFailed(f"{what} failed {tries} times and the vehicle does not do it; last: {last}",
                          vehicle=str(vehicle))
-
-
-class _Seen:
-    """Whether ``done()`` was true on telemetry heard after wall time ``since``, at any moment."""
-
-    def __init__(self, done, since: float, heard_since) -> None:
-        self.done, self.since, self.heard_since, self.flag = done, since, heard_since, False
-
-    async def watch(self) -> None:
-        while not self.flag:
-            if (self.heard_since is None or self.heard_since(self.since)) and self.done():
-                self.flag = True
-                return
-            await asyncio.sleep(0.05)
 
 
 async def _judged(done, since: float, settle_s: float, heard_since, wall) -> bool:
