@@ -23,11 +23,23 @@ prints, measured in the same run:
 - the fraction flagged ambiguous, the median radius / RMSE, the median radius / ideal radius
   ("r/ideal": the ideal is the 95 % circle of the Gaussian with run k's own bound as covariance,
   what an efficient estimator that knew its own accuracy would report; mirror spans included),
-  and the solve time per emitter;
+  and the solve time per emitter; "need": the 95th percentile of error / radius, the factor by which
+  every radius of the family would have to be scaled to cover exactly 95 % (above 1 too small,
+  below 1 larger than needed);
 
 plus the solve time for exactly 1,000 slots.
 
-A second table ("maneuvering people") uses ``random_waypoint`` people (they turn, pause and change
+For the walker families under i.i.d. shadowing a second table says where the error beyond the bound
+is: the share of runs whose walker ends within ``LAST_TRACK_M`` of the track of the last pass that
+heard them, their share of the squared error, and RMSE / BCRB over the other runs. Near that track
+the range fixes little more than the squared cross-track offset, so the bound (the information at
+the truth) promises metres where the posterior is tens of metres wide. ``--mmse`` adds the
+attainable floor on the same runs: the RMSE of the posterior mean of the RSSI alone, the
+Bayes-optimal estimator of the slots heard (:mod:`benchmarks.posterior`), with MMSE / BCRB (how far
+above the bound any estimator of the RSSI must be) and RMSE / MMSE (the estimator, which also uses
+where the phone was not heard, against that floor).
+
+The last table ("maneuvering people") uses ``random_waypoint`` people (they turn, pause and change
 speed; |v| <= v_max) over a realistic mission geometry: two scan lanes of 600 m at a spacing
 uniform in [0.5 R, R] (the person between them, passes 0-50 s apart), then a look pass
 30-180 s later through the two-lane estimate's predicted position (random heading, offset uniform
@@ -39,7 +51,7 @@ every radius of the family would have to be scaled to cover exactly 95 % (there 
 a person who turns, so this stands in for r/ideal: above 1 the radii are too small, below 1
 larger than needed). "small area" confines the walk to a 250 m square (a turn every few
 minutes instead of every several). Times are the thread's CPU time (one core), so other
-load on the machine does not inflate them. Targets (issue 3): RMSE <= 1.2 x bound with two
+load on the machine does not inflate them. Targets (issues 3 and 12): RMSE <= 1.2 x bound with two
 looks, coverage 0.93-0.97 (i.i.d.) and >= 0.85 (correlated), < 10 ms per emitter at 1,000 slots.
 """
 
@@ -64,10 +76,12 @@ from uavloc_gcs.estimation import (
     silence_from_track,
 )
 from uavloc_gcs.estimation.evidence import Silence
+from uavloc_gcs.estimation.fit import prepare
 from uavloc_gcs.observations import SlotBatch
 from uavloc_gcs.scenario import load_scenario
 
 from ._progress import Progress
+from .posterior import mmse_floor, rssi_posterior_mean
 from .looks import SWITCHES
 
 # the estimator's switches of bench looks' variants: name -> (estimate module attribute, value)
@@ -76,6 +90,9 @@ ESTIMATOR_SWITCHES = {k: (attr, value) for k, (module, attr, value) in SWITCHES.
 CENTER = np.array([560.0, 320.0])
 LANE_SPACING_M = 100.0
 TURN_S = 5.0
+# a walker who ends closer than this to the track of the last pass that heard them: heard there at
+# a range that fixes little more than the squared cross-track offset (benchmarks.posterior)
+LAST_TRACK_M = 30.0
 
 
 @dataclass(frozen=True)
@@ -143,6 +160,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--maneuver-time", type=float, default=None, metavar="S",
                         help="the estimator's maneuver time for the random-waypoint families (default: its own, "
                              "uavloc_gcs.estimation.maneuver.MANEUVER_TIME_S)")
+    parser.add_argument("--mmse", action="store_true",
+                        help="also the attainable floor of the walker families: the RMSE of the Bayes-optimal "
+                             "estimator of the RSSI alone (the posterior mean by importance sampling; about a "
+                             "minute per 200 runs and family)")
     parser.add_argument("--switch", choices=sorted(ESTIMATOR_SWITCHES), action="append", default=[],
                         help="run with this estimator switch of `uavloc bench looks --variants` turned on "
                              "(give it again for another)")
@@ -212,7 +233,13 @@ def _silence(legs, slots: SlotBatch, slot_s: float) -> Silence:
     return silence_from_track(t, x, slots.t_s, slot_s=slot_s)
 
 
-def run_family(fam: Family, runs: int, seed: int, sc, evidence: str = "all", bar=None) -> dict:
+def mmse_applies(fam: Family) -> bool:
+    """Whether the posterior-mean floor is computed for the family: walkers under i.i.d.
+    shadowing, nominal power, the motion model on (see :mod:`benchmarks.posterior`)."""
+    return fam.moving and fam.model_motion and not fam.correlated and not fam.tx_spread_db and fam.geometry != "one_leg"
+
+
+def run_family(fam: Family, runs: int, seed: int, sc, evidence: str = "all", bar=None, mmse: bool = False) -> dict:
     sc = sc.replace(simulation={"correlated_shadowing": fam.correlated, "shadowing_decorrelation_m": 20.0,
                                 "tx_power_spread_db": fam.tx_spread_db})
     channel = ChannelModel.from_scenario(sc)
@@ -221,6 +248,8 @@ def run_family(fam: Family, runs: int, seed: int, sc, evidence: str = "all", bar
                               estimate_tx_power=fam.estimate_tx)
     rng = np.random.default_rng(seed)
     err, near, r95, bound, amb, ms, infos, crb2, ideal = [], [], [], [], [], [], [], [], []
+    floor_err, floor_ess, track = [], [], []
+    mmse = mmse and mmse_applies(fam)
     for k in range(runs):
         if bar is not None:
             bar.step(f"{fam.name} run {k + 1}")
@@ -255,9 +284,23 @@ def run_family(fam: Family, runs: int, seed: int, sc, evidence: str = "all", bar
         infos.append(info)
         crb2.append(position_rmse_bound_m(info + prior) ** 2)
         ideal.append(_ideal_radius(info + prior))
+        # the track of the last pass that heard the phone (the leg flown at the last slot heard)
+        x_last = next(x for t, x in reversed(legs) if t[0] <= est.t_ref_s)
+        track.append(_distance_to_line(truth, x_last[0, :2], x_last[-1, :2]))
+        if mmse:
+            cands = [(np.concatenate([est.position_xy_m, est.velocity_m_s]), est.covariance)]
+            if est.mirror is not None:
+                m = est.mirror
+                cands.append((np.concatenate([m.position_xy_m, m.velocity_m_s]), m.covariance))
+            pm, ess = rssi_posterior_mean(prepare(slots, channel), est.t_ref_s, cands, vmax,
+                                          np.random.default_rng([seed, k]))
+            floor_err.append(float(np.linalg.norm(pm - truth)))
+            floor_ess.append(ess)
     err, near, r95, bound = np.array(err), np.array(near), np.array(r95), np.array(bound)
     rmse = float(np.sqrt(np.mean(err**2)))
     vt = position_rmse_bound_m(np.mean(infos, axis=0) + prior)
+    under = np.array(track) < LAST_TRACK_M
+    away = ~under
     return {
         "family": fam.name, "runs": len(err), "rmse": rmse, "rmse_near": float(np.sqrt(np.mean(near**2))),
         "vt": vt, "ratio": rmse / vt, "eff": float(np.sqrt(np.mean(near**2 / np.array(crb2)))),
@@ -267,7 +310,21 @@ def run_family(fam: Family, runs: int, seed: int, sc, evidence: str = "all", bar
         "cover95": float(np.mean(err <= r95)), "cover_annulus": float(np.mean(np.nan_to_num(bound, nan=-1) >= err)),
         "ambiguous": float(np.mean(amb)), "median_r95_over_rmse": float(np.median(r95) / rmse),
         "ms": float(np.mean(ms)),
+        "need": float(np.quantile(err / np.maximum(r95, 1e-9), 0.95)),
+        "mmse": mmse_floor(floor_err) if mmse else math.nan, "ess_min": min(floor_ess) if mmse else math.nan,
+        # the walkers who end near the last pass's track (see LAST_TRACK_M) and the others
+        "under_share": float(np.mean(under)),
+        "under_mse_share": float(np.sum(err[under] ** 2) / max(np.sum(err**2), 1e-12)),
+        "ratio_away": float(np.sqrt(np.mean(err[away] ** 2)) / position_rmse_bound_m(
+            np.mean(np.array(infos)[away], axis=0) + prior)) if np.any(away) else math.nan,
     }
+
+
+def _distance_to_line(p, a, b) -> float:
+    """Distance of the point p from the line through a and b."""
+    u = (b - a) / max(float(np.linalg.norm(b - a)), 1e-9)
+    d = p - a
+    return float(abs(d[0] * u[1] - d[1] * u[0]))
 
 
 def _ideal_radius(information: np.ndarray) -> float:
@@ -371,6 +428,29 @@ def run_maneuver_family(fam: ManeuverFamily, runs: int, seed: int, sc, bar=None,
     return res
 
 
+def _print_floors(rows: list[dict], mmse: bool) -> None:
+    print(f"\nwalkers under i.i.d. shadowing: where the error beyond the bound is. 'last track': the runs whose walker "
+          f"ends within {LAST_TRACK_M:g} m of the track of the last pass that heard them (share of runs, share of "
+          f"the squared error); "
+          f"'ratio away': RMSE / BCRB over the other runs. " +
+          ("'MMSE': the RMSE of the posterior mean of the RSSI alone on the same runs, the least any estimator of "
+           "the RSSI can reach (velocity uniform over |v| <= v_max as drawn, position flat, no hearing evidence; "
+           "benchmarks/posterior.py)" if mmse else "(--mmse adds the RSSI alone's attainable floor)"))
+    head = (f"{'family':34s} {'runs':>4s} {'RMSE m':>7s} {'BCRB m':>7s} {'ratio':>6s} {'last track':>11s} "
+            f"{'ratio away':>10s}")
+    if mmse:
+        head += f" {'MMSE m':>7s} {'MMSE/BCRB':>9s} {'RMSE/MMSE':>9s} {'ESS min':>7s}"
+    print(head)
+    print("-" * len(head))
+    for r in rows:
+        line = (f"{r['family']:34s} {r['runs']:4d} {r['rmse']:7.2f} {r['vt']:7.2f} {r['ratio']:6.2f} "
+                f"{r['under_share']:5.2f} {r['under_mse_share']:5.2f} {r['ratio_away']:10.2f}")
+        if mmse:
+            line += (f" {r['mmse']:7.2f} {r['mmse'] / r['vt']:9.2f} {r['rmse'] / r['mmse']:9.2f} "
+                     f"{r['ess_min']:7.0f}")
+        print(line)
+
+
 def main(args: argparse.Namespace) -> int:
     from uavloc_gcs.estimation import estimate as estimate_module
     from uavloc_gcs.examples import scenario_path
@@ -391,15 +471,20 @@ def main(args: argparse.Namespace) -> int:
     if fams:
         head = f"{'family':34s} {'runs':>4s} {'RMSE m':>7s} {'near m':>7s} {'BCRB m':>7s} {'ratio':>6s} " \
                f"{'eff':>6s} {'effE':>5s} {'p90E':>5s} {'cov95':>6s} {'covAnn':>6s} {'ambig':>6s} " \
-               f"{'r95/RMSE':>8s} {'r/ideal':>7s} {'ms':>6s}"
+               f"{'r95/RMSE':>8s} {'r/ideal':>7s} {'need':>5s} {'ms':>6s}"
         print(head)
         print("-" * len(head))
+        floors = []
         for fam in fams:
-            r = run_family(fam, args.runs, args.seed + 1000 * FAMILIES.index(fam), sc, args.evidence, bar)
+            r = run_family(fam, args.runs, args.seed + 1000 * FAMILIES.index(fam), sc, args.evidence, bar, args.mmse)
+            if mmse_applies(fam):
+                floors.append(r)
             print(f"{r['family']:34s} {r['runs']:4d} {r['rmse']:7.2f} {r['rmse_near']:7.2f} {r['vt']:7.2f} "
                   f"{r['ratio']:6.2f} {r['eff']:6.2f} {r['eff_e']:5.2f} {r['p90_e']:5.2f} "
                   f"{r['cover95']:6.2f} {r['cover_annulus']:6.2f} {r['ambiguous']:6.2f} "
-                  f"{r['median_r95_over_rmse']:8.2f} {r['r_ideal']:7.2f} {r['ms']:6.1f}")
+                  f"{r['median_r95_over_rmse']:8.2f} {r['r_ideal']:7.2f} {r['need']:5.2f} {r['ms']:6.1f}")
+        if floors:
+            _print_floors(floors, args.mmse)
     if mfams:
         print("\nmaneuvering people (random_waypoint); coverage / median radius [m] at the last slot, "
               "and predicted +30 s, +60 s; 'need' = the factor the radii need for 95 % coverage "
