@@ -293,12 +293,12 @@ def estimate_emitter(
     if TURN_MIXTURE and main.problem.passes is not None and lag > 0 and math.isfinite(maneuver_time_s):
         # the person may have turned since the oldest data: a second model in which the old
         # passes tie the present state only through the speed bound (see TURN_MIXTURE)
-        p_turn = 1.0 - math.exp(-lag / maneuver_time_s)
+        no_turn, a_turn = _turn_log_prior(lag, maneuver_time_s)
         q_turn = 3.0 * max_speed_m_s**2 / lag
-        if q_turn > q and p_turn > 0:
+        if q_turn > q:
             turned = _solve(data, channel, q_turn, t_anchor, moving, main.problem.tx,
                             float(max_speed_m_s), previous, silence)
-            solutions = [(main, math.log1p(-p_turn)), (turned, math.log(p_turn))]
+            solutions = [(main, no_turn), (turned, a_turn)]
     # the two models of a turn are alternatives, not parts of one prior: with both switches on,
     # the turn mixture is used
     elif TURN_JUMP and main.problem.passes is not None and lag > 0 and math.isfinite(maneuver_time_s):
@@ -381,16 +381,25 @@ def _with_turns(main: "_Solution", data, channel: ChannelModel, t_anchor: float,
     # each turn time stands for the turns nearer to it than to another (between the oldest data and the anchor)
     edges = np.concatenate([[t[0]], 0.5 * (times[1:] + times[:-1]), [t_anchor]])
     share = np.diff(edges) / lag
-    p_turn = 1.0 - math.exp(-lag / (TURN_TIME_S or maneuver_time_s))
-    out = [(main, math.log1p(-p_turn))]
+    no_turn, a_turn = _turn_log_prior(lag, TURN_TIME_S or maneuver_time_s)
+    out = [(main, no_turn)]
     for t_k, w in zip(times, share):
         if w <= 0:
             continue
         seeds = [np.concatenate([theta, np.zeros(2)]) for theta, _ in main.modes] if TURN_STARTS_FROM_MAIN else None
         turned = _solve(data, channel, main.q, t_anchor, moving, main.problem.tx, vmax, previous, silence,
                         turn_at_s=float(t_k), starts=seeds)
-        out.append((turned, math.log(p_turn * w)))
+        out.append((turned, a_turn + math.log(w)))
     return out
+
+
+def _turn_log_prior(lag_s: float, turn_time_s: float) -> tuple[float, float]:
+    """ln P(no turn) and ln P(a turn) within ``lag_s`` for turns every ``turn_time_s`` on average
+    (a Poisson process), without forming 1 - exp(-lag / T): that rounds to 1 beyond about 37 T
+    (two hours of data at T = 200 s), and ln(1 - 1) ended a whole search with a math domain
+    error (tests/test_e2e_vehicle_faults.py, 7,600 s of one person's slots)."""
+    x = lag_s / turn_time_s
+    return -x, math.log(-math.expm1(-x))
 
 
 def _solve(data, channel: ChannelModel, q: float, t_anchor: float, moving: bool, tx: bool, vmax: float,

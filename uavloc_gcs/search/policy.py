@@ -303,6 +303,11 @@ class SearchPolicy:
                 p.estimate, p.error = self._unsettled(p, est), ""
             except EstimationError as exc:
                 p.error = str(exc)
+            except Exception as exc:  # noqa: BLE001 -- one person's estimate never ends the search
+                # a defect in the estimator, not bad data: said loudly, and the person reported
+                # with it, while the search goes on for everyone else
+                log.exception("emitter %d: the estimator failed", eid)
+                p.error = f"the estimator failed ({type(exc).__name__}: {exc})"
             self.estimator_runtime_s += time.perf_counter() - t0
             self._classify(p, t_s)
             if before is None or self._material(before, self._signature(p)):

@@ -442,3 +442,20 @@ def test_passes_from_slot_times():
     assert find_passes(t, 158.0, 0.0) is None  # pure CV
     many = np.concatenate([np.arange(k * 20.0, k * 20.0 + 3, 0.1) for k in range(20)])
     assert find_passes(many, many[-1], q).count == MAX_PASSES
+
+
+def test_hours_of_data_keep_the_turn_prior_finite(channel):
+    """A person heard again two hours after the first pass: P(no turn) = exp(-lag / 200 s) is
+    below the float spacing at 1, and ln(1 - P(a turn)) was a math domain error that ended a whole
+    search (tests/test_e2e_vehicle_faults.py, 7,600 s of one person's slots)."""
+    from uavloc_gcs.estimation.estimate import _turn_log_prior
+
+    no_turn, a_turn = _turn_log_prior(7600.0, 200.0)
+    assert no_turn == -38.0 and a_turn == pytest.approx(0.0, abs=1e-15)
+    assert _turn_log_prior(1e-3, 200.0)[1] == pytest.approx(math.log(5e-6), rel=1e-6)
+    world = World.with_people(load_scenario(EXAMPLES / "paper.toml"), [[560.0, 320.0]], [[0.0, 0.0]], seed=2)
+    slots = SlotBatch.concat([leg(world, 1, (400, 250), (720, 250), 0.0), leg(world, 1, (720, 350), (400, 350), 20.0),
+                              leg(world, 1, (400, 250), (720, 250), 7600.0)])
+    est = estimate_emitter(slots, channel, max_speed_m_s=VMAX)
+    assert est.ok and math.isfinite(est.radius95_m)
+    assert np.linalg.norm(est.position_xy_m - [560.0, 320.0]) <= est.radius95_m

@@ -445,3 +445,31 @@ def test_a_mirror_ambiguity_is_settled_only_when_the_mirror_holds_almost_nothing
     off = _sequence_of_estimates(small, monkeypatch, seq)
     assert [s.located for s in off] == [False, True, True]
 
+
+
+def test_a_failing_estimate_of_one_person_does_not_end_the_search(small, monkeypatch, caplog):
+    """A defect in the estimator (here a ValueError, as the turn prior's math domain error was)
+    for one person is logged and reported as that person's reason; the others are estimated and
+    the caller's loop goes on."""
+    import uavloc_gcs.estimation as estimation
+
+    sc = small.replace(people={"required_accuracy_m": 4.0})  # the scan leaves people pending
+    world = World(sc, seed=3, people=3, motion="static")
+    policy, _, t_end, _ = _scan_policy(sc, world)
+    victim = policy.pending_ids()[0]
+    real = estimation.estimate_emitter
+
+    def flaky(slots, *a, **kw):
+        if int(slots.emitter_id[0]) == victim:
+            raise ValueError("math domain error")
+        return real(slots, *a, **kw)
+
+    monkeypatch.setattr(estimation, "estimate_emitter", flaky)
+    for p in policy._people.values():
+        p.dirty = True
+    with caplog.at_level("ERROR"):
+        policy.update(t_end + 1.0)
+    reasons = {p.emitter_id: p.reason for p in policy.people(t_end + 1.0)}
+    assert reasons[victim] == "no estimate: the estimator failed (ValueError: math domain error)"
+    assert all("estimator failed" not in r for e, r in reasons.items() if e != victim)
+    assert f"emitter {victim}: the estimator failed" in caplog.text
