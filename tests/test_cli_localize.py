@@ -101,6 +101,26 @@ def test_csv_and_tlog_in_estimates_out(tmp_path, flight):
     assert str(world.emitter_ids[0]) in b.stdout
 
 
+def test_slots_heard_below_half_the_survey_altitude_are_left_out_and_counted(tmp_path, flight):
+    """As in the daemon: a vehicle climbing out or landing hears phones too, but those slots are
+    not estimated from (estimation.model.survey_slots); the table's title says how many."""
+    sc, world, slots = flight
+    low = slots.take(np.arange(0, len(slots), 7))
+    low = SlotBatch.from_columns(low.t_s + 1000.0, low.vehicle, low.xyz_m * [1.0, 1.0, 0.2], low.emitter_id,
+                                 low.rssi_dbm - 30.0, low.n_samples)  # 20 m up, and far "louder"
+    both, alone = tmp_path / "both.csv", tmp_path / "alone.csv"
+    both.write_text(dumps_slots_csv(SlotBatch.concat([slots, low]), sc.frame))
+    alone.write_text(dumps_slots_csv(slots, sc.frame))
+    a = uavloc("localize", both, "--scenario", SMALL, "--out", tmp_path / "a")
+    b = uavloc("localize", alone, "--scenario", SMALL, "--out", tmp_path / "b")
+    assert a.returncode == 0 and b.returncode == 0, a.stderr + b.stderr
+    assert f"{len(slots)} slots, 3 emitter(s) ({len(low)} slots heard below 50 m, half the survey altitude, " \
+           "not used)" in a.stdout
+    assert "not used" not in b.stdout
+    ra, rb = _read_estimates(tmp_path / "a" / "estimates.csv"), _read_estimates(tmp_path / "b" / "estimates.csv")
+    assert [(r["lat_deg"], r["radius95_m"]) for r in ra] == [(r["lat_deg"], r["radius95_m"]) for r in rb]
+
+
 GOOD = ",".join(COLUMNS) + "\n1.0,1,47.3977,8.5456,100,42,-80.5,10\n"
 
 

@@ -57,7 +57,8 @@ def load_slots(path: Path, scenario):
 def run(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from ..estimation import ChannelModel, estimate_all
+    from ..estimation import ChannelModel, estimate_all, survey_slots
+    from ..estimation.model import MIN_ALTITUDE_FRACTION
     from ..estimation.export import estimates_csv, estimates_geojson, heard_tracks
     from ..render.maps import origin_caption, save_figure
     from ..render.estimates import estimates_figure
@@ -66,7 +67,10 @@ def run(args: argparse.Namespace) -> int:
     from ._output import atomic_output_dir
 
     sc = load_scenario(args.scenario)
-    slots = load_slots(Path(args.input), sc)
+    heard = load_slots(Path(args.input), sc)
+    # as the daemon does: slots heard taking off, landing or on the ground are not estimated from
+    slots = survey_slots(heard, sc.fleet.altitude_m)
+    low = len(heard) - len(slots)
     channel = ChannelModel.from_scenario(sc)
     estimates = estimate_all(slots, channel, max_speed_m_s=sc.people.max_speed_m_s, t_ref_s=args.t_ref,
                              model_motion=not args.static,
@@ -86,7 +90,9 @@ def run(args: argparse.Namespace) -> int:
                      f"{np.hypot(*e.velocity_m_s):.2f}" if e.ok else "", _r(e.radius95_m), _r(e.annulus_bound_m),
                      "yes" if e.ambiguous else "", e.n_slots])
     print(format_table(["emitter", "status", "lat", "lon", "speed m/s", "r95 m", "annulus m", "mirror?", "slots"],
-                       rows, title=f"{len(slots)} slots, {len(estimates)} emitter(s)"))
+                       rows, title=f"{len(slots)} slots, {len(estimates)} emitter(s)" + (
+                           f" ({low} slots heard below {MIN_ALTITUDE_FRACTION * sc.fleet.altitude_m:g} m, half the survey "
+                           f"altitude, not used)" if low else "")))
     print(f"wrote {Path(args.out) / 'estimates.csv'}, estimates.geojson, estimates.png")
     return 0
 

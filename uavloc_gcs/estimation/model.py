@@ -54,6 +54,24 @@ class ChannelModel:
             np.asarray(d_m) / self.reference_distance_m)
 
 
+# Slots heard below this fraction of the survey altitude (a vehicle taking off, landing or standing
+# at home) are not estimated from. The channel model is the survey altitude's (a line of sight from
+# above, not a receiver among the rubble), and the newest data of a vehicle back home would be
+# rings of range about one point: the estimate anchored there spans the whole ring. Measured on the
+# fake fleet (tests/test_e2e_vehicle_faults.py, a person 135 m from home at 60 m altitude, heard on
+# the ground): radii of 30-290 m after each look, 30 looks flown, never located.
+MIN_ALTITUDE_FRACTION = 0.5
+
+
+def survey_slots(slots, altitude_m: float):
+    """The slots heard at or above ``MIN_ALTITUDE_FRACTION`` of the survey altitude ``altitude_m``
+    (height above the people, the slots' z)."""
+    if len(slots) == 0:
+        return slots
+    keep = np.asarray(slots.xyz_m)[:, 2] >= MIN_ALTITUDE_FRACTION * altitude_m
+    return slots if bool(np.all(keep)) else slots.take(keep)
+
+
 def geometry(theta: np.ndarray, tau_s: np.ndarray, a_xy: np.ndarray, h_m: np.ndarray, moving: bool):
     """Horizontal offsets g (N, 2) person - vehicle and squared 3-D distances (N,)."""
     p = theta[:2]

@@ -224,7 +224,11 @@ class SearchPolicy:
 
     # -- data in ---------------------------------------------------------------------------
     def ingest(self, slots: SlotBatch) -> None:
-        """Store new slots (any vehicles, any emitters)."""
+        """Store new slots (any vehicles, any emitters); those heard below half the survey altitude
+        (taking off, landing, on the ground) are left out (``estimation.model.survey_slots``)."""
+        from ..estimation import survey_slots
+
+        slots = survey_slots(slots, self.scenario.fleet.altitude_m)
         if len(slots) == 0:
             return
         for eid in slots.emitters():
@@ -244,11 +248,15 @@ class SearchPolicy:
         """Record where ``vehicle`` listened: slot times (N,) [s] and positions (N, 3) [m, z = height
         above the people]; kept every TRACK_STEP_SLOTS-th slot. A phone not heard there is evidence
         that it was out of range (estimate_emitter's ``silence``)."""
+        from ..estimation.model import MIN_ALTITUDE_FRACTION
+
         t = np.asarray(t_s, float).reshape(-1)
         if len(t) == 0:
             return
-        k = np.round(t / self.scenario.channel.slot_s).astype(np.int64) % TRACK_STEP_SLOTS == 0
-        xyz = np.asarray(xyz_m, float).reshape(-1, 3)[k]
+        xyz = np.asarray(xyz_m, float).reshape(-1, 3)
+        k = (np.round(t / self.scenario.channel.slot_s).astype(np.int64) % TRACK_STEP_SLOTS == 0) & (
+            xyz[:, 2] >= MIN_ALTITUDE_FRACTION * self.scenario.fleet.altitude_m)  # as in ingest
+        xyz = xyz[k]
         if not len(xyz):
             return
         self._tracks.setdefault(int(vehicle), []).append((t[k], xyz))

@@ -76,9 +76,10 @@ def final_results(statuses, slots, scenario, frame: LocalFrame) -> list[PersonRe
     A person counts as located if the policy located it or the final estimate's 95 % circle (over
     both mirror candidates if ambiguous) is within the required accuracy. A person the policy located keeps its fix unless
     a refit is also within the required accuracy; otherwise the policy's belief is reported."""
-    from ..estimation import ChannelModel  # noqa: PLC0415
+    from ..estimation import ChannelModel, survey_slots  # noqa: PLC0415
 
     channel = ChannelModel.from_scenario(scenario)
+    slots = survey_slots(slots, scenario.fleet.altitude_m)  # what the policy estimated from
     required = scenario.people.required_accuracy_m
     out = []
     for st in statuses:

@@ -447,6 +447,51 @@ def test_a_mirror_ambiguity_is_settled_only_when_the_mirror_holds_almost_nothing
 
 
 
+def test_slots_heard_taking_off_landing_or_on_the_ground_are_not_estimated_from():
+    """Reproduces the fake fleet's endless looks (tests/test_e2e_vehicle_faults.py): a person 135 m
+    from home is heard while a vehicle climbs, lands and stands at home. Those slots are rings of
+    range about one point, and the newest of them anchored the estimate: radii of 30-290 m after
+    every look, 30 looks, never located. The policy leaves out slots below half the survey
+    altitude; what it estimates is what the airborne slots alone say (here an 18 m radius where
+    all the slots gave 64 m)."""
+    import sys
+    from pathlib import Path
+
+    sys.path.append(str(Path(__file__).resolve().parents[2]))
+    from e2e_helpers import small_scenario
+
+    from uavloc_gcs.estimation import ChannelModel, estimate_emitter
+    from uavloc_gcs.observations import SlotBatch
+
+    sc = small_scenario()  # 60 m altitude, 150 m range: heard from home even on the ground
+    world = World.with_people(sc, [np.array([95.0, 95.0])], [np.zeros(2)], seed=4)
+    slot, h = sc.channel.slot_s, sc.fleet.altitude_m
+    t0, parts = 0.0, []
+    # climb at 2.5 m/s, a look round the person at 15 m/s, land at 1 m/s, 60 s on the ground
+    for a, b, speed in [((0, 0, 0), (0, 0, h), 2.5), ((0, 0, h), (60, 150, h), 15.0), ((60, 150, h), (170, 60, h), 15.0),
+                        ((170, 60, h), (0, 0, h), 15.0), ((0, 0, h), (0, 0, 0), 1.0), ((0, 0, 0), (0, 0, 0), 0.0)]:
+        a, b = np.array(a, float), np.array(b, float)
+        n = int(np.linalg.norm(b - a) / speed / slot) if speed else int(60.0 / slot)
+        t = t0 + slot * np.arange(n)
+        parts.append(world.hear_track(1, t, a + np.outer(np.arange(n) / n, b - a)))
+        t0 = t[-1] + slot
+    slots = SlotBatch.concat(parts)
+    airborne = slots.take(slots.xyz_m[:, 2] >= 0.5 * h)
+    assert len(airborne) < 0.6 * len(slots)  # most were heard low
+    policy, alone = SearchPolicy(sc), SearchPolicy(sc)
+    policy.ingest(slots)
+    alone.ingest(airborne)
+    policy.update(t0), alone.update(t0)
+    mine, theirs = policy.people(t0)[0].estimate, alone.people(t0)[0].estimate
+    assert mine.n_slots == len(airborne)
+    assert mine.radius95_m == pytest.approx(theirs.radius95_m)
+    np.testing.assert_allclose(mine.position_xy_m, theirs.position_xy_m)
+    # what the low slots did to the estimate: the ring about home, far wider than the pass says
+    everything = estimate_emitter(slots, ChannelModel.from_scenario(sc), max_speed_m_s=sc.people.max_speed_m_s)
+    assert everything.radius95_m > 2.5 * mine.radius95_m, (everything.radius95_m, mine.radius95_m)
+    assert mine.radius95_m < 25.0
+
+
 def test_a_failing_estimate_of_one_person_does_not_end_the_search(small, monkeypatch, caplog):
     """A defect in the estimator (here a ValueError, as the turn prior's math domain error was)
     for one person is logged and reported as that person's reason; the others are estimated and
