@@ -360,3 +360,35 @@ def test_the_search_does_not_end_idle_while_an_exchange_is_under_way(tmp_path):
             "every vehicle is home and no look could be planned for person(s) 7: stopping the search"]
     finally:
         d.store.close()
+
+
+def test_a_looks_events_are_logged_once_it_is_on_board_before_its_start(tmp_path):
+    """Seen in the fault test's store: vehicle 1's look flew and landed while its MISSION_START
+    (ACKs dropped) was still being resent; "done" cancelled that exchange, and the log never said
+    the look had been uploaded or for whom. The events now come when the mission is on board."""
+    d, policy = _daemon(tmp_path)
+
+    class _SlowStart(_Agent):
+        async def switch_to(self, seq, *, on_ground):
+            await asyncio.sleep(30.0)  # ACKs that do not come
+
+    async def go():
+        for vid, v in d.vehicles.items():
+            v.agent = _SlowStart((50.0 * vid, 100.0))
+        task = asyncio.ensure_future(d._step(100.0, {7}))
+        await asyncio.sleep(0.3)
+        jobs = [v.job for v in d.vehicles.values() if v.job is not None]
+        texts = (_texts(d, tmp_path, "upload"), _texts(d, tmp_path, "plan"))
+        for job in jobs:
+            job.cancel()
+        await asyncio.gather(task, *jobs, return_exceptions=True)
+        return jobs, texts
+
+    try:
+        jobs, (uploads, plans) = asyncio.run(go())
+        assert len(jobs) == 2, "both starts were still under way"
+        assert sorted(uploads) == [f"vehicle {k}: look mission of {n} items acknowledged" for k, n in
+                                   ((1, len(d.vehicles[1].agent.uploads[0])), (2, len(d.vehicles[2].agent.uploads[0])))]
+        assert sorted(plans) == ["vehicle 1 looks at 7", "vehicle 2 looks at 8"]
+    finally:
+        d.store.close()
