@@ -91,8 +91,8 @@ def run(args: argparse.Namespace) -> int:
                      "yes" if e.ambiguous else "", e.n_slots])
     print(format_table(["emitter", "status", "lat", "lon", "speed m/s", "r95 m", "annulus m", "mirror?", "slots"],
                        rows, title=f"{len(slots)} slots, {len(estimates)} emitter(s)" + (
-                           f" ({low} slots heard below {MIN_ALTITUDE_FRACTION * sc.fleet.altitude_m:g} m, half the survey "
-                           f"altitude, not used)" if low else "")))
+                           f" ({low} slots heard below {MIN_ALTITUDE_FRACTION * sc.fleet.altitude_m:g} m, taking off "
+                           "or landing, not used)" if low else "")))
     print(f"wrote {Path(args.out) / 'estimates.csv'}, estimates.geojson, estimates.png")
     return 0
 

@@ -224,8 +224,8 @@ class SearchPolicy:
 
     # -- data in ---------------------------------------------------------------------------
     def ingest(self, slots: SlotBatch) -> None:
-        """Store new slots (any vehicles, any emitters); those heard below half the survey altitude
-        (taking off, landing, on the ground) are left out (``estimation.model.survey_slots``)."""
+        """Store new slots (any vehicles, any emitters); those heard low (taking off, landing, on
+        the ground) are left out (``estimation.model.survey_slots``)."""
         from ..estimation import survey_slots
 
         slots = survey_slots(slots, self.scenario.fleet.altitude_m)

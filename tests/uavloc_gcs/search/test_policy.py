@@ -468,8 +468,9 @@ def test_slots_heard_taking_off_landing_or_on_the_ground_are_not_estimated_from(
     slot, h = sc.channel.slot_s, sc.fleet.altitude_m
     t0, parts = 0.0, []
     # climb at 2.5 m/s, a look round the person at 15 m/s, land at 1 m/s, 60 s on the ground
-    for a, b, speed in [((0, 0, 0), (0, 0, h), 2.5), ((0, 0, h), (60, 150, h), 15.0), ((60, 150, h), (170, 60, h), 15.0),
-                        ((170, 60, h), (0, 0, h), 15.0), ((0, 0, h), (0, 0, 0), 1.0), ((0, 0, 0), (0, 0, 0), 0.0)]:
+    for a, b, speed in [((0, 0, 0), (0, 0, h), 2.5), ((0, 0, h), (60, 150, h), 15.0),
+                        ((60, 150, h), (170, 60, h), 15.0), ((170, 60, h), (0, 0, h), 15.0),
+                        ((0, 0, h), (0, 0, 0), 1.0), ((0, 0, 0), (0, 0, 0), 0.0)]:
         a, b = np.array(a, float), np.array(b, float)
         n = int(np.linalg.norm(b - a) / speed / slot) if speed else int(60.0 / slot)
         t = t0 + slot * np.arange(n)
