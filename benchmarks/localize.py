@@ -162,7 +162,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "uavloc_gcs.estimation.maneuver.MANEUVER_TIME_S)")
     parser.add_argument("--mmse", action="store_true",
                         help="also the attainable floor of the walker families: the RMSE of the Bayes-optimal "
-                             "estimator of the RSSI alone (the posterior mean by importance sampling; about a "
+                             "estimator of the RSSI alone (the posterior mean by importance sampling; under a "
                              "minute per 200 runs and family)")
     parser.add_argument("--switch", choices=sorted(ESTIMATOR_SWITCHES), action="append", default=[],
                         help="run with this estimator switch of `uavloc bench looks --variants` turned on "
@@ -311,7 +311,7 @@ def run_family(fam: Family, runs: int, seed: int, sc, evidence: str = "all", bar
         "ambiguous": float(np.mean(amb)), "median_r95_over_rmse": float(np.median(r95) / rmse),
         "ms": float(np.mean(ms)),
         "need": float(np.quantile(err / np.maximum(r95, 1e-9), 0.95)),
-        "mmse": mmse_floor(floor_err) if mmse else math.nan, "ess_min": min(floor_ess) if mmse else math.nan,
+        "mmse": mmse_floor(floor_err) if mmse else math.nan, "ess_min": min(floor_ess, default=math.nan),
         # the walkers who end near the last pass's track (see LAST_TRACK_M) and the others
         "under_share": float(np.mean(under)),
         "under_mse_share": float(np.sum(err[under] ** 2) / max(np.sum(err**2), 1e-12)),
