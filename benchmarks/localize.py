@@ -158,8 +158,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--scenario", default="paper", metavar="FILE.toml",
                         help="channel and fleet of this scenario (or a shipped one: paper, small; default paper)")
     parser.add_argument("--maneuver-time", type=float, default=None, metavar="S",
-                        help="the estimator's maneuver time for the random-waypoint families (default: its own, "
-                             "uavloc_gcs.estimation.maneuver.MANEUVER_TIME_S)")
+                        help="the estimator's maneuver time for every family (default: its own, "
+                             "uavloc_gcs.estimation.maneuver.MANEUVER_TIME_S; inf: the pure constant-velocity "
+                             "model, without the turn models)")
     parser.add_argument("--mmse", action="store_true",
                         help="also the attainable floor of the walker families: the RMSE of the Bayes-optimal "
                              "estimator of the RSSI alone (the posterior mean by importance sampling; under a "
@@ -239,7 +240,8 @@ def mmse_applies(fam: Family) -> bool:
     return fam.moving and fam.model_motion and not fam.correlated and not fam.tx_spread_db and fam.geometry != "one_leg"
 
 
-def run_family(fam: Family, runs: int, seed: int, sc, evidence: str = "all", bar=None, mmse: bool = False) -> dict:
+def run_family(fam: Family, runs: int, seed: int, sc, evidence: str = "all", bar=None, mmse: bool = False,
+               maneuver_time_s: float | None = None) -> dict:
     sc = sc.replace(simulation={"correlated_shadowing": fam.correlated, "shadowing_decorrelation_m": 20.0,
                                 "tx_power_spread_db": fam.tx_spread_db})
     channel = ChannelModel.from_scenario(sc)
@@ -266,8 +268,9 @@ def run_family(fam: Family, runs: int, seed: int, sc, evidence: str = "all", bar
             continue
         quiet = {"all": _silence(legs, slots, sc.channel.slot_s), "heard": Silence.empty()}.get(evidence)
         t0 = time.thread_time()
-        est = estimate_emitter(slots, channel, max_speed_m_s=vmax,
-                               model_motion=fam.model_motion, estimate_tx_power=fam.estimate_tx, silence=quiet)
+        opts = {} if maneuver_time_s is None else {"maneuver_time_s": maneuver_time_s}
+        est = estimate_emitter(slots, channel, max_speed_m_s=vmax, model_motion=fam.model_motion,
+                               estimate_tx_power=fam.estimate_tx, silence=quiet, **opts)
         ms.append(1e3 * (time.thread_time() - t0))
         truth, tvel = world.positions(est.t_ref_s)[0], world.velocities(est.t_ref_s)[0]
         e = float(np.linalg.norm(est.position_xy_m - truth))
@@ -476,7 +479,8 @@ def main(args: argparse.Namespace) -> int:
         print("-" * len(head))
         floors = []
         for fam in fams:
-            r = run_family(fam, args.runs, args.seed + 1000 * FAMILIES.index(fam), sc, args.evidence, bar, args.mmse)
+            r = run_family(fam, args.runs, args.seed + 1000 * FAMILIES.index(fam), sc, args.evidence, bar, args.mmse,
+                           args.maneuver_time)
             if mmse_applies(fam):
                 floors.append(r)
             print(f"{r['family']:34s} {r['runs']:4d} {r['rmse']:7.2f} {r['rmse_near']:7.2f} {r['vt']:7.2f} "
