@@ -81,7 +81,7 @@ from uavloc_gcs.observations import SlotBatch
 from uavloc_gcs.scenario import load_scenario
 
 from ._progress import Progress
-from .posterior import mmse_floor, rssi_posterior_mean
+from .posterior import estimate_candidates, mmse_floor, rssi_posterior_mean
 from .looks import SWITCHES
 
 # the estimator's switches of bench looks' variants: name -> (estimate module attribute, value)
@@ -291,11 +291,7 @@ def run_family(fam: Family, runs: int, seed: int, sc, evidence: str = "all", bar
         x_last = next(x for t, x in reversed(legs) if t[0] <= est.t_ref_s)
         track.append(_distance_to_line(truth, x_last[0, :2], x_last[-1, :2]))
         if mmse:
-            cands = [(np.concatenate([est.position_xy_m, est.velocity_m_s]), est.covariance)]
-            if est.mirror is not None:
-                m = est.mirror
-                cands.append((np.concatenate([m.position_xy_m, m.velocity_m_s]), m.covariance))
-            pm, ess = rssi_posterior_mean(prepare(slots, channel), est.t_ref_s, cands, vmax,
+            pm, ess = rssi_posterior_mean(prepare(slots, channel), est.t_ref_s, estimate_candidates(est), vmax,
                                           np.random.default_rng([seed, k]))
             floor_err.append(float(np.linalg.norm(pm - truth)))
             floor_ess.append(ess)

@@ -58,6 +58,16 @@ def _mvn_logpdf(x: np.ndarray, mean: np.ndarray, chol: np.ndarray) -> np.ndarray
     return -0.5 * np.sum(z * z, axis=0) - float(np.sum(np.log(np.diag(chol))))
 
 
+def estimate_candidates(est) -> list[tuple[np.ndarray, np.ndarray]]:
+    """An estimate's best mode and its mirror (when any) as (state (4,), covariance (4, 4)) at its
+    reference time: where :func:`rssi_posterior_mean` starts its proposal."""
+    out = [(np.concatenate([est.position_xy_m, est.velocity_m_s]), est.covariance)]
+    if est.mirror is not None:
+        m = est.mirror
+        out.append((np.concatenate([m.position_xy_m, m.velocity_m_s]), m.covariance))
+    return out
+
+
 def rssi_posterior_mean(data: Prepared, t_ref: float, candidates: list[tuple[np.ndarray, np.ndarray]],
                         max_speed_m_s: float, rng: np.random.Generator, samples: int = 20_000,
                         rounds: int = 3) -> tuple[np.ndarray, float]:
@@ -74,7 +84,8 @@ def rssi_posterior_mean(data: Prepared, t_ref: float, candidates: list[tuple[np.
         centers.append((state, cov))
         for c, d, t_leg in legs:
             centers.append((_reflect(state, t_ref, c, d, t_leg), cov))
-    comps = [(m, 9.0 * (0.5 * (c + c.T) + floor) + widen) for m, c in centers]
+    wide = [(m, 9.0 * (0.5 * (c + c.T) + floor) + widen) for m, c in centers]
+    comps = wide
     ess = 0.0
     mean = candidates[0][0][:2]
     for _ in range(rounds):
@@ -95,7 +106,7 @@ def rssi_posterior_mean(data: Prepared, t_ref: float, candidates: list[tuple[np.
         ess = float(1.0 / np.sum(w * w))
         mean = w @ x[:, :2]
         # refit one component per current one to the samples nearest it (population Monte Carlo),
-        # keeping the first centres so a mode once found is never dropped
+        # beside the first two wide starting components, so a mode once found is never dropped
         near = np.argmin(np.stack([np.linalg.norm(x[:, :2] - m[:2], axis=1) for m, _ in comps]), axis=0)
         refit = []
         for j in range(len(comps)):
@@ -105,7 +116,7 @@ def rssi_posterior_mean(data: Prepared, t_ref: float, candidates: list[tuple[np.
             mj = wj @ x / wj.sum()
             dj = x - mj
             refit.append((mj, 2.0 * (dj * wj[:, None]).T @ dj / wj.sum() + floor))
-        comps = [(m, 9.0 * (0.5 * (c + c.T) + floor) + widen) for m, c in centers[:2]] + refit
+        comps = wide[:2] + refit
     return mean, ess
 
 

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from benchmarks import localize as bench
-from benchmarks.posterior import log_posterior, rssi_posterior_mean
+from benchmarks.posterior import estimate_candidates, log_posterior, rssi_posterior_mean
 from sim_link.world import World
 from uavloc_gcs.estimation import ChannelModel, data_information, estimate_emitter, position_rmse_bound_m
 from uavloc_gcs.estimation import prior_information
@@ -34,15 +34,9 @@ def _two_lanes(sc, start, vel, lane_y, seed):
     return world, SlotBatch.concat([world.hear_track(1, t1, x1), world.hear_track(1, t2, x2)])
 
 
-def _candidates(est):
-    out = [(np.concatenate([est.position_xy_m, est.velocity_m_s]), est.covariance)]
-    if est.mirror is not None:
-        out.append((np.concatenate([est.mirror.position_xy_m, est.mirror.velocity_m_s]), est.mirror.covariance))
-    return out
-
-
 def _grid_mean(data, t_ref, center, vmax):
-    """The posterior mean by brute force over a grid of positions (2 m) and velocities (0.15 m/s)."""
+    """The posterior mean by brute force over a grid of positions (2 m) and velocities (0.15 m/s),
+    with the grid (K, 4) and its normalised weights."""
     xs = np.arange(center[0] - 30, center[0] + 30.1, 2.0)
     ys = np.arange(center[1] - 70, center[1] + 70.1, 2.0)
     vs = np.arange(-1.5, 1.501, 0.15)
@@ -51,7 +45,7 @@ def _grid_mean(data, t_ref, center, vmax):
     lp = log_posterior(x, data, t_ref, vmax)
     w = np.exp(lp - lp.max())
     w /= w.sum()
-    return w @ x[:, :2], w
+    return w @ x[:, :2], x, w
 
 
 def test_posterior_mean_of_a_walker_ending_under_the_last_track_agrees_with_a_grid(paper):
@@ -65,15 +59,12 @@ def test_posterior_mean_of_a_walker_ending_under_the_last_track_agrees_with_a_gr
     est = estimate_emitter(slots, ch, max_speed_m_s=vmax)
     t_ref = est.t_ref_s
     truth, tvel = world.positions(t_ref)[0], world.velocities(t_ref)[0]
-    pm, ess = rssi_posterior_mean(data, t_ref, _candidates(est), vmax, np.random.default_rng(0))
-    grid, w = _grid_mean(data, t_ref, truth, vmax)
+    pm, ess = rssi_posterior_mean(data, t_ref, estimate_candidates(est), vmax, np.random.default_rng(0))
+    grid, x, w = _grid_mean(data, t_ref, truth, vmax)
     assert ess > 500
     assert np.linalg.norm(pm - grid) < 1.5, (pm, grid)
     # the posterior's spread across the track against the bound at the truth
-    xs = np.arange(truth[0] - 30, truth[0] + 30.1, 2.0)
-    ys = np.arange(truth[1] - 70, truth[1] + 70.1, 2.0)
-    vs = np.arange(-1.5, 1.501, 0.15)
-    py = np.meshgrid(xs, ys, vs, vs, indexing="ij")[1].ravel()
+    py = x[:, 1]
     spread = math.sqrt(float(w @ (py - w @ py) ** 2))
     prior = prior_information(ch, max_speed_m_s=vmax)
     bound = position_rmse_bound_m(data_information(slots, ch, truth, tvel, t_ref) + prior)
@@ -87,7 +78,8 @@ def test_posterior_mean_is_the_fit_where_the_posterior_is_gaussian(paper):
     vmax = sc.people.max_speed_m_s
     world, slots = _two_lanes(sc, np.array([560.0, 320.0]), np.zeros(2), 320.0 - 50.0, seed=5)
     est = estimate_emitter(slots, ch, max_speed_m_s=vmax, maneuver_time_s=math.inf)
-    pm, ess = rssi_posterior_mean(prepare(slots, ch), est.t_ref_s, _candidates(est), vmax, np.random.default_rng(1))
+    pm, ess = rssi_posterior_mean(prepare(slots, ch), est.t_ref_s, estimate_candidates(est), vmax,
+                                  np.random.default_rng(1))
     sd = math.sqrt(np.trace(est.covariance[:2, :2]) / 2)
     assert ess > 1000
     assert np.linalg.norm(pm - est.position_xy_m) < 0.5 * sd, (pm, est.position_xy_m, sd)

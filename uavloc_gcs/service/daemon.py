@@ -619,11 +619,11 @@ class Daemon:
             v.phase = {"scan": "scanning", "look": "localizing", "home": "returning"}.get(purpose, purpose)
 
     async def _upload(self, v: _Vehicle, purpose: str, items: list, first_seq: int | None,
-                      on_ground: bool = False, on_board_now: Callable[[], None] | None = None) -> None:
+                      on_ground: bool = False, plan_text: str | None = None) -> None:
         """Upload ``items`` and (``first_seq``) switch the vehicle to it. The upload's event, and
-        ``on_board_now`` (an event of the caller's), come as soon as the mission is on board, before
-        the switch: a switch whose ACKs are lost can outlast the flight it starts (measured at 25x:
-        a look flown and landed while MISSION_START was resent), and a "done" that cancels it must
+        the "plan" event ``plan_text``, come as soon as the mission is on board, before the
+        switch: a switch whose ACKs are lost can outlast the flight it starts (measured at 25x: a
+        look flown and landed while MISSION_START was resent), and a "done" that cancels it must
         not also erase from the log that the mission was uploaded and flown."""
         a = v.agent
 
@@ -637,8 +637,8 @@ class Daemon:
         if self.on_mission_acked is not None:
             self.on_mission_acked(v.id, purpose)
         self._event("upload", f"vehicle {v.id}: {purpose} mission of {len(items)} items acknowledged", v.id)
-        if on_board_now is not None:
-            on_board_now()
+        if plan_text is not None:
+            self._event("plan", plan_text, v.id)
         if first_seq is not None:
             await self._switch(v, first_seq, on_ground=on_ground)
             a.tel.mission_seq = first_seq
@@ -917,11 +917,8 @@ class Daemon:
                               home_latlon_deg=self.sc.launch_latlon_deg, include_takeoff=on_ground)
         items = to_wire(plan, f.autopilot)
         first = 1 if v.agent.flavour.home_at_seq0 else 0  # the takeoff (on the ground) or the speed item
-
-        def on_board_now() -> None:
-            self._event("plan", f"vehicle {v.id} looks at {', '.join(map(str, targets))}", v.id)
-
-        await self._upload(v, "look", items, first_seq=first, on_ground=on_ground, on_board_now=on_board_now)
+        await self._upload(v, "look", items, first_seq=first, on_ground=on_ground,
+                           plan_text=f"vehicle {v.id} looks at {', '.join(map(str, targets))}")
         v.targets, v.look_xy_m, v.looks_reported = targets, pts, 0
         v.look_first_seq = next(it.seq for it in items if it.command == NAV_WAYPOINT and it.seq > 0)
         v.home = False

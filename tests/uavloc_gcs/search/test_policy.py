@@ -454,12 +454,7 @@ def test_slots_heard_taking_off_landing_or_on_the_ground_are_not_estimated_from(
     every look, 30 looks, never located. The policy leaves out slots below half the survey
     altitude; what it estimates is what the airborne slots alone say (here an 18 m radius where
     all the slots gave 64 m)."""
-    import sys
-    from pathlib import Path
-
-    sys.path.append(str(Path(__file__).resolve().parents[2]))
-    from e2e_helpers import small_scenario
-
+    from tests.e2e_helpers import small_scenario
     from uavloc_gcs.estimation import ChannelModel, estimate_emitter
     from uavloc_gcs.observations import SlotBatch
 
