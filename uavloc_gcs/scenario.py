@@ -93,11 +93,26 @@ class ChannelSpec:
     slot_s: float = 0.025
     samples_per_slot: int = 10
     estimate_tx_power: bool = False
+    # The receiver hears a frame only when its RSSI exceeds this [dBm] (SPEC 1.1; dongles about -90
+    # to -95). None is the paper's world: every frame within fleet.comm_range_m is heard, none beyond.
+    receiver_sensitivity_dbm: float | None = None
 
     @property
     def log_range_sigma(self) -> float:
         """Std of ln(range) per sample: s = sigma ln10 / (10 eta) (0.4605 for the paper)."""
         return self.shadowing_sigma_db * math.log(10.0) / (10.0 * self.path_loss_exponent)
+
+
+@dataclass(frozen=True)
+class EmissionSpec:
+    """How phones transmit (SPEC 1.1). ``continuous`` is the paper's world: every phone sends
+    ``channel.samples_per_slot`` frames per slot, forever, under one address. ``probe-bursts`` is the
+    field world: Wi-Fi probe-request bursts at random intervals under changing random addresses
+    (parameters fitted to public captures, see sim_link/world/emission.py). ``elicitation_rate_hz`` > 0
+    models an on-board access point that makes phones in range answer at that rate."""
+
+    model: Literal["continuous", "probe-bursts"] = "continuous"
+    elicitation_rate_hz: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -178,6 +193,7 @@ class Scenario:
     launch: LaunchSpec = field(default_factory=LaunchSpec)
     fleet: FleetSpec = field(default_factory=FleetSpec)
     channel: ChannelSpec = field(default_factory=ChannelSpec)
+    emission: EmissionSpec = field(default_factory=EmissionSpec)
     people: PeopleSpec = field(default_factory=PeopleSpec)
     scan: ScanSpec = field(default_factory=ScanSpec)
     planner: PlannerSpec = field(default_factory=PlannerSpec)
@@ -254,6 +270,7 @@ _SECTIONS = {
     "launch": LaunchSpec,
     "fleet": FleetSpec,
     "channel": ChannelSpec,
+    "emission": EmissionSpec,
     "people": PeopleSpec,
     "scan": ScanSpec,
     "planner": PlannerSpec,
@@ -388,6 +405,15 @@ def _resolve(sc: Scenario, base_dir: Path | None = None) -> Scenario:
     _check(ch.reference_distance_m > 0, "must be positive", sc, "channel.reference_distance_m")
     _check(ch.slot_s > 0, "must be positive", sc, "channel.slot_s")
     _check(ch.samples_per_slot >= 1, "must be at least 1", sc, "channel.samples_per_slot")
+    if ch.receiver_sensitivity_dbm is not None:
+        _check(
+            ch.receiver_sensitivity_dbm < ch.reference_power_dbm,
+            f"{ch.receiver_sensitivity_dbm} dBm is not below the reference power {ch.reference_power_dbm} dBm, "
+            "so no phone would ever be heard",
+            sc,
+            "channel.receiver_sensitivity_dbm",
+        )
+    _check(sc.emission.elicitation_rate_hz >= 0, "must not be negative", sc, "emission.elicitation_rate_hz")
     _check(pe.max_speed_m_s >= 0, "must not be negative", sc, "people.max_speed_m_s")
     _check(
         pe.max_speed_m_s < f.speed_m_s,
