@@ -31,9 +31,10 @@ import numpy as np
 from ..errors import EstimationError
 from ..observations import SlotBatch
 from .annulus import annulus_bound_m, reach_bound_m
-from .evidence import Silence, build_bounds
+from .evidence import Censored, Silence, build_bounds
 from .fit import (
     Problem,
+    censored_rows,
     inflation_factor,
     leg_lines,
     mirror_point,
@@ -245,6 +246,7 @@ def estimate_emitter(
     previous: "Estimate | None" = None,
     maneuver_time_s: float = MANEUVER_TIME_S,
     silence: Silence | None = None,
+    censored: Censored | None = None,
 ) -> Estimate:
     """Estimate one emitter from its slots (all rows must carry the same emitter id).
 
@@ -261,10 +263,19 @@ def estimate_emitter(
     (:mod:`.evidence`), with a finite ``channel.comm_range_m``: every slot heard puts the person
     within range of the vehicle then, every silence outside it; the candidates are refitted under
     these soft constraints. Off (``None``) by default: measured, it also lets a sharp turn pick the
-    wrong mirror of a single look pass more often (test_maneuver.py).
+    wrong mirror of a single look pass more often (test_maneuver.py). Under a receiver threshold
+    (``channel.sensitivity_dbm`` set: the field world) there is no sure range and ``silence`` is
+    not used; ``censored`` takes its place.
+
+    Under a receiver threshold the heard slots' likelihood is that of frames heard above it (a
+    truncated normal, see :mod:`.fit`), and ``censored`` (from :func:`.evidence.censored_silence`:
+    vehicles that listened while the phone sent a burst another vehicle heard, and heard nothing)
+    adds the probability of hearing none of the frames sent. ``censored`` needs the threshold.
     """
     if max_speed_m_s < 0 or not math.isfinite(max_speed_m_s):
         raise EstimationError(f"max_speed_m_s must be a finite non-negative number, got {max_speed_m_s}")
+    if censored is not None and len(censored) and channel.sensitivity_dbm is None:
+        raise EstimationError("censored silences need a receiver threshold (ChannelModel.sensitivity_dbm)")
     ids = np.unique(slots.emitter_id)
     if len(ids) > 1:
         raise EstimationError(f"estimate_emitter got slots of {len(ids)} emitters; use estimate_all")
@@ -282,12 +293,12 @@ def estimate_emitter(
     q = intensity_m2_s3(max_speed_m_s, maneuver_time_s) if moving else 0.0
     t_anchor = min(max(t_ref, float(data.t_s.min())), float(data.t_s.max()))
     main = _solve(data, channel, q, t_anchor, moving, bool(estimate_tx_power), float(max_speed_m_s),
-                  previous, silence)
+                  previous, silence, censored=censored)
     if not main.problem.tx and _power_contradicted(main.problem, main.modes[0], main.factor):
         log.info("emitter %d: the data contradict the nominal transmit power; estimating it", emitter)
         return estimate_emitter(slots, channel, max_speed_m_s=max_speed_m_s, t_ref_s=t_ref_s,
                                 model_motion=model_motion, estimate_tx_power=True, previous=previous,
-                                maneuver_time_s=maneuver_time_s, silence=silence)
+                                maneuver_time_s=maneuver_time_s, silence=silence, censored=censored)
     solutions = [(main, 0.0)]
     lag = t_anchor - float(data.t_s.min())
     if TURN_MIXTURE and main.problem.passes is not None and lag > 0 and math.isfinite(maneuver_time_s):
@@ -297,13 +308,13 @@ def estimate_emitter(
         q_turn = 3.0 * max_speed_m_s**2 / lag
         if q_turn > q:
             turned = _solve(data, channel, q_turn, t_anchor, moving, main.problem.tx,
-                            float(max_speed_m_s), previous, silence)
+                            float(max_speed_m_s), previous, silence, censored=censored)
             solutions = [(main, no_turn), (turned, a_turn)]
     # the two models of a turn are alternatives, not parts of one prior: with both switches on,
     # the turn mixture is used
     elif TURN_JUMP and main.problem.passes is not None and lag > 0 and math.isfinite(maneuver_time_s):
         solutions = _with_turns(main, data, channel, t_anchor, moving, float(max_speed_m_s), previous, silence,
-                                lag, maneuver_time_s)
+                                lag, maneuver_time_s, censored)
     entries = _candidates(solutions, moving, t_ref - data.t_c)
     top = entries[0]
     sol, theta, pos, vel, cov, logmass = top.solution, top.theta, top.pos, top.vel, top.cov, top.logmass
@@ -315,7 +326,7 @@ def estimate_emitter(
     beta = theta[problem.beta_index] if problem.tx else 0.0
     mode_r = _mode_radius(cov, moving, max_speed_m_s, t_ref - data.t_c)
     # where the phone was heard at all bounds everything, e.g. the lateral error right under a track
-    reach = reach_bound_m(pos, t_ref, data.t_s, data.a_xy, data.h_m, channel.comm_range_m, max_speed_m_s)
+    reach = reach_bound_m(pos, t_ref, data.t_s, data.a_xy, data.h_m, channel.gate_m, max_speed_m_s)
     mirror = None
     if len(entries) > 1:
         other = entries[1]
@@ -369,7 +380,7 @@ class _Entry:
 
 def _with_turns(main: "_Solution", data, channel: ChannelModel, t_anchor: float, moving: bool, vmax: float,
                 previous: "Estimate | None", silence: Silence | None, lag: float,
-                maneuver_time_s: float) -> list[tuple["_Solution", float]]:
+                maneuver_time_s: float, censored: Censored | None = None) -> list[tuple["_Solution", float]]:
     """The main model and one model per turn time (see TURN_JUMP), with their log prior masses."""
     t = data.t_s[data.t_s <= t_anchor]
     gaps = np.diff(t)
@@ -388,7 +399,7 @@ def _with_turns(main: "_Solution", data, channel: ChannelModel, t_anchor: float,
             continue
         seeds = [np.concatenate([theta, np.zeros(2)]) for theta, _ in main.modes] if TURN_STARTS_FROM_MAIN else None
         turned = _solve(data, channel, main.q, t_anchor, moving, main.problem.tx, vmax, previous, silence,
-                        turn_at_s=float(t_k), starts=seeds)
+                        turn_at_s=float(t_k), starts=seeds, censored=censored)
         out.append((turned, a_turn + math.log(w)))
     return out
 
@@ -404,7 +415,7 @@ def _turn_log_prior(lag_s: float, turn_time_s: float) -> tuple[float, float]:
 
 def _solve(data, channel: ChannelModel, q: float, t_anchor: float, moving: bool, tx: bool, vmax: float,
            previous: "Estimate | None", silence: Silence | None, turn_at_s: float | None = None,
-           starts: list[np.ndarray] | None = None) -> _Solution:
+           starts: list[np.ndarray] | None = None, censored: Censored | None = None) -> _Solution:
     """Every mode of the data under the maneuver intensity q (and a turn at ``turn_at_s``, see
     TURN_JUMP), refitted under the hearing bounds. ``starts`` (best first) replace the start
     grid, the constant-velocity start and ``previous``: a turn model starts from the main model's
@@ -413,7 +424,9 @@ def _solve(data, channel: ChannelModel, q: float, t_anchor: float, moving: bool,
     problem = Problem(data, moving, tx, vmax, TX_PRIOR_SIGMA_DB * channel.nepers_per_db,
                       passes, offset_tail=MANEUVER_TAIL_DOF,
                       turn_at_s=turn_at_s if passes is not None and moving else None,
-                      turn_sigma_m_s=max(TURN_SIGMA_FRACTION * vmax, 1e-3))
+                      turn_sigma_m_s=max(TURN_SIGMA_FRACTION * vmax, 1e-3),
+                      threshold_y=channel.threshold_log_range, log_range_sigma=channel.log_range_sigma,
+                      censored=censored_rows(censored, data, passes) if channel.sensitivity_dbm is not None else None)
     if starts is not None and len(starts) and len(starts[0]) == problem.size:
         modes = _distinct_modes(problem, list(starts), mirrors=TURN_MIRRORS)
     else:
@@ -423,7 +436,7 @@ def _solve(data, channel: ChannelModel, q: float, t_anchor: float, moving: bool,
     heard_mid = np.where(heard_pass >= 0, t_anchor + (problem.passes.lags_s[heard_pass] if problem.passes is not None
                                                      else 0.0), data.t_s)
     bounds = build_bounds(data.t_c, t_anchor, data.t_s, heard_xyz, heard_pass, heard_mid, silence,
-                          channel.comm_range_m, q,
+                          channel.gate_m, q,
                           np.array([m[0][:2] for m in modes]), vmax, moving)
     if bounds is not None and silence is not None:
         problem = replace(problem, bounds=bounds)
@@ -442,7 +455,7 @@ def _fresh_starts(problem: Problem, data, channel: ChannelModel, moving: bool,
     if problem.passes is not None:
         # the CV fit from the best start first: with free pass offsets the maneuver fit has more
         # local optima, and the straight-line solution is the natural place to begin
-        cv = Problem(data, moving, problem.tx, problem.max_speed_m_s, problem.tx_sigma_nepers)
+        cv = replace(problem, passes=None, offset_tail=None, turn_at_s=None, bounds=None)
         first = np.zeros(problem.size)
         first[: problem.base_size] = cv.fit(starts[0][: problem.base_size])[0]
         starts.insert(0, first)

@@ -140,3 +140,83 @@ def build_bounds(t_c: float, t_anchor: float, heard_t_s, heard_xyz_m, heard_pass
 
 def _spread(n: int, cap: int) -> np.ndarray:
     return np.arange(n) if n <= cap else np.unique(np.linspace(0, n - 1, cap).astype(int))
+
+
+# ---------------------------------------------------------------------------------------------
+# The field world (SPEC 1.1): a receiver threshold instead of a range gate, and phones that send
+# bursts. A vehicle that heard nothing is evidence only while the phone is known to have sent:
+# within a burst some vehicle heard. Each such silence is a censored observation of the frames
+# sent then, P(none heard | d) = Phi((S - mu(d)) / sigma)^k (see model.log_probability_residual).
+
+BURST_GAP_S = 3.0  # heard frames closer in time than this are one burst (a burst lasts ~1-2 s)
+LISTEN_GAP_S = 1.0  # a track sample at most this far from the burst's time: the vehicle was listening
+
+
+@dataclass(frozen=True)
+class Censored:
+    """Vehicles that listened without hearing this phone while it sent: times (M,) [s], vehicle
+    positions (M, 3) [m, local ENU, z = height above the people] and the number of frames (M,) the
+    phone sent on the channel listened (a lower bound: fewer frames is weaker evidence)."""
+
+    t_s: np.ndarray
+    xyz_m: np.ndarray
+    frames: np.ndarray
+
+    @staticmethod
+    def empty() -> "Censored":
+        return Censored(np.zeros(0), np.zeros((0, 3)), np.zeros(0))
+
+    def __len__(self) -> int:
+        return len(self.t_s)
+
+
+def burst_windows(heard_t_s, *, gap_s: float = BURST_GAP_S) -> list[tuple[float, float, np.ndarray]]:
+    """The heard slots' times grouped into bursts: (first time, last time, row indices) per burst,
+    a new burst after every gap longer than ``gap_s`` [s]."""
+    t = np.asarray(heard_t_s, float).reshape(-1)
+    if len(t) == 0:
+        return []
+    order = np.argsort(t, kind="stable")
+    cut = np.flatnonzero(np.diff(t[order]) > gap_s) + 1
+    return [(float(t[g[0]]), float(t[g[-1]]), g) for g in np.split(order, cut)]
+
+
+def censored_silence(tracks, heard, *, gap_s: float = BURST_GAP_S, listen_gap_s: float = LISTEN_GAP_S,
+                     frames: float | None = None) -> Censored:
+    """Censored observations of one phone from where the vehicles listened.
+
+    ``tracks``: (vehicle id, times (N,) [s], positions (N, 3) [m, z = height above the people]) per
+    receiver, what it flew while listening (its flight log). ``heard``: this phone's heard slots
+    (a ``SlotBatch``, ``vehicle`` and ``n_samples`` used). For every burst (heard slots grouped by
+    :func:`burst_windows`) each vehicle that heard none of it, and whose track has a sample within
+    ``listen_gap_s`` of the burst's middle time, gives one row at its (interpolated) position then.
+
+    Frames per row: the phone sent at least as many frames on the channel as the vehicle that heard
+    most of them received (every vehicle is assumed to listen on the burst's channel then: pass only
+    the tracks of receivers that did), so that count is used; ``frames`` overrides it (e.g. 1, the
+    most conservative). Outside the bursts nothing is known: a phone between bursts is silent, so a
+    vehicle overhead that heard nothing says nothing.
+    """
+    t_h = np.asarray(heard.t_s, float)
+    veh_h = np.asarray(heard.vehicle)
+    n_h = np.maximum(np.asarray(heard.n_samples, float), 1.0)
+    rows_t, rows_x, rows_k = [], [], []
+    for t0, t1, idx in burst_windows(t_h, gap_s=gap_s):
+        mid = 0.5 * (t0 + t1)
+        by_vehicle = {int(v): float(n_h[idx][veh_h[idx] == v].sum()) for v in np.unique(veh_h[idx])}
+        k = float(frames) if frames is not None else max(by_vehicle.values())
+        for vehicle, t_s, xyz_m in tracks:
+            if int(vehicle) in by_vehicle:
+                continue
+            t = np.asarray(t_s, float).reshape(-1)
+            xyz = np.asarray(xyz_m, float).reshape(-1, 3)
+            if len(t) == 0 or float(np.min(np.abs(t - mid))) > listen_gap_s:
+                continue
+            order = np.argsort(t)
+            t, xyz = t[order], xyz[order]
+            rows_t.append(mid)
+            rows_x.append([np.interp(mid, t, xyz[:, c]) for c in range(3)])
+            rows_k.append(k)
+    if not rows_t:
+        return Censored.empty()
+    return Censored(np.array(rows_t), np.array(rows_x, float), np.array(rows_k, float))

@@ -9,6 +9,19 @@ Objective (negative log posterior x 2) over theta = (x, y[, vx, vy][, beta]) at 
   + |p - c|^2 / (10 km)^2                               a vague position prior: keeps degenerate
                                                         geometry (a hovering vehicle) finite
 
+Under a receiver threshold (the field world: ``ChannelModel.sensitivity_dbm``; y_S its log-range
+form, z_i = (ln d_i - beta - y_S) / s) the heard frames are a normal truncated at the threshold,
+and vehicles that listened while the phone sent and heard nothing are censored observations:
+
+  - sum_i 2 n_i (-ln Phi(-z_i))                         truncation: each heard frame's density is
+                                                        phi / P(heard), P(heard) = Phi(-z_i)
+  + sum_j 2 k_j (-ln Phi(z_j))                          censoring: P(none of k_j frames heard)
+
+The truncation lowers the cost where hearing is unlikely, so it cannot be a residual of its own:
+per slot it joins the Gaussian term into one convex function of z_i written as a signed root
+(``model.truncated_slot_residual``); each censored row is sqrt(-2 k_j ln Phi(z_j))
+(``model.log_probability_residual``); both with analytic Jacobians.
+
 sigma_v = 0.6 v_max per axis is a measured compromise. The second moment of a velocity uniform over
 the disk |v| <= v_max gives 0.5 v_max, but that Gaussian shrinks fast walkers too much (the disk has
 most of its mass near the rim): coverage of the 95 % radius for two parallel legs was 0.91 in
@@ -20,14 +33,23 @@ tests/sim_link/experiments/test_missionsim.py no longer located everyone). 0.6 g
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.optimize import leastsq
 
-from .evidence import Bounds
+from .evidence import Bounds, Censored
 from .maneuver import Passes, offset_jacobian
-from .model import ChannelModel, log_range_jacobian
+from .model import (
+    ChannelModel,
+    censored_curvature,
+    log_probability_residual,
+    log_range_jacobian,
+    mills_ratio,
+    truncated_information_factor,
+    truncated_mle,
+    truncated_slot_residual,
+)
 
 SPEED_BOUND_SOFTNESS_M_S = 0.05
 VELOCITY_PRIOR_FRACTION = 0.6  # sigma_v / v_max per axis (see the module docstring)
@@ -89,6 +111,38 @@ def prepare(slots, channel: ChannelModel, *, merge_s: float = MERGE_S) -> Prepar
 
 
 @dataclass(frozen=True)
+class CensoredRows:
+    """Censored observations (:class:`.evidence.Censored`) in the fit's time frame, each with the
+    maneuver pass of the nearest observation heard in its burst (-1: none)."""
+
+    t_s: np.ndarray
+    tau_s: np.ndarray
+    a_xy: np.ndarray
+    h_m: np.ndarray
+    frames: np.ndarray
+    pass_index: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.t_s)
+
+
+def censored_rows(censored: Censored | None, data: Prepared, passes: Passes | None,
+                  same_burst_s: float = 5.0) -> CensoredRows | None:
+    """``censored`` in the fit's frame (None when empty)."""
+    if censored is None or len(censored) == 0:
+        return None
+    t = np.asarray(censored.t_s, float)
+    xyz = np.asarray(censored.xyz_m, float).reshape(-1, 3)
+    index = np.full(len(t), -1, dtype=int)
+    if passes is not None and len(data.t_s):
+        k = np.argmin(np.abs(t[:, None] - data.t_s[None, :]), axis=1)
+        near = np.abs(data.t_s[k] - t) <= same_burst_s
+        index[near] = passes.index[k[near]]
+    return CensoredRows(t, t - data.t_c, xyz[:, :2].copy(), np.maximum(xyz[:, 2], 0.0),
+                        np.maximum(np.asarray(censored.frames, float), 0.0), index)
+
+
+@dataclass(frozen=True)
 class Problem:
     data: Prepared
     moving: bool
@@ -103,6 +157,12 @@ class Problem:
     # per axis (see estimate.TURN_JUMP).
     turn_at_s: float | None = None
     turn_sigma_m_s: float = 1.0
+    # The receiver threshold in log-range form (ChannelModel.threshold_log_range; None: the paper's
+    # exact gate, no truncation), the per-sample log-range sigma s it is measured in, and the
+    # censored observations (silences within heard bursts; they need the threshold).
+    threshold_y: float | None = None
+    log_range_sigma: float = 1.0
+    censored: CensoredRows | None = None
 
     @property
     def base_size(self) -> int:
@@ -152,27 +212,93 @@ class Problem:
     def _data_jacobian(self, theta: np.ndarray) -> np.ndarray:
         d = self.data
         g, d2 = self._geometry(theta)
-        jac = log_range_jacobian(g, d2, d.tau_s, self.moving, self.tx)
+        return self._rows_jacobian(g, d2, d.tau_s, d.t_s, self.passes.index if self.passes is not None else None)
+
+    def _rows_jacobian(self, g, d2, tau_s, t_s, pass_index) -> np.ndarray:
+        """d(ln d - beta)/d theta (N, P) of rows at offsets g, squared distances d2, times t_s."""
+        jac = log_range_jacobian(g, d2, tau_s, self.moving, self.tx)
         if self.passes is not None:
-            jac = np.hstack([jac, offset_jacobian(g, d2, self.passes)])
+            jac = np.hstack([jac, offset_jacobian(g, d2, replace(self.passes, index=pass_index))])
         if self.turn_at_s is not None:
-            lead = self.turn_lead(d.t_s) / d2
+            lead = self.turn_lead(t_s) / d2
             jac = np.hstack([jac, np.column_stack([g[:, 0] * lead, g[:, 1] * lead])])
         return jac
 
-    def residuals(self, theta: np.ndarray) -> np.ndarray:
+    def _censored_geometry(self, theta: np.ndarray):
+        """Offsets (K, 2) and squared 3-D distances (K,) of the censored rows."""
+        c = self.censored
+        pos = np.outer(c.tau_s, theta[2:4]) + theta[:2] if self.moving else np.broadcast_to(theta[:2], c.a_xy.shape)
+        if self.passes is not None:
+            off = np.vstack([theta[self.base_size:self.offsets_end].reshape(-1, 2), np.zeros((1, 2))])
+            pos = pos + off[c.pass_index]
+        if self.turn_at_s is not None:
+            pos = pos + np.outer(self.turn_lead(c.t_s), theta[self.offsets_end:])
+        g = pos - c.a_xy
+        return g, g[:, 0] * g[:, 0] + g[:, 1] * g[:, 1] + c.h_m * c.h_m
+
+    def _z(self, d2: np.ndarray, theta: np.ndarray) -> np.ndarray:
+        """(S - mu) / sigma = (ln d - beta - y_S) / s of rows with squared distances d2."""
+        beta = theta[self.beta_index] if self.tx else 0.0
+        return (0.5 * np.log(d2) - beta - self.threshold_y) / self.log_range_sigma
+
+    @property
+    def data_rows(self) -> int:
+        """Residual rows of the data: one per slot, then the censored observations."""
+        return len(self.data.t_s) + (len(self.censored) if self.censored is not None else 0)
+
+    def _truncation(self) -> tuple[np.ndarray, np.ndarray]:
+        """Per slot the standardized heard mean b and its ML t* (``model.truncated_mle``), cached."""
+        cache = self.__dict__.get("_trunc")
+        if cache is None:
+            b = (self.data.y - self.threshold_y) / self.log_range_sigma
+            cache = (b, truncated_mle(b))
+            object.__setattr__(self, "_trunc", cache)
+        return cache
+
+    def _slot_residuals(self, theta: np.ndarray) -> np.ndarray:
         d = self.data
         _, d2 = self._geometry(theta)
+        if self.threshold_y is None:
+            beta = theta[self.beta_index] if self.tx else 0.0
+            return np.sqrt(d.w) * (d.y - 0.5 * np.log(d2) + beta)
+        b, t_star = self._truncation()
+        return truncated_slot_residual(self._z(d2, theta), b, t_star, d.n_samples)[0]
+
+    def _censored_residuals(self, theta: np.ndarray) -> list:
+        if self.censored is None:
+            return []
+        _, d2c = self._censored_geometry(theta)
+        return [log_probability_residual(self._z(d2c, theta), self.censored.frames)[0]]
+
+    def _slot_jacobian(self, theta: np.ndarray) -> np.ndarray:
+        d = self.data
+        if self.threshold_y is None:
+            return -np.sqrt(d.w)[:, None] * self._data_jacobian(theta)
+        _, d2 = self._geometry(theta)
+        b, t_star = self._truncation()
+        _, dr = truncated_slot_residual(self._z(d2, theta), b, t_star, d.n_samples)
+        return (dr / self.log_range_sigma)[:, None] * self._data_jacobian(theta)
+
+    def _censored_jacobian(self, theta: np.ndarray) -> list:
+        out = []
+        s = self.log_range_sigma
+        if self.censored is not None:
+            c = self.censored
+            g, d2c = self._censored_geometry(theta)
+            _, dr = log_probability_residual(self._z(d2c, theta), c.frames)
+            out.append((dr / s)[:, None] * self._rows_jacobian(g, d2c, c.tau_s, c.t_s, c.pass_index))
+        return out
+
+    def residuals(self, theta: np.ndarray) -> np.ndarray:
         beta = theta[self.beta_index] if self.tx else 0.0
-        sw = np.sqrt(d.w)
-        parts = [sw * (d.y - 0.5 * np.log(d2) + beta)]
+        parts = [self._slot_residuals(theta)] + self._censored_residuals(theta)
         if self.moving:
             v = theta[2:4]
             speed = math.hypot(v[0], v[1])
             parts += [v / self.sigma_v, [max(speed - self.max_speed_m_s, 0.0) / SPEED_BOUND_SOFTNESS_M_S]]
         if self.tx:
             parts.append([beta / self.tx_sigma_nepers])
-        parts.append((theta[:2] - d.center) / POSITION_PRIOR_SIGMA_M)
+        parts.append((theta[:2] - self.data.center) / POSITION_PRIOR_SIGMA_M)
         if self.passes is not None:
             e = self._whitened_offsets(theta)
             parts.append(e * self._tail(float(e @ e))[0] if self.offset_tail is not None else e)
@@ -184,7 +310,7 @@ class Problem:
 
     def jacobian(self, theta: np.ndarray) -> np.ndarray:
         d = self.data
-        rows = [-np.sqrt(d.w)[:, None] * self._data_jacobian(theta)]
+        rows = [self._slot_jacobian(theta)] + self._censored_jacobian(theta)
         p = self.size
         if self.moving:
             prior = np.zeros((3, p))
@@ -299,12 +425,41 @@ class Problem:
         return j
 
     def data_information(self, theta: np.ndarray) -> np.ndarray:
+        """Fisher information of the data at theta. Under a threshold each heard slot holds the
+        truncated normal's information (``model.truncated_information_factor``) and each censored
+        observation its curvature (``model.censored_curvature``, per frame sent)."""
         jac = self._data_jacobian(theta)
-        return (jac * self.data.w[:, None]).T @ jac
+        if self.threshold_y is None:
+            return (jac * self.data.w[:, None]).T @ jac
+        _, d2 = self._geometry(theta)
+        w = self.data.w * truncated_information_factor(self._z(d2, theta))
+        info = (jac * w[:, None]).T @ jac
+        if self.censored is not None:
+            c = self.censored
+            g, d2c = self._censored_geometry(theta)
+            jc = self._rows_jacobian(g, d2c, c.tau_s, c.t_s, c.pass_index)
+            wc = c.frames * censored_curvature(self._z(d2c, theta)) / self.log_range_sigma**2
+            info = info + (jc * wc[:, None]).T @ jc
+        return info
 
     def data_residuals(self, theta: np.ndarray) -> np.ndarray:
-        """Normalised data residuals (unit variance under the model)."""
-        return self.residuals(theta)[: len(self.data.t_s)]
+        """The data's residuals (their squares sum to the data's part of the cost): the normalised
+        slot residuals (under a threshold their signed roots), then the censored observations."""
+        return self.residuals(theta)[: self.data_rows]
+
+    def standardized_residuals(self, theta: np.ndarray) -> np.ndarray:
+        """The slots' residuals, zero mean and unit variance under the model, in time order: under
+        a threshold the slot mean of n heard frames has mean m - s lambda(-z) and variance
+        kappa s^2 / n (``model.truncated_information_factor``)."""
+        if self.threshold_y is None:
+            return self.residuals(theta)[: len(self.data.t_s)]
+        d = self.data
+        _, d2 = self._geometry(theta)
+        beta = theta[self.beta_index] if self.tx else 0.0
+        r = np.sqrt(d.w) * (d.y - 0.5 * np.log(d2) + beta)
+        z = self._z(d2, theta)
+        kappa = np.maximum(truncated_information_factor(z), 1e-3)
+        return (r + np.sqrt(self.data.n_samples) * mills_ratio(-z)) / np.sqrt(kappa)
 
     def fit(self, theta0: np.ndarray, max_nfev: int = 200) -> tuple[np.ndarray, float]:
         """Local MAP fit from theta0: (theta, 2 x negative log posterior)."""
@@ -410,7 +565,7 @@ def inflation_factor(problem: Problem, theta: np.ndarray) -> float:
     i.i.d. case keeps its full information.
     """
     d = problem.data
-    r = problem.data_residuals(theta)
+    r = problem.standardized_residuals(theta)
     n = len(r)
     factor = 1.0
     dof = n - problem.size

@@ -26,12 +26,31 @@ class ChannelModel:
     shadowing_sigma_db: float = 4.0
     reference_distance_m: float = 1.0
     comm_range_m: float = math.inf  # 3-D range within which a phone is heard at all (a sure bound)
+    # The receiver hears a frame only when its RSSI exceeds this [dBm] (the field world, SPEC 1.1):
+    # the heard frames' likelihood is truncated there and the exact range gate is off (``gate_m``).
+    # None: the paper's world, heard exactly within comm_range_m.
+    sensitivity_dbm: float | None = None
 
     @staticmethod
     def from_scenario(sc) -> "ChannelModel":
         ch = sc.channel
         return ChannelModel(ch.reference_power_dbm, ch.path_loss_exponent, ch.shadowing_sigma_db,
-                            ch.reference_distance_m, sc.fleet.comm_range_m)
+                            ch.reference_distance_m, sc.fleet.comm_range_m,
+                            getattr(ch, "receiver_sensitivity_dbm", None))
+
+    @property
+    def gate_m(self) -> float:
+        """The sure 3-D hearing range: ``comm_range_m`` in the paper's world, none (inf) under a
+        sensitivity threshold, where shadowing can lift a frame above it at any distance."""
+        return self.comm_range_m if self.sensitivity_dbm is None else math.inf
+
+    @property
+    def threshold_log_range(self) -> float | None:
+        """The sensitivity in log-range form [ln m]: a frame is heard when its observed ln range is
+        below it (None without a threshold)."""
+        if self.sensitivity_dbm is None:
+            return None
+        return float(self.log_range(self.sensitivity_dbm))
 
     @property
     def nepers_per_db(self) -> float:
@@ -203,3 +222,114 @@ def mixture_radius(center, parts, prob: float = 0.95) -> float:
     # linear between the neighbouring points of the empirical distribution
     f = (prob - cdf[k - 1]) / max(cdf[k] - cdf[k - 1], 1e-300)
     return float(d[k - 1] + f * (d[k] - d[k - 1]))
+
+
+# ---------------------------------------------------------------------------------------------
+# The receiver threshold (Tobit model). In log-range form a frame's observed ln range is
+# y = m + e, e ~ N(0, s^2), m = ln d - beta, and it is heard when y < y_S (its RSSI above the
+# sensitivity S). With z = (m - y_S) / s = (S - mu) / sigma, a frame is heard with probability
+# Phi(-z) and missed with probability Phi(z).
+
+
+def _log_phi(u: np.ndarray) -> np.ndarray:
+    return -0.5 * u * u - 0.5 * math.log(2.0 * math.pi)
+
+
+def mills_ratio(u) -> np.ndarray:
+    """phi(u) / Phi(u), computed in logs (finite for every finite u)."""
+    from scipy.special import log_ndtr
+
+    u = np.asarray(u, float)
+    return np.exp(_log_phi(u) - log_ndtr(u))
+
+
+def log_probability_residual(u, count) -> tuple[np.ndarray, np.ndarray]:
+    """The residual r = sqrt(-2 count ln Phi(u)) (so that r^2 is -2 ln Phi(u)^count) and dr/du.
+
+    For a heard slot of n frames (the truncation) u = -z and count = n; for a silence in which the
+    phone sent k frames (the censoring) u = z and count = k. dr/du = -count lambda(u) / r, with
+    lambda the Mills ratio; where r underflows (u > ~37) both are 0."""
+    from scipy.special import log_ndtr
+
+    u = np.asarray(u, float)
+    f = -2.0 * np.asarray(count, float) * log_ndtr(u)
+    ok = f > 1e-300
+    r = np.sqrt(np.where(ok, f, 0.0))
+    dr = np.where(ok, -np.asarray(count, float) * mills_ratio(u) / np.where(ok, r, 1.0), 0.0)
+    return r, dr
+
+
+def truncated_information_factor(z) -> np.ndarray:
+    """Fisher information about m of one heard frame under the threshold, in units of 1/s^2:
+    the variance ratio of the normal truncated above at y_S, 1 - a lambda(a) - lambda(a)^2 with
+    a = -z (1 far inside the range, towards 0 at the edge). The slot mean of n heard frames is
+    sufficient for m (an exponential family), so a slot holds n times it."""
+    a = -np.asarray(z, float)
+    lam = mills_ratio(a)
+    return np.clip(1.0 - a * lam - lam * lam, 0.0, 1.0)
+
+
+def censored_curvature(z) -> np.ndarray:
+    """d^2 (-ln Phi(z)) / dz^2 = lambda(z) (z + lambda(z)) (>= 0): the curvature, per frame, of a
+    silence in units of 1/s^2 (what it adds to the Laplace precision, the Gauss-Newton way)."""
+    z = np.asarray(z, float)
+    lam = mills_ratio(z)
+    return np.maximum(lam * (z + lam), 0.0)
+
+
+def tobit_information_factor(z) -> np.ndarray:
+    """Expected Fisher information about m of one frame the phone sent, heard or not, in units of
+    1/s^2 (Amemiya's Tobit information): Phi(a) - a phi(a) + phi(a)^2 / Phi(-a), a = -z."""
+    from scipy.special import ndtr
+
+    a = -np.asarray(z, float)
+    phi = np.exp(_log_phi(a))
+    return np.maximum(ndtr(a) - a * phi + phi * mills_ratio(-a), 0.0)  # phi(a)^2 / Phi(-a) = phi lambda(-a)
+
+
+def _heard_mean_gap(t: np.ndarray) -> np.ndarray:
+    """E[(y - y_S) / s | heard] - t = -lambda(-t) at standardized mean t = (m - y_S) / s."""
+    return -mills_ratio(-t)
+
+
+def truncated_mle(b) -> np.ndarray:
+    """Per slot, the standardized mean t* = (m - y_S) / s that maximises the likelihood of frames
+    heard with standardized mean b = (y_bar - y_S) / s < 0: the root of t - lambda(-t) = b (the
+    truncated normal is an exponential family in m, so the ML mean matches the heard mean). The
+    left side rises from -inf to 0 with slope kappa > 0; t* lies in [b, 1 - 1/b] (Mills ratio
+    bound lambda(-t) < t + 1/t for t > 0); bisection, vectorized."""
+    b = np.minimum(np.asarray(b, float), -1e-2)
+    lo, hi = b.copy(), 1.0 - 1.0 / b
+    for _ in range(64):
+        mid = 0.5 * (lo + hi)
+        below = mid + _heard_mean_gap(mid) < b
+        lo, hi = np.where(below, mid, lo), np.where(below, hi, mid)
+    return 0.5 * (lo + hi)
+
+
+def truncated_slot_residual(t, b, t_star, n) -> tuple[np.ndarray, np.ndarray]:
+    """The heard slots' data term under the threshold as a least-squares residual, and dr/dt.
+
+    A slot of n frames heard with standardized mean b = (y_bar - y_S) / s has
+    -2 ln L(t) = c(t) + const with c(t) = n [(b - t)^2 - 2 (-ln Phi(-t))], t = (m - y_S) / s: the
+    Gaussian term plus 2 n ln(1 - Phi(z)) (z = t; per frame the density phi / (1 - Phi(z)), whose
+    normaliser *lowers* the cost where hearing is unlikely). c is convex with its minimum at
+    t* (:func:`truncated_mle`), so r = sign(t - t*) sqrt(c(t) - c(t*)) is a smooth residual with
+    r^2 = c - c(t*) (a constant of the data dropped); dr/dt = c'(t) / (2 r),
+    c'(t) = 2 n (t - b - lambda(-t)); next to t* the Taylor form r = (t - t*) sqrt(n kappa(t*))."""
+    from scipy.special import log_ndtr
+
+    t, b, t_star, n = (np.asarray(a, float) for a in (t, b, t_star, n))
+    b = np.minimum(b, -1e-2)
+
+    def cost(u):
+        return n * ((b - u) ** 2 + 2.0 * log_ndtr(-u))
+
+    delta = t - t_star
+    near = np.abs(delta) < 1e-4 * np.maximum(1.0, np.abs(t_star))
+    slope0 = np.sqrt(n * np.maximum(truncated_information_factor(t_star), 1e-12))
+    excess = np.maximum(cost(t) - cost(t_star), 0.0)
+    r = np.where(near, delta * slope0, np.sign(delta) * np.sqrt(excess))
+    safe = np.where(near | (r == 0.0), 1.0, r)
+    dr = np.where(near, slope0, n * (t - b - mills_ratio(-t)) / safe)
+    return r, dr
