@@ -96,6 +96,14 @@ class ChannelSpec:
     # The receiver hears a frame only when its RSSI exceeds this [dBm] (SPEC 1.1; dongles about -90
     # to -95). None is the paper's world: every frame within fleet.comm_range_m is heard, none beyond.
     receiver_sensitivity_dbm: float | None = None
+    # 802.11 channels the receiver listens on, one radio each (None: 1, 6 and 11, as the public
+    # captures were made). Probe-request frames sent on other channels are not heard.
+    listen_channels: list | None = None
+
+    @property
+    def listen_channel_list(self) -> tuple:
+        """The channels listened on (the default 1/6/11 when ``listen_channels`` is None)."""
+        return (1, 6, 11) if self.listen_channels is None else tuple(int(c) for c in self.listen_channels)
 
     @property
     def log_range_sigma(self) -> float:
@@ -107,12 +115,36 @@ class ChannelSpec:
 class EmissionSpec:
     """How phones transmit (SPEC 1.1). ``continuous`` is the paper's world: every phone sends
     ``channel.samples_per_slot`` frames per slot, forever, under one address. ``probe-bursts`` is the
-    field world: Wi-Fi probe-request bursts at random intervals under changing random addresses
-    (parameters fitted to public captures, see sim_link/world/emission.py). ``elicitation_rate_hz`` > 0
-    models an on-board access point that makes phones in range answer at that rate."""
+    field world: Wi-Fi probe-request bursts at random intervals under changing random addresses.
+    ``elicitation_rate_hz`` > 0 models an on-board access point that makes phones in range answer at
+    that rate.
+
+    Burst parameters (used by ``probe-bursts`` only; defaults are the fit to public captures, see
+    sim_link/world/emission.py and docs/readme/world.md): every phone has a quantile u ~ U(0, 1)
+    that places its median gap between bursts log-linearly in
+    [``burst_gap_median_min_s``, ``burst_gap_median_max_s``] and its 90th percentile in
+    [``burst_gap_p90_min_s``, ``burst_gap_p90_max_s``] (a log-normal gap distribution per phone);
+    a gap is replaced by a silence of ``long_silence_min_s``..``long_silence_max_s`` with probability
+    ``long_silence_per_gap``; a burst lasts ``burst_duration_min_s``..``burst_duration_max_s`` and
+    carries a per-phone median of ``frames_per_burst_median_min``..``frames_per_burst_median_max``
+    frames, at most ``frames_per_burst_max``.
+    """
 
     model: Literal["continuous", "probe-bursts"] = "continuous"
     elicitation_rate_hz: float = 0.0
+    # The same numbers as sim_link/world/emission.py's fitted constants (a test keeps them equal).
+    burst_gap_median_min_s: float = 20.0
+    burst_gap_median_max_s: float = 135.0
+    burst_gap_p90_min_s: float = 60.0
+    burst_gap_p90_max_s: float = 270.0
+    long_silence_per_gap: float = 0.002
+    long_silence_min_s: float = 1800.0
+    long_silence_max_s: float = 5400.0
+    frames_per_burst_median_min: int = 4
+    frames_per_burst_median_max: int = 40
+    frames_per_burst_max: int = 80
+    burst_duration_min_s: float = 1.0
+    burst_duration_max_s: float = 2.0
 
 
 @dataclass(frozen=True)
@@ -413,7 +445,8 @@ def _resolve(sc: Scenario, base_dir: Path | None = None) -> Scenario:
             sc,
             "channel.receiver_sensitivity_dbm",
         )
-    _check(sc.emission.elicitation_rate_hz >= 0, "must not be negative", sc, "emission.elicitation_rate_hz")
+    _check_channels(sc)
+    _check_emission(sc)
     _check(pe.max_speed_m_s >= 0, "must not be negative", sc, "people.max_speed_m_s")
     _check(
         pe.max_speed_m_s < f.speed_m_s,
@@ -451,6 +484,52 @@ def _resolve(sc: Scenario, base_dir: Path | None = None) -> Scenario:
     xy = sc.area_xy_m()
     _check_polygon_simple(sc, xy)
     return sc
+
+
+def _check_channels(sc: Scenario) -> None:
+    chans = sc.channel.listen_channels
+    if chans is None:
+        return
+    _check(len(chans) >= 1, "must list at least one channel, for example [1, 6, 11]", sc, "channel.listen_channels")
+    for c in chans:
+        _check(isinstance(c, int) and not isinstance(c, bool) and 1 <= c <= 14,
+               f"entries must be 2.4 GHz channel numbers 1..14, got {c!r}", sc, "channel.listen_channels")
+    _check(len(set(chans)) == len(chans), "lists a channel twice", sc, "channel.listen_channels")
+
+
+def _check_emission(sc: Scenario) -> None:
+    """Values of [emission] that no phone could have, each refused in one sentence naming its key."""
+    em = sc.emission
+    _check(em.elicitation_rate_hz >= 0, f"must not be negative, got {em.elicitation_rate_hz} Hz", sc,
+           "emission.elicitation_rate_hz")
+    _check(em.elicitation_rate_hz <= 1000, f"{em.elicitation_rate_hz} Hz is more than any phone answers "
+           "(at most 1000)", sc, "emission.elicitation_rate_hz")
+    for key in ("burst_gap_median_min_s", "burst_gap_median_max_s", "burst_gap_p90_min_s", "burst_gap_p90_max_s",
+                "long_silence_min_s", "long_silence_max_s", "burst_duration_min_s", "burst_duration_max_s"):
+        value = getattr(em, key)
+        _check(value > 0, f"must be positive, got {value} s", sc, f"emission.{key}")
+    for low, high in (("burst_gap_median_min_s", "burst_gap_median_max_s"),
+                      ("burst_gap_p90_min_s", "burst_gap_p90_max_s"),
+                      ("long_silence_min_s", "long_silence_max_s"),
+                      ("burst_duration_min_s", "burst_duration_max_s"),
+                      ("frames_per_burst_median_min", "frames_per_burst_median_max"),
+                      ("frames_per_burst_median_max", "frames_per_burst_max")):
+        _check(getattr(em, low) <= getattr(em, high),
+               f"{getattr(em, high)} is below emission.{low} = {getattr(em, low)}", sc, f"emission.{high}")
+    for med, p90 in (("burst_gap_median_min_s", "burst_gap_p90_min_s"),
+                     ("burst_gap_median_max_s", "burst_gap_p90_max_s")):
+        _check(getattr(em, p90) > getattr(em, med),
+               f"a 90th percentile of {getattr(em, p90)} s must exceed the median emission.{med} = "
+               f"{getattr(em, med)} s", sc, f"emission.{p90}")
+    _check(em.burst_duration_max_s < em.burst_gap_median_min_s,
+           f"bursts of {em.burst_duration_max_s} s would overlap gaps of {em.burst_gap_median_min_s} s "
+           "(emission.burst_gap_median_min_s)", sc, "emission.burst_duration_max_s")
+    _check(0.0 <= em.long_silence_per_gap < 1.0, f"must be in [0, 1), got {em.long_silence_per_gap}", sc,
+           "emission.long_silence_per_gap")
+    _check(em.frames_per_burst_median_min >= 1, f"must be at least 1, got {em.frames_per_burst_median_min}",
+           sc, "emission.frames_per_burst_median_min")
+    _check(em.frames_per_burst_max <= 1000, f"{em.frames_per_burst_max} frames in one burst is beyond any "
+           "phone (at most 1000)", sc, "emission.frames_per_burst_max")
 
 
 def _check_link(sc: Scenario) -> None:

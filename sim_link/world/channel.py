@@ -56,6 +56,11 @@ class ShadowingState:
     last_xyz_m: np.ndarray | None = None  # (3,)
     last_people_xy_m: np.ndarray | None = None  # (S, 2)
     psi_db: np.ndarray | None = None  # (S,) last shadowing sample
+    # frame-by-frame worlds (probe bursts, a receiver threshold): distance flown so far and, per
+    # phone, the odometer and the phone's position at its last frame heard by this vehicle
+    odometer_m: float = 0.0
+    pair_odometer_m: np.ndarray | None = None  # (S,)
+    pair_people_xy_m: np.ndarray | None = None  # (S, 2)
 
 
 def draw_shadowing_db(params: ChannelParams, state: ShadowingState, moved_m: np.ndarray) -> np.ndarray:
@@ -79,6 +84,44 @@ def draw_shadowing_db(params: ChannelParams, state: ShadowingState, moved_m: np.
     psi = _ar1(state.psi_db, log_rho, innov)
     state.psi_db = psi[-1].copy()
     return psi.reshape(n, k, s)
+
+
+def draw_frame_shadowing_db(params: ChannelParams, state: ShadowingState, person: np.ndarray,
+                            odometer_m: np.ndarray, person_xy_m: np.ndarray, n_people: int) -> np.ndarray:
+    """Shadowing [dB] of F frames in time order: ``person`` (F,) sender, ``odometer_m`` (F,) the
+    vehicle's distance flown at each frame, ``person_xy_m`` (F, 2) the sender's position.
+
+    i.i.d.: one N(0, sigma^2) per frame. Correlated: one Gudmundson process per vehicle-phone pair,
+    advanced by the distance the vehicle flew plus the distance the phone moved since that pair's
+    previous frame. Consumes F standard normals (plus S on the first call of a correlated channel),
+    so frames heard in pieces give the same numbers as heard at once.
+    """
+    sigma = params.shadowing_sigma_db
+    if params.correlated and state.psi_db is None:
+        state.psi_db = sigma * state.rng.standard_normal(n_people)
+    z = state.rng.standard_normal(len(person))
+    if not params.correlated:
+        return sigma * z
+    if state.pair_odometer_m is None:
+        state.pair_odometer_m = np.zeros(n_people)
+    out = np.empty(len(person))
+    for i in np.unique(person):
+        rows = np.nonzero(person == i)[0]
+        odo, xy = odometer_m[rows], person_xy_m[rows]
+        prev_xy = xy[0] if state.pair_people_xy_m is None or np.isnan(state.pair_people_xy_m[i, 0]) \
+            else state.pair_people_xy_m[i]
+        walked = np.linalg.norm(np.diff(np.vstack([prev_xy, xy]), axis=0), axis=1)
+        moved = np.diff(np.concatenate([[state.pair_odometer_m[i]], odo])) + walked
+        log_rho = -np.maximum(moved, 0.0)[:, None] / params.decorrelation_m
+        innov = sigma * np.sqrt(-np.expm1(2.0 * log_rho)) * z[rows, None]
+        psi = _ar1(state.psi_db[i : i + 1], log_rho, innov)[:, 0]
+        out[rows] = psi
+        state.psi_db[i] = psi[-1]
+        state.pair_odometer_m[i] = odo[-1]
+        if state.pair_people_xy_m is None:
+            state.pair_people_xy_m = np.full((n_people, 2), np.nan)
+        state.pair_people_xy_m[i] = xy[-1]
+    return out
 
 
 def _ar1(x0: np.ndarray, log_rho: np.ndarray, innov: np.ndarray) -> np.ndarray:

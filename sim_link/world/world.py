@@ -11,6 +11,13 @@ what one vehicle hears depends only on the sequence of its own ``hear``/``hear_t
 on how the calls of several concurrently simulated vehicles interleave. Hearing a track slot by
 slot gives the same numbers as hearing it in one ``hear_track`` call.
 
+Two emission models (``scenario.emission.model``, docs/readme/world.md): ``continuous`` (the paper:
+every phone in every slot, under its emitter id, heard within ``fleet.comm_range_m``) and
+``probe-bursts`` (the field: :mod:`.emission`'s bursts under changing addresses). With
+``channel.receiver_sensitivity_dbm`` set, a frame is heard when its RSSI exceeds it (no range gate),
+on the channels of ``channel.listen_channels`` (one radio each). ``person_of`` maps what was heard
+back to people (truth for tests and benchmarks; a sensor has only the address).
+
 Example::
 
     world = World(load_scenario("examples/paper.toml"), seed=3)
@@ -26,11 +33,12 @@ import numpy as np
 from uavloc_gcs.observations import SlotBatch
 from uavloc_gcs.scenario import Scenario
 
-from .channel import ChannelParams, ShadowingState, draw_shadowing_db
+from .channel import ChannelParams, ShadowingState, draw_frame_shadowing_db, draw_shadowing_db
+from .emission import BurstParams, Frames, ProbeBursts
 from .people import Tracks, constant_velocity_tracks, make_tracks
 
 # spawn keys of the independent random streams derived from the seed
-_PEOPLE, _IDS, _TX, _VEHICLE = 0, 1, 2, 3
+_PEOPLE, _IDS, _TX, _VEHICLE, _TRAITS, _BURSTS, _ELICIT = 0, 1, 2, 3, 4, 5, 6
 
 
 class World:
@@ -62,6 +70,17 @@ class World:
         spread = sim.tx_power_spread_db
         self.tx_offset_db = spread * self._rng(_TX).standard_normal(n) if spread > 0 else np.zeros(n)
         self._vehicles: dict[int, ShadowingState] = {}
+        self._elicit_rngs: dict[int, np.random.Generator] = {}
+        ch = scenario.channel
+        self.sensitivity_dbm = ch.receiver_sensitivity_dbm
+        self.listen_channels = np.array(ch.listen_channel_list, dtype=int)
+        self.emission_model = scenario.emission.model
+        self.elicitation_rate_hz = scenario.emission.elicitation_rate_hz
+        self.emission: ProbeBursts | None = None
+        if self.emission_model == "probe-bursts":
+            self.emission = ProbeBursts(BurstParams.from_scenario(scenario), n, self._rng(_TRAITS),
+                                        lambda i: self._rng(_BURSTS, i))
+        self._id_index = {int(e): i for i, e in enumerate(self.emitter_ids)}
 
     @classmethod
     def with_people(cls, scenario: Scenario, start_xy_m, velocity_m_s=None, *, seed: int | None = None) -> "World":
@@ -91,6 +110,27 @@ class World:
             raise KeyError(f"no person with emitter id {emitter_id}")
         return int(hit[0])
 
+    def person_of(self, addresses) -> np.ndarray:
+        """Truth: the person index (row of ``positions``) behind each 802.11 address (or, in the
+        continuous world, emitter id) heard; -1 for an address no person of this world has used."""
+        table = self._id_index if self.emission is None else self.emission.owner
+        a = np.asarray(addresses, dtype=np.int64).reshape(-1)
+        return np.array([table.get(int(x), -1) for x in a], dtype=int)
+
+    @property
+    def fingerprints(self) -> np.ndarray:
+        """Content fingerprint of every person's phone (S,); 0 (unknown) in the continuous world."""
+        return np.zeros(len(self), dtype=np.int64) if self.emission is None else self.emission.fingerprint.copy()
+
+    def hearing_range_m(self) -> float:
+        """3-D distance [m] at which a frame of a phone with no transmit offset is heard with
+        probability 1/2: where the median RSSI equals the sensitivity (fleet.comm_range_m without one)."""
+        if self.sensitivity_dbm is None:
+            return float(self.comm_range_m)
+        ch = self.channel
+        margin = ch.reference_power_dbm - self.sensitivity_dbm
+        return float(ch.reference_distance_m * 10.0 ** (margin / (10.0 * ch.path_loss_exponent)))
+
     # -- hearing --------------------------------------------------------------------------
     def hear(self, vehicle: int, t_s: float, xyz_m) -> SlotBatch:
         """One slot heard by ``vehicle`` at local position ``xyz_m`` at time ``t_s``: one row per
@@ -101,6 +141,13 @@ class World:
         """Slots heard along a track: times (N,) nondecreasing, positions (N, 3) [m], one slot each.
 
         Calls for one vehicle must come in nondecreasing time (the shadowing has memory).
+
+        Continuous emission without a receiver sensitivity (the paper): one row per (slot, person
+        within fleet.comm_range_m), ``samples_per_slot`` samples each. With a sensitivity: only the
+        samples above it count, rssi = their mean. Probe bursts: one row per (slot, address) whose
+        frames were heard in the slot -- rssi = mean dBm of the heard frames, ``n_samples`` = their
+        number, ``emitter_id`` = ``address`` (a sensor knows no person), ``fingerprint`` and the
+        ``channel`` of the slot's first heard frame filled. Slot k covers [t_k, t_k + slot_s).
         """
         t = np.asarray(t_s, dtype=float).reshape(-1)
         xyz = np.asarray(xyz_m, dtype=float).reshape(-1, 3)
@@ -114,11 +161,13 @@ class World:
         if np.any(np.diff(t) < 0) or t[0] < state.last_t_s:
             raise ValueError(f"vehicle {vehicle}: slot times must not go backwards "
                              f"(last {state.last_t_s:.3f} s, got {t.min():.3f} s)")
-        people = self.tracks.positions(t)  # (N, S, 2)
         s = len(self)
         if s == 0:
             state.last_t_s = float(t[-1])
             return SlotBatch.empty()
+        if self.emission is not None:
+            return self._hear_frames(int(vehicle), state, t, xyz)
+        people = self.tracks.positions(t)  # (N, S, 2)
         dxy = people - xyz[:, None, :2]
         d3 = np.sqrt(np.sum(dxy**2, axis=2) + xyz[:, 2:3] ** 2)  # (N, S)
 
@@ -129,15 +178,94 @@ class World:
         moved = veh_step[:, None] + ppl_step  # (N, S)
 
         psi = draw_shadowing_db(self.channel, state, moved)  # (N, K, S)
-        rssi = self.channel.median_rssi_dbm(d3) + self.tx_offset_db + psi.mean(axis=1)
+        k = self.channel.samples_per_slot
+        if self.sensitivity_dbm is None:
+            rssi = self.channel.median_rssi_dbm(d3) + self.tx_offset_db + psi.mean(axis=1)
+            n_heard = np.where(d3 <= self.comm_range_m, k, 0)
+        else:  # every sample is a frame, heard when above the sensitivity; no range gate
+            samples = (self.channel.median_rssi_dbm(d3) + self.tx_offset_db)[:, None, :] + psi  # (N, K, S)
+            heard = samples > self.sensitivity_dbm
+            n_heard = heard.sum(axis=1)
+            rssi = np.where(heard, samples, 0.0).sum(axis=1) / np.maximum(n_heard, 1)
         state.last_t_s, state.last_xyz_m, state.last_people_xy_m = float(t[-1]), xyz[-1].copy(), people[-1].copy()
 
-        slot, person = np.nonzero(d3 <= self.comm_range_m)  # slot-major, then person order
-        k = self.channel.samples_per_slot
+        slot, person = np.nonzero(n_heard > 0)  # slot-major, then person order
         return SlotBatch.from_columns(
             t[slot], np.full(len(slot), int(vehicle)), xyz[slot], self.emitter_ids[person].astype(np.int64),
-            rssi[slot, person], np.full(len(slot), k),
+            rssi[slot, person], n_heard[slot, person],
         )
+
+    def _hear_frames(self, vehicle: int, state: ShadowingState, t: np.ndarray, xyz: np.ndarray) -> SlotBatch:
+        """Probe bursts (and elicited frames) heard along a track; see :meth:`hear_track`."""
+        slot_s = self.scenario.channel.slot_s
+        prev = xyz[0] if state.last_xyz_m is None else state.last_xyz_m
+        steps = np.linalg.norm(np.diff(np.vstack([prev, xyz]), axis=0), axis=1)
+        odometer = np.cumsum(np.concatenate([[state.odometer_m], steps]))[1:]  # (N,) distance flown
+        frames = self.emission.frames(float(t[0]), float(t[-1]) + slot_s)
+        slot = np.searchsorted(t, frames.t_s, side="right") - 1
+        inside = (slot >= 0) & (frames.t_s < t[np.maximum(slot, 0)] + slot_s)
+        inside &= np.isin(frames.channel, self.listen_channels)
+        frames, slot = frames.take(inside), slot[inside]
+        if self.elicitation_rate_hz > 0:
+            frames, slot = self._add_elicited(vehicle, t, xyz, frames, slot)
+        state.last_t_s, state.last_xyz_m, state.odometer_m = float(t[-1]), xyz[-1].copy(), float(odometer[-1])
+        if len(frames) == 0:
+            return SlotBatch.empty()
+
+        # positions at the slots that carry frames only: hearing costs what the frames cost
+        used, where = np.unique(slot, return_inverse=True)
+        people = self.tracks.positions(t[used])  # (U, S, 2)
+        pxy = people[where, frames.person]  # (F, 2)
+        d3 = np.sqrt(np.sum((pxy - xyz[slot, :2]) ** 2, axis=1) + xyz[slot, 2] ** 2)
+        psi = draw_frame_shadowing_db(self.channel, state, frames.person, odometer[slot], pxy, len(self))
+        rssi = self.channel.median_rssi_dbm(d3) + self.tx_offset_db[frames.person] + psi
+        heard = d3 <= self.comm_range_m if self.sensitivity_dbm is None else rssi > self.sensitivity_dbm
+        frames, slot, rssi = frames.take(heard), slot[heard], rssi[heard]
+        if len(frames) == 0:
+            return SlotBatch.empty()
+
+        order = np.lexsort((frames.address, frames.person, slot))  # slot-major, then person, address
+        frames, slot, rssi = frames.take(order), slot[order], rssi[order]
+        new = np.ones(len(slot), dtype=bool)
+        new[1:] = (slot[1:] != slot[:-1]) | (frames.address[1:] != frames.address[:-1])
+        first = np.nonzero(new)[0]
+        count = np.diff(np.append(first, len(slot)))
+        mean = np.add.reduceat(rssi, first) / count
+        rows = slot[first]
+        fingerprint = self.emission.fingerprint[frames.person[first]]
+        address = frames.address[first]
+        return SlotBatch.from_columns(
+            t[rows], np.full(len(rows), vehicle), xyz[rows], address, mean, count,
+            address=address, fingerprint=fingerprint, channel=frames.channel[first],
+        )
+
+    def elicitation_range_m(self) -> float:
+        """3-D distance [m] within which a phone hears the on-board access point and answers: the
+        link is taken as symmetric (AP and phone radiate alike, the phone hears like the sensor), so
+        it is the 50 % hearing range of :meth:`hearing_range_m`."""
+        return self.hearing_range_m()
+
+    def _add_elicited(self, vehicle: int, t: np.ndarray, xyz: np.ndarray, frames: Frames, slot: np.ndarray):
+        """Elicited frames: a Poisson stream at ``elicitation_rate_hz`` from every phone within
+        :meth:`elicitation_range_m` of the vehicle, under the phone's per-network address, on the
+        access point's channel (the first listened channel)."""
+        rng = self._elicit_rngs.get(vehicle)
+        if rng is None:
+            rng = self._elicit_rngs[vehicle] = self._rng(_ELICIT, vehicle)
+        slot_s = self.scenario.channel.slot_s
+        people = self.tracks.positions(t)  # (N, S, 2)
+        d3 = np.sqrt(np.sum((people - xyz[:, None, :2]) ** 2, axis=2) + xyz[:, 2:3] ** 2)
+        count = rng.poisson(self.elicitation_rate_hz * slot_s, size=d3.shape) * (d3 <= self.elicitation_range_m())
+        k, person = np.nonzero(count)
+        reps = count[k, person]
+        k, person = np.repeat(k, reps), np.repeat(person, reps)
+        n = len(k)
+        el = Frames(person, t[k].astype(float), np.full(n, int(self.listen_channels[0])),
+                    self.emission.network_address[person].astype(np.int64), np.full(n, -1), np.full(n, -1))
+        both = Frames.concat([frames, el])
+        slots = np.concatenate([slot, k])
+        order = np.lexsort((both.person, both.t_s))
+        return both.take(order), slots[order]
 
     def _state(self, vehicle: int) -> ShadowingState:
         st = self._vehicles.get(vehicle)

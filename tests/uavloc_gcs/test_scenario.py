@@ -106,3 +106,51 @@ def test_polygon_is_counter_clockwise_and_launch_defaults_to_first_corner():
     area2 = np.sum(xy[:, 0] * np.roll(xy[:, 1], -1) - np.roll(xy[:, 0], -1) * xy[:, 1])
     assert area2 > 0
     assert sc.launch_latlon_deg == (0.0, 0.0)
+
+
+@pytest.mark.parametrize(
+    "extra, key, fragment",
+    [
+        ("[emission]\nmodel = 'beacons'\n", "emission.model", "expected one of"),
+        ("[emission]\nelicitation_rate_hz = -1\n", "emission.elicitation_rate_hz", "must not be negative"),
+        ("[emission]\nburst_gap_median_min_s = 0\n", "emission.burst_gap_median_min_s", "must be positive"),
+        ("[emission]\nburst_gap_median_max_s = -5\n", "emission.burst_gap_median_max_s", "must be positive"),
+        ("[emission]\nburst_gap_median_max_s = 10\n", "emission.burst_gap_median_max_s", "is below"),
+        ("[emission]\nburst_gap_p90_min_s = 15\n", "emission.burst_gap_p90_min_s", "must exceed the median"),
+        ("[emission]\nburst_gap_p90_max_s = 100\n", "emission.burst_gap_p90_max_s", "must exceed the median"),
+        ("[emission]\nframes_per_burst_median_min = 0\n", "emission.frames_per_burst_median_min", "at least 1"),
+        ("[emission]\nframes_per_burst_max = 10\n", "emission.frames_per_burst_max", "is below"),
+        ("[emission]\nframes_per_burst_max = 2.5\n", "emission.frames_per_burst_max", "whole number"),
+        ("[emission]\nlong_silence_per_gap = 1.0\n", "emission.long_silence_per_gap", "[0, 1)"),
+        ("[emission]\nlong_silence_min_s = 0\n", "emission.long_silence_min_s", "must be positive"),
+        ("[emission]\nburst_duration_max_s = 30\n", "emission.burst_duration_max_s", "overlap"),
+        ("[emission]\nburst_duration_min_s = 0\n", "emission.burst_duration_min_s", "must be positive"),
+        ("[emission]\ngap_s = 3\n", "emission.gap_s", "unknown key"),
+        ("[channel]\nreceiver_sensitivity_dbm = -30\n", "channel.receiver_sensitivity_dbm", "not below the reference"),
+        ("[channel]\nlisten_channels = [1, 6, 36]\n", "channel.listen_channels", "1..14"),
+        ("[channel]\nlisten_channels = []\n", "channel.listen_channels", "at least one"),
+        ("[channel]\nlisten_channels = [6, 6]\n", "channel.listen_channels", "twice"),
+    ],
+)
+def test_bad_emission_and_receiver_values_name_the_key(extra, key, fragment):
+    with pytest.raises(ConfigError) as ei:
+        loads_scenario(RECT + extra, source="mission.toml")
+    msg = str(ei.value)
+    assert f"'{key}'" in msg and fragment in msg
+    assert msg.count(". ") == 0  # one sentence
+
+
+def test_field_scenario_is_the_paper_geometry_in_the_field_world():
+    paper, field = load_scenario(EXAMPLES / "paper.toml"), load_scenario(EXAMPLES / "field.toml")
+    assert field.area == paper.area and field.fleet == paper.fleet and field.scan == paper.scan
+    assert field.emission.model == "probe-bursts" and paper.emission.model == "continuous"
+    assert paper.channel.receiver_sensitivity_dbm is None
+    ch = field.channel
+    assert -95 <= ch.receiver_sensitivity_dbm <= -90 and ch.listen_channel_list == (1, 6, 11)
+    # the planning range is the 50 % per-frame hearing distance: median RSSI there = sensitivity
+    mu = ch.reference_power_dbm - 10 * ch.path_loss_exponent * np.log10(field.fleet.comm_range_m)
+    assert mu == pytest.approx(ch.receiver_sensitivity_dbm, abs=0.2)
+    # free space (eta = 2) from the same P0 and sensitivity gives Wi2SAR's ~300 m line-of-sight range
+    los = 10 ** ((ch.reference_power_dbm - ch.receiver_sensitivity_dbm) / 20)
+    assert 280 < los < 340
+    assert field.simulation.tx_power_spread_db > 0

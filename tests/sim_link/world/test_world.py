@@ -135,3 +135,23 @@ def test_moving_person_is_clipped_at_the_boundary(paper):
     assert world.positions(5.0)[0] == pytest.approx([5.0, 300.0])
     assert world.positions(100.0)[0][0] == pytest.approx(0.0, abs=1e-6)
     assert np.all(world.velocities(100.0) == 0)
+
+
+@pytest.mark.parametrize("correlated, spread, rssi_sum, first3", [
+    (False, 0.0, -222702.1687559104, [-81.2440552232438, -83.45569128104412, -81.52430799623409]),
+    (True, 3.0, -225384.52913643484, [-83.33658720525092, -82.92822199033992, -82.04098493745926]),
+])
+def test_continuous_world_is_bit_identical_to_before_the_field_world(paper, correlated, spread, rssi_sum, first3):
+    """Golden numbers computed with the code of commit 7a0b5cd (before emission models existed):
+    the paper reproduction must not move by one random number."""
+    sc = paper.replace(simulation={"correlated_shadowing": correlated, "tx_power_spread_db": spread})
+    assert sc.emission.model == "continuous" and sc.channel.receiver_sensitivity_dbm is None
+    world = World(sc, seed=11, people=30)
+    t, xyz = _lane()
+    b = world.hear_track(1, t, xyz)
+    b2 = world.hear_track(1, t + 50, xyz)
+    assert (len(b), len(b2)) == (2712, 1890)
+    assert float(b.rssi_dbm.sum()) == rssi_sum and b.rssi_dbm[:3].tolist() == first3
+    assert int(b.emitter_id.sum()) == 6184974901969
+    assert np.array_equal(b.address, b.emitter_id) and not b.fingerprint.any() and not b.channel.any()
+    assert np.array_equal(world.person_of(b.address), [world.index_of(e) for e in b.emitter_id])

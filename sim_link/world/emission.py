@@ -1,0 +1,280 @@
+"""How simulated phones transmit: the paper's continuous emitter or Wi-Fi probe-request bursts.
+
+``continuous`` (the paper) needs nothing from this module: every phone sends
+``channel.samples_per_slot`` frames in every slot under its stable emitter id (see :mod:`.world`).
+
+``probe-bursts`` (the field world, SPEC 1.1) is a renewal process per phone:
+
+- the gap between bursts is log-normal per phone. A phone quantile u ~ U(0, 1) places its median
+  gap log-linearly between :data:`GAP_MEDIAN_MIN_S` and :data:`GAP_MEDIAN_MAX_S` and its 90th
+  percentile between :data:`GAP_P90_MIN_S` and :data:`GAP_P90_MAX_S` (frequent probers are also the
+  regular ones); with probability :data:`LONG_SILENCE_PER_GAP` a gap is a long silence, log-uniform
+  in [:data:`LONG_SILENCE_MIN_S`, :data:`LONG_SILENCE_MAX_S`]. Gaps are at least the longest burst
+  plus :data:`MIN_QUIET_S`, so bursts never overlap;
+- a burst lasts U(:data:`BURST_DURATION_MIN_S`, :data:`BURST_DURATION_MAX_S`) and carries
+  n = round(m exp(:data:`FRAMES_LOG_SIGMA` z)) frames, clipped to [1, :data:`FRAMES_PER_BURST_MAX`],
+  where the phone's median m is log-uniform in [:data:`FRAMES_MEDIAN_MIN`, :data:`FRAMES_MEDIAN_MAX`];
+  frame times are uniform in the burst, channels drawn from :data:`CHANNEL_WEIGHTS` and sent in
+  ascending order (a channel sweep);
+- identity: each phone's model is drawn from :data:`CATALOGUE` by population share. The content
+  fingerprint is a hash of the model (same-model phones collide). A randomizing model (iOS 14+,
+  Android 10+ when not associated) uses a new random, locally administered unicast address for
+  every burst and restarts its 802.11 sequence number at 0 with it; the others keep one address
+  and a running sequence number;
+- an elicited frame (an on-board access point that imitates a known network) is sent under the
+  phone's per-network address: phones bind one random address to each saved network.
+
+Sources and fit (docs/readme/world.md has the full story): the gap figures are the per-phone medians
+(20-135 s) and 90th percentiles (60-270 s) measured on public labelled captures of 11 phones
+(iOS 15-16, Android 13; Realtek monitor-mode dongles on channels 1/6/11) as reported in uavloc
+issue 24 and SPEC 1.1. The captures themselves were not downloaded here, so the constants below
+reproduce those published per-phone figures (both ends of both ranges exactly), not a fit to raw
+frames. The frames per burst ("a few to ~80 within 1-2 s") and the 85-minute silence of one phone
+are from the same report. Public labelled probe-request datasets of this kind: the single-device
+captures on channels 1/6/11 made with github.com/luciapintor/WiFi-Sniffer; Simončič et al.,
+Sensors 23(5) 2588, 2023 (Zenodo 7503594). The catalogue's population shares, the channel weights
+and the long-silence range are assumptions, stated as such.
+
+Everything is drawn from per-phone random streams in fixed chunks of :data:`CHUNK_BURSTS` bursts,
+so a phone's bursts do not depend on when or how often the world is asked about them.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass
+
+import numpy as np
+
+# -- fitted to the published per-phone figures (uavloc issue 24; see the module docstring) ----
+GAP_MEDIAN_MIN_S = 20.0  # the most frequent prober's median gap between bursts
+GAP_MEDIAN_MAX_S = 135.0  # the least frequent prober's median gap
+GAP_P90_MIN_S = 60.0  # 90th percentile of the gap, most frequent prober
+GAP_P90_MAX_S = 270.0  # 90th percentile, least frequent prober
+LONG_SILENCE_PER_GAP = 0.002  # one phone in 11 silent for 85 min over ~500 observed gaps
+LONG_SILENCE_MIN_S = 1800.0
+LONG_SILENCE_MAX_S = 5400.0  # the 85-minute silence lies inside
+FRAMES_MEDIAN_MIN = 4  # "a few ..."
+FRAMES_MEDIAN_MAX = 40
+FRAMES_PER_BURST_MAX = 80  # "... to ~80 frames"
+FRAMES_LOG_SIGMA = 0.5  # burst-to-burst spread of one phone's frame count (assumption)
+BURST_DURATION_MIN_S = 1.0  # "within ~1-2 s"
+BURST_DURATION_MAX_S = 2.0
+MIN_QUIET_S = 1.0  # shortest quiet time between the end of one burst and the next
+# z of the 90th percentile of a standard normal
+_Z90 = 1.2815515655446004
+
+# -- assumptions (not measured): channels and the phone population ---------------------------
+# A phone's scan sweeps the 2.4 GHz channels; partial scans favour 1/6/11 where networks were seen.
+# 60 % of frames go out on 1, 6 or 11 (20 % each), 4 % on each of the ten others.
+CHANNEL_WEIGHTS = {c: (0.2 if c in (1, 6, 11) else 0.04) for c in range(1, 14)}
+
+
+@dataclass(frozen=True)
+class PhoneModel:
+    """One model/OS of the catalogue: population share and address behaviour."""
+
+    name: str
+    share: float
+    randomizes: bool  # a new random address for every burst
+
+    @property
+    def fingerprint(self) -> int:
+        """Content hash of the model's probe requests: nonzero, 62 bits, same for same-model phones."""
+        h = int.from_bytes(hashlib.blake2b(self.name.encode(), digest_size=8).digest(), "big") >> 2
+        return h or 1
+
+
+# Shares are a plausible 2025 handset mix (assumption); randomizing = iOS 14+, Android 10+.
+CATALOGUE = (
+    PhoneModel("Apple iPhone 11, iOS 16", 0.12, True),
+    PhoneModel("Apple iPhone 12, iOS 16", 0.12, True),
+    PhoneModel("Apple iPhone 13, iOS 17", 0.12, True),
+    PhoneModel("Apple iPhone 14, iOS 17", 0.10, True),
+    PhoneModel("Samsung Galaxy S21, Android 13", 0.10, True),
+    PhoneModel("Samsung Galaxy A52, Android 13", 0.10, True),
+    PhoneModel("Oppo A74, Android 13", 0.06, True),
+    PhoneModel("Google Pixel 7, Android 14", 0.06, True),
+    PhoneModel("Xiaomi Redmi Note 10, Android 12", 0.08, True),
+    PhoneModel("Huawei P30, EMUI 10 (global address)", 0.04, False),
+    PhoneModel("Android 8 phone (global address)", 0.10, False),
+)
+
+CHUNK_BURSTS = 64
+SEQ_MODULO = 4096  # 802.11 sequence numbers are 12 bits
+_LOCAL_BIT = 1 << 41  # locally administered bit of the first octet (48-bit address, first octet high)
+_MULTICAST_BIT = 1 << 40
+
+
+@dataclass(frozen=True)
+class BurstParams:
+    """The renewal process's parameters (defaults: the fit above)."""
+
+    gap_median_min_s: float = GAP_MEDIAN_MIN_S
+    gap_median_max_s: float = GAP_MEDIAN_MAX_S
+    gap_p90_min_s: float = GAP_P90_MIN_S
+    gap_p90_max_s: float = GAP_P90_MAX_S
+    long_silence_per_gap: float = LONG_SILENCE_PER_GAP
+    long_silence_min_s: float = LONG_SILENCE_MIN_S
+    long_silence_max_s: float = LONG_SILENCE_MAX_S
+    frames_median_min: int = FRAMES_MEDIAN_MIN
+    frames_median_max: int = FRAMES_MEDIAN_MAX
+    frames_max: int = FRAMES_PER_BURST_MAX
+    duration_min_s: float = BURST_DURATION_MIN_S
+    duration_max_s: float = BURST_DURATION_MAX_S
+
+    @staticmethod
+    def from_scenario(sc) -> "BurstParams":
+        em = sc.emission
+        return BurstParams(
+            em.burst_gap_median_min_s, em.burst_gap_median_max_s, em.burst_gap_p90_min_s, em.burst_gap_p90_max_s,
+            em.long_silence_per_gap, em.long_silence_min_s, em.long_silence_max_s,
+            em.frames_per_burst_median_min, em.frames_per_burst_median_max, em.frames_per_burst_max,
+            em.burst_duration_min_s, em.burst_duration_max_s,
+        )
+
+    def gap_quantiles_s(self, u) -> tuple[np.ndarray, np.ndarray]:
+        """Median and 90th percentile of the gap [s] of phones at quantile(s) u in [0, 1]."""
+        u = np.asarray(u, dtype=float)
+        med = self.gap_median_min_s * (self.gap_median_max_s / self.gap_median_min_s) ** u
+        p90 = self.gap_p90_min_s * (self.gap_p90_max_s / self.gap_p90_min_s) ** u
+        return med, p90
+
+
+@dataclass(frozen=True)
+class Frames:
+    """Frames sent, one row each, in time order (ties by person). ``burst`` counts the phone's bursts
+    from 0 (-1 for an elicited frame); ``seq`` is the 802.11 sequence number (-1 if not modelled)."""
+
+    person: np.ndarray  # (F,) int
+    t_s: np.ndarray  # (F,)
+    channel: np.ndarray  # (F,) int
+    address: np.ndarray  # (F,) int64
+    seq: np.ndarray  # (F,) int
+    burst: np.ndarray  # (F,) int
+
+    def __len__(self) -> int:
+        return len(self.t_s)
+
+    def take(self, index) -> "Frames":
+        return Frames(self.person[index], self.t_s[index], self.channel[index], self.address[index],
+                      self.seq[index], self.burst[index])
+
+    @staticmethod
+    def concat(parts: "list[Frames]") -> "Frames":
+        return Frames(*(np.concatenate([getattr(p, f) for p in parts])
+                        for f in ("person", "t_s", "channel", "address", "seq", "burst")))
+
+
+def random_local_addresses(rng: np.random.Generator, n: int) -> np.ndarray:
+    """n random 48-bit unicast, locally administered addresses (int64)."""
+    a = rng.integers(0, 1 << 48, size=n, dtype=np.int64)
+    return (a | _LOCAL_BIT) & ~np.int64(_MULTICAST_BIT)
+
+
+def is_locally_administered(address) -> np.ndarray:
+    return (np.asarray(address, dtype=np.int64) & _LOCAL_BIT) != 0
+
+
+class ProbeBursts:
+    """The probe-request bursts of S phones (see the module docstring).
+
+    ``rng_for(i)`` gives phone i's own random stream; ``traits_rng`` draws the phones' models,
+    quantiles and fixed addresses.
+    """
+
+    def __init__(self, params: BurstParams, n_phones: int, traits_rng: np.random.Generator, rng_for):
+        self.params = params
+        n = int(n_phones)
+        shares = np.array([m.share for m in CATALOGUE])
+        self.model = traits_rng.choice(len(CATALOGUE), size=n, p=shares / shares.sum())
+        self.gap_quantile = traits_rng.uniform(size=n)
+        med, p90 = params.gap_quantiles_s(self.gap_quantile)
+        self.gap_median_s = med
+        self.gap_log_sigma = np.log(p90 / med) / _Z90
+        lo, hi = np.log(params.frames_median_min), np.log(params.frames_median_max)
+        self.frames_median = np.exp(traits_rng.uniform(lo, hi, size=n))
+        self.randomizes = np.array([CATALOGUE[k].randomizes for k in self.model], dtype=bool)
+        self.fingerprint = np.array([CATALOGUE[k].fingerprint for k in self.model], dtype=np.int64)
+        # a global (vendor) address for non-randomizing phones: universally administered, unicast
+        glob = traits_rng.integers(0, 1 << 48, size=n, dtype=np.int64) & ~np.int64(_LOCAL_BIT | _MULTICAST_BIT)
+        self.network_address = random_local_addresses(traits_rng, n)  # per saved network, for elicited frames
+        self.network_address[~self.randomizes] = glob[~self.randomizes]
+        self.stable_address = glob
+        self._rngs = [rng_for(i) for i in range(n)]
+        self._next_start_s = np.zeros(n)  # start of the next burst to generate
+        self._bursts = np.zeros(n, dtype=int)
+        self._seq = np.zeros(n, dtype=int)
+        self._first = np.ones(n, dtype=bool)
+        self._frames: list[Frames | None] = [None] * n
+        self._merged: Frames | None = None
+        self.owner: dict[int, int] = {}
+        for i in range(n):
+            self.owner[int(self.network_address[i])] = i
+
+    def __len__(self) -> int:
+        return len(self._rngs)
+
+    def frames(self, t_from_s: float, t_to_s: float) -> Frames:
+        """All frames sent in [t_from_s, t_to_s) by every phone, in time order (ties by person)."""
+        grown = False
+        for i in range(len(self)):
+            while self._frames[i] is None or self._next_start_s[i] < t_to_s:
+                chunk = self._chunk(i)
+                self._frames[i] = chunk if self._frames[i] is None else Frames.concat([self._frames[i], chunk])
+                grown = True
+        if grown or self._merged is None:  # one table for all phones, re-sorted only when it grows
+            parts = [f for f in self._frames if f is not None]
+            merged = Frames.concat(parts) if parts else _empty_frames()
+            self._merged = merged.take(np.lexsort((merged.person, merged.t_s)))
+        a, b = np.searchsorted(self._merged.t_s, [t_from_s, t_to_s], side="left")
+        return self._merged.take(slice(a, b))
+
+    def _chunk(self, i: int) -> Frames:
+        """The next CHUNK_BURSTS bursts of phone i, drawn in a fixed order from its own stream."""
+        p, rng, nb = self.params, self._rngs[i], CHUNK_BURSTS
+        gaps = np.exp(np.log(self.gap_median_s[i]) + self.gap_log_sigma[i] * rng.standard_normal(nb))
+        silent = rng.uniform(size=nb) < p.long_silence_per_gap
+        silence = np.exp(rng.uniform(np.log(p.long_silence_min_s), np.log(p.long_silence_max_s), size=nb))
+        gaps = np.maximum(np.where(silent, silence, gaps), p.duration_max_s + MIN_QUIET_S)
+        if self._first[i]:  # in steady state at t = 0: the first burst a fraction of a gap away
+            start0 = rng.uniform() * gaps[0]
+            self._first[i] = False
+        else:
+            start0 = self._next_start_s[i]
+        starts = start0 + np.concatenate([[0.0], np.cumsum(gaps[:-1])])
+        self._next_start_s[i] = starts[-1] + gaps[-1]
+        n = np.rint(self.frames_median[i] * np.exp(FRAMES_LOG_SIGMA * rng.standard_normal(nb)))
+        n = np.clip(n, 1, p.frames_max).astype(int)
+        duration = rng.uniform(p.duration_min_s, p.duration_max_s, size=nb)
+        total = int(n.sum())
+        burst_local = np.repeat(np.arange(nb), n)
+        offset = rng.uniform(size=total)
+        chans = np.array(list(CHANNEL_WEIGHTS))
+        w = np.array(list(CHANNEL_WEIGHTS.values()))
+        channel = rng.choice(chans, size=total, p=w / w.sum())
+        by_time = np.lexsort((offset, burst_local))
+        by_chan = np.lexsort((channel, burst_local))
+        t = starts[burst_local] + duration[burst_local] * offset[by_time]
+        channel = channel[by_chan]  # the sweep: channels ascending over the burst
+        first = np.concatenate([[0], np.cumsum(n)[:-1]])
+        within = np.arange(total) - np.repeat(first, n)
+        if self.randomizes[i]:
+            addr = random_local_addresses(rng, nb)
+            address = addr[burst_local]
+            seq = within % SEQ_MODULO  # restarts with every new address
+            for a in addr.tolist():
+                self.owner[a] = i
+        else:
+            address = np.full(total, self.stable_address[i], dtype=np.int64)
+            seq = (self._seq[i] + np.arange(total)) % SEQ_MODULO
+            self._seq[i] = (self._seq[i] + total) % SEQ_MODULO
+            self.owner[int(self.stable_address[i])] = i
+        burst = self._bursts[i] + burst_local
+        self._bursts[i] += nb
+        return Frames(np.full(total, i), t, channel.astype(int), address.astype(np.int64), seq.astype(int), burst)
+
+
+def _empty_frames() -> Frames:
+    z = np.zeros(0, dtype=int)
+    return Frames(z, np.zeros(0), z, np.zeros(0, dtype=np.int64), z, z)
