@@ -101,6 +101,7 @@ CATALOGUE = (
 )
 
 CHUNK_BURSTS = 64
+LOOKAHEAD_S = 1800.0  # when the table must grow, every phone is drawn this far ahead (fewer re-sorts)
 SEQ_MODULO = 4096  # 802.11 sequence numbers are 12 bits
 _LOCAL_BIT = 1 << 41  # locally administered bit of the first octet (48-bit address, first octet high)
 _MULTICAST_BIT = 1 << 40
@@ -218,8 +219,9 @@ class ProbeBursts:
     def frames(self, t_from_s: float, t_to_s: float) -> Frames:
         """All frames sent in [t_from_s, t_to_s) by every phone, in time order (ties by person)."""
         grown = False
+        ahead = t_to_s + LOOKAHEAD_S if np.any(self._next_start_s < t_to_s) or self._merged is None else t_to_s
         for i in range(len(self)):
-            while self._frames[i] is None or self._next_start_s[i] < t_to_s:
+            while self._frames[i] is None or self._next_start_s[i] < ahead:
                 chunk = self._chunk(i)
                 self._frames[i] = chunk if self._frames[i] is None else Frames.concat([self._frames[i], chunk])
                 grown = True

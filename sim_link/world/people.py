@@ -74,6 +74,19 @@ class Tracks:
         out = p0 + frac[..., None] * (p1 - p0)
         return out[0] if t.ndim == 0 else out.reshape(t.shape + (len(self), 2))
 
+    def positions_of(self, person, t_s) -> np.ndarray:
+        """Positions (F, 2) [m] of person[f] at time t_s[f]: one person per time, for sparse
+        lookups (frames) where ``positions`` would evaluate everyone at every time."""
+        person = np.asarray(person, dtype=int).reshape(-1)
+        tt = np.asarray(t_s, dtype=float).reshape(-1)
+        kt, kxy = self._kt[person], self._kxy[person]  # (F, K), (F, K, 2)
+        seg = np.clip(np.sum(kt <= tt[:, None], axis=1) - 1, 0, kt.shape[1] - 2)
+        rows = np.arange(len(person))
+        t0, t1 = kt[rows, seg], kt[rows, seg + 1]
+        frac = np.clip((tt - t0) / (t1 - t0), 0.0, 1.0)
+        p0, p1 = kxy[rows, seg], kxy[rows, seg + 1]
+        return p0 + frac[:, None] * (p1 - p0)
+
     def velocities(self, t_s) -> np.ndarray:
         """Velocities at time(s) t_s: (S, 2) or (T, S, 2) [m/s] (right derivative at knots)."""
         t = np.asarray(t_s, dtype=float)

@@ -212,10 +212,8 @@ class World:
         if len(frames) == 0:
             return SlotBatch.empty()
 
-        # positions at the slots that carry frames only: hearing costs what the frames cost
-        used, where = np.unique(slot, return_inverse=True)
-        people = self.tracks.positions(t[used])  # (U, S, 2)
-        pxy = people[where, frames.person]  # (F, 2)
+        # each sender at its frame's slot only: hearing costs what the frames cost
+        pxy = self.tracks.positions_of(frames.person, t[slot])  # (F, 2)
         d3 = np.sqrt(np.sum((pxy - xyz[slot, :2]) ** 2, axis=1) + xyz[slot, 2] ** 2)
         psi = draw_frame_shadowing_db(self.channel, state, frames.person, odometer[slot], pxy, len(self))
         rssi = self.channel.median_rssi_dbm(d3) + self.tx_offset_db[frames.person] + psi

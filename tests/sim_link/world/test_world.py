@@ -155,3 +155,11 @@ def test_continuous_world_is_bit_identical_to_before_the_field_world(paper, corr
     assert int(b.emitter_id.sum()) == 6184974901969
     assert np.array_equal(b.address, b.emitter_id) and not b.fingerprint.any() and not b.channel.any()
     assert np.array_equal(world.person_of(b.address), [world.index_of(e) for e in b.emitter_id])
+
+
+def test_positions_of_one_person_per_time_match_positions(paper):
+    world = World(paper, people=12, motion="random_waypoint", seed=8)
+    rng = np.random.default_rng(0)
+    person, t = rng.integers(0, 12, 500), rng.uniform(0, 20000, 500)
+    all_xy = world.tracks.positions(t)  # (T, S, 2)
+    assert np.allclose(world.tracks.positions_of(person, t), all_xy[np.arange(500), person], atol=1e-9)
