@@ -32,6 +32,7 @@ from ..errors import EstimationError
 from ..observations import SlotBatch
 from .annulus import annulus_bound_m, reach_bound_m
 from .evidence import Censored, Silence, build_bounds
+from .field_radius import sampled_posterior
 from .fit import (
     Problem,
     censored_rows,
@@ -131,6 +132,10 @@ TURN_MIRRORS = False
 # 95 % circle (distance + its radius), as if the twin held all the mass. Measured in
 # docs/readme/experiments.md (bench looks variant "cover-mirror" is False).
 MIXTURE_RADIUS = True
+# Whether, under a receiver threshold (the field world), the 95 % radius and the covariance come
+# from importance sampling of the posterior (.field_radius) instead of the Laplace Gaussian. Measured
+# in docs/readme/localization.md (bench localize --emission bursts).
+FIELD_SAMPLED_RADIUS = True
 
 
 @dataclass(frozen=True)
@@ -346,6 +351,16 @@ def estimate_emitter(
                               ambiguous)
     if math.isfinite(reach):
         radius, mode_r = min(radius, reach), min(mode_r, reach)
+    if channel.sensitivity_dbm is not None and FIELD_SAMPLED_RADIUS:
+        # a few bursts near the threshold: the posterior bends along rings, the Laplace circle is
+        # far too large (see .field_radius); the radius and covariance from the posterior itself
+        modes = [(np.concatenate([pos, vel]), cov)]
+        if mirror is not None:
+            modes.append((np.concatenate([mirror.position_xy_m, mirror.velocity_m_s]), m_cov))
+        sampled = sampled_posterior(problem, modes, t_ref, pos, factor, beta)
+        if sampled is not None:
+            radius, cov, _ = sampled
+            mode_r = radius
     bound = annulus_bound_m(pos, t_ref, data.t_s, data.a_xy, data.h_m, data.y + beta, data.n_samples,
                             channel.log_range_sigma, max_speed_m_s)
     return Estimate(

@@ -161,6 +161,11 @@ class Censored:
     t_s: np.ndarray
     xyz_m: np.ndarray
     frames: np.ndarray
+    # With a frames prior (censored_silence(frames_prior=)): every listening vehicle of every heard
+    # burst is a row, with the frames it heard (0: silent) and its burst's index; ``frames`` unused.
+    heard: np.ndarray | None = None
+    burst: np.ndarray | None = None
+    prior: "FramesPrior | None" = None
 
     @staticmethod
     def empty() -> "Censored":
@@ -182,7 +187,7 @@ def burst_windows(heard_t_s, *, gap_s: float = BURST_GAP_S) -> list[tuple[float,
 
 
 def censored_silence(tracks, heard, *, gap_s: float = BURST_GAP_S, listen_gap_s: float = LISTEN_GAP_S,
-                     frames: float | None = None) -> Censored:
+                     frames: float | None = None, frames_prior: "FramesPrior | None" = None) -> Censored:
     """Censored observations of one phone from where the vehicles listened.
 
     ``tracks``: (vehicle id, times (N,) [s], positions (N, 3) [m, z = height above the people]) per
@@ -196,15 +201,28 @@ def censored_silence(tracks, heard, *, gap_s: float = BURST_GAP_S, listen_gap_s:
     the tracks of receivers that did), so that count is used; ``frames`` overrides it (e.g. 1, the
     most conservative). Outside the bursts nothing is known: a phone between bursts is silent, so a
     vehicle overhead that heard nothing says nothing.
+
+    ``frames_prior`` (a :class:`FramesPrior` of the frames sent per burst on the channel): the
+    vehicles that heard the burst become rows too, with their counts, and the fit uses the
+    hearing counts' likelihood (:func:`burst_count_loglik`) instead of the conservative count.
     """
     t_h = np.asarray(heard.t_s, float)
     veh_h = np.asarray(heard.vehicle)
     n_h = np.maximum(np.asarray(heard.n_samples, float), 1.0)
-    rows_t, rows_x, rows_k = [], [], []
-    for t0, t1, idx in burst_windows(t_h, gap_s=gap_s):
+    rows_t, rows_x, rows_k, rows_n, rows_b = [], [], [], [], []
+    xyz_h = np.asarray(heard.xyz_m, float).reshape(-1, 3)
+    for b, (t0, t1, idx) in enumerate(burst_windows(t_h, gap_s=gap_s)):
         mid = 0.5 * (t0 + t1)
         by_vehicle = {int(v): float(n_h[idx][veh_h[idx] == v].sum()) for v in np.unique(veh_h[idx])}
         k = float(frames) if frames is not None else max(by_vehicle.values())
+        if frames_prior is not None:  # the hearing vehicles: where they heard it, how often
+            for v, n in by_vehicle.items():
+                m = idx[veh_h[idx] == v]
+                rows_t.append(float(np.average(t_h[m], weights=n_h[m])))
+                rows_x.append(list(np.average(xyz_h[m], axis=0, weights=n_h[m])))
+                rows_k.append(k)
+                rows_n.append(n)
+                rows_b.append(b)
         for vehicle, t_s, xyz_m in tracks:
             if int(vehicle) in by_vehicle:
                 continue
@@ -217,6 +235,66 @@ def censored_silence(tracks, heard, *, gap_s: float = BURST_GAP_S, listen_gap_s:
             rows_t.append(mid)
             rows_x.append([np.interp(mid, t, xyz[:, c]) for c in range(3)])
             rows_k.append(k)
+            rows_n.append(0.0)
+            rows_b.append(b)
     if not rows_t:
         return Censored.empty()
-    return Censored(np.array(rows_t), np.array(rows_x, float), np.array(rows_k, float))
+    if frames_prior is None:
+        return Censored(np.array(rows_t), np.array(rows_x, float), np.array(rows_k, float))
+    return Censored(np.array(rows_t), np.array(rows_x, float), np.array(rows_k, float), np.array(rows_n, float),
+                    np.array(rows_b, int), frames_prior)
+
+
+# ---------------------------------------------------------------------------------------------
+# Hearing counts: with a prior over the frames a phone sends per burst, whether (and how often) a
+# vehicle heard a burst is evidence too. Per heard burst b, with K frames sent on the channel and
+# every listening vehicle v hearing each with probability q_v = Phi(-z_v) independently,
+#   P_b = sum_K p(K) prod_v Binom(n_v; K, q_v)
+# (n_v = 0 for a vehicle that heard none of it). The truncated density of the heard frames' RSSI
+# is conditional on their being heard, so the two multiply without double counting. Without a
+# prior (K unknown, anything >= the most heard) only the silences can be used (K conservative).
+
+_NEG = -1.0e30  # log 0 that stays finite in sums (0 * -inf is nan)
+
+
+@dataclass(frozen=True)
+class FramesPrior:
+    """Prior probabilities ``p`` (K,) of the phone sending 1, 2, ..., K frames in a burst on the
+    channel listened (normalised on use)."""
+
+    p: np.ndarray
+
+    @property
+    def log_p(self) -> np.ndarray:
+        p = np.asarray(self.p, float)
+        with np.errstate(divide="ignore"):
+            return np.where(p > 0, np.log(np.maximum(p, 1e-300) / p.sum()), _NEG)
+
+
+def burst_count_loglik(z: np.ndarray, heard: np.ndarray, burst: np.ndarray, n_bursts: int,
+                       log_p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """ln P_b for states of rows z (S, R) (z = (S - mu) / sigma per listening row), heard counts
+    (R,), burst index (R,) in 0..n_bursts-1: (S, B); and d ln P_b / d z_r (S, R) for the row's
+    own burst: -n_r lambda(-z_r) + (E[K | b] - n_r) lambda(z_r)."""
+    from scipy.special import gammaln, log_ndtr
+
+    from .model import mills_ratio
+
+    z = np.atleast_2d(np.asarray(z, float))
+    n = np.asarray(heard, float)
+    k = np.arange(1, len(log_p) + 1, dtype=float)
+    lq, l1q = log_ndtr(-z), log_ndtr(z)
+    kn = k[None, :] - n[:, None]  # (R, K)
+    coef = np.where(kn >= 0, gammaln(k[None, :] + 1) - gammaln(n[:, None] + 1) - gammaln(np.maximum(kn, 0) + 1), _NEG)
+    logbin = coef[None] + n[None, :, None] * lq[:, :, None] + np.maximum(kn, 0)[None] * l1q[:, :, None]
+    member = np.zeros((len(n), n_bursts))
+    member[np.arange(len(n)), burst] = 1.0
+    per = np.einsum("srk,rb->sbk", logbin, member) + log_p[None, None, :]  # (S, B, K)
+    top = per.max(axis=2, keepdims=True)
+    w = np.exp(per - top)
+    total = w.sum(axis=2)
+    logp = top[:, :, 0] + np.log(total)
+    mean_k = (w @ k) / total  # (S, B)
+    ek = mean_k[:, burst]  # (S, R)
+    dz = -n * mills_ratio(-z) + (ek - n) * mills_ratio(z)
+    return logp, dz

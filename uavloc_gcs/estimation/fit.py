@@ -38,7 +38,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.optimize import leastsq
 
-from .evidence import Bounds, Censored
+from .evidence import Bounds, Censored, burst_count_loglik
 from .maneuver import Passes, offset_jacobian
 from .model import (
     ChannelModel,
@@ -121,9 +121,22 @@ class CensoredRows:
     h_m: np.ndarray
     frames: np.ndarray
     pass_index: np.ndarray
+    # the hearing counts' model (Censored.prior set): counts (K,), burst index 0..B-1, ln p(frames)
+    heard: np.ndarray | None = None
+    burst: np.ndarray | None = None
+    log_p: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.t_s)
+
+    @property
+    def n_bursts(self) -> int:
+        return int(self.burst.max()) + 1 if self.burst is not None and len(self.burst) else 0
+
+    @property
+    def residual_rows(self) -> int:
+        """One residual per burst with the counts' model, else one per silence."""
+        return self.n_bursts if self.log_p is not None else len(self.t_s)
 
 
 def censored_rows(censored: Censored | None, data: Prepared, passes: Passes | None,
@@ -138,8 +151,13 @@ def censored_rows(censored: Censored | None, data: Prepared, passes: Passes | No
         k = np.argmin(np.abs(t[:, None] - data.t_s[None, :]), axis=1)
         near = np.abs(data.t_s[k] - t) <= same_burst_s
         index[near] = passes.index[k[near]]
+    counts = {}
+    if censored.prior is not None:
+        counts = dict(heard=np.asarray(censored.heard, float),
+                      burst=np.unique(np.asarray(censored.burst, int), return_inverse=True)[1].reshape(-1),
+                      log_p=censored.prior.log_p)
     return CensoredRows(t, t - data.t_c, xyz[:, :2].copy(), np.maximum(xyz[:, 2], 0.0),
-                        np.maximum(np.asarray(censored.frames, float), 0.0), index)
+                        np.maximum(np.asarray(censored.frames, float), 0.0), index, **counts)
 
 
 @dataclass(frozen=True)
@@ -244,7 +262,7 @@ class Problem:
     @property
     def data_rows(self) -> int:
         """Residual rows of the data: one per slot, then the censored observations."""
-        return len(self.data.t_s) + (len(self.censored) if self.censored is not None else 0)
+        return len(self.data.t_s) + (self.censored.residual_rows if self.censored is not None else 0)
 
     def _truncation(self) -> tuple[np.ndarray, np.ndarray]:
         """Per slot the standardized heard mean b and its ML t* (``model.truncated_mle``), cached."""
@@ -265,10 +283,14 @@ class Problem:
         return truncated_slot_residual(self._z(d2, theta), b, t_star, d.n_samples)[0]
 
     def _censored_residuals(self, theta: np.ndarray) -> list:
-        if self.censored is None:
+        c = self.censored
+        if c is None:
             return []
         _, d2c = self._censored_geometry(theta)
-        return [log_probability_residual(self._z(d2c, theta), self.censored.frames)[0]]
+        if c.log_p is not None:
+            logp, _ = burst_count_loglik(self._z(d2c, theta), c.heard, c.burst, c.n_bursts, c.log_p)
+            return [np.sqrt(np.maximum(-2.0 * logp[0], 0.0))]
+        return [log_probability_residual(self._z(d2c, theta), c.frames)[0]]
 
     def _slot_jacobian(self, theta: np.ndarray) -> np.ndarray:
         d = self.data
@@ -282,7 +304,16 @@ class Problem:
     def _censored_jacobian(self, theta: np.ndarray) -> list:
         out = []
         s = self.log_range_sigma
-        if self.censored is not None:
+        if self.censored is not None and self.censored.log_p is not None:
+            c = self.censored
+            g, d2c = self._censored_geometry(theta)
+            logp, dz = burst_count_loglik(self._z(d2c, theta), c.heard, c.burst, c.n_bursts, c.log_p)
+            r = np.sqrt(np.maximum(-2.0 * logp[0], 0.0))
+            grad = (dz[0] / s)[:, None] * self._rows_jacobian(g, d2c, c.tau_s, c.t_s, c.pass_index)
+            per_burst = np.zeros((c.n_bursts, grad.shape[1]))
+            np.add.at(per_burst, c.burst, grad)
+            out.append(-per_burst / np.maximum(r, 1e-12)[:, None])
+        elif self.censored is not None:
             c = self.censored
             g, d2c = self._censored_geometry(theta)
             _, dr = log_probability_residual(self._z(d2c, theta), c.frames)
@@ -438,7 +469,13 @@ class Problem:
             c = self.censored
             g, d2c = self._censored_geometry(theta)
             jc = self._rows_jacobian(g, d2c, c.tau_s, c.t_s, c.pass_index)
-            wc = c.frames * censored_curvature(self._z(d2c, theta)) / self.log_range_sigma**2
+            zc = self._z(d2c, theta)
+            if c.log_p is not None:  # the Binomial counts' Fisher information at E[K | burst]
+                k = np.exp(c.log_p)
+                k = float(np.arange(1, len(k) + 1) @ k / k.sum())
+                wc = k * mills_ratio(zc) * mills_ratio(-zc) / self.log_range_sigma**2
+            else:
+                wc = c.frames * censored_curvature(zc) / self.log_range_sigma**2
             info = info + (jc * wc[:, None]).T @ jc
         return info
 

@@ -9,7 +9,7 @@ import pytest
 from uavloc_gcs.errors import EstimationError
 from uavloc_gcs.estimation import ChannelModel, estimate_emitter
 from uavloc_gcs.estimation.crb import censored_information, data_information, frames_information
-from uavloc_gcs.estimation.evidence import Censored, burst_windows, censored_silence
+from uavloc_gcs.estimation.evidence import Censored, FramesPrior, burst_windows, censored_silence
 from uavloc_gcs.estimation.fit import Problem, censored_rows, prepare
 from uavloc_gcs.estimation.maneuver import find_passes
 from uavloc_gcs.estimation.model import (
@@ -63,7 +63,7 @@ def test_information_factors_are_the_known_limits():
     assert r[0] == 0.0 and dr[0] == 0.0 and r[1] == pytest.approx(np.sqrt(6 * np.log(2)))
 
 
-def _problem(tx: bool, rng) -> tuple[Problem, np.ndarray]:
+def _problem(tx: bool, rng, counts: bool = False) -> tuple[Problem, np.ndarray]:
     truth = np.array([20.0, 90.0])
     t1, x1 = leg(0.0, 0.0)
     t2, x2 = leg(180.0, 60.0)
@@ -72,6 +72,10 @@ def _problem(tx: bool, rng) -> tuple[Problem, np.ndarray]:
     passes = find_passes(data.t_s, float(data.t_s.max()), 0.01)
     assert passes is not None
     cens = Censored(np.array([5.0, 70.0]), np.array([[0.0, -120.0, ALT_M], [10.0, 300.0, ALT_M]]), np.array([4.0, 6.0]))
+    if counts:  # burst 0 heard 3 times by one vehicle, not by another; burst 1 heard once
+        cens = Censored(np.array([5.0, 5.0, 70.0]), np.array([[0.0, -120.0, ALT_M], [30.0, 10.0, ALT_M],
+                                                             [10.0, 300.0, ALT_M]]),
+                        np.zeros(3), np.array([0.0, 3.0, 1.0]), np.array([4, 4, 9]), FramesPrior(np.ones(12)))
     p = Problem(data, True, tx, 1.5, 0.3, passes, threshold_y=FIELD.threshold_log_range,
                 log_range_sigma=FIELD.log_range_sigma, censored=censored_rows(cens, data, passes),
                 turn_at_s=30.0)
@@ -84,9 +88,9 @@ def _problem(tx: bool, rng) -> tuple[Problem, np.ndarray]:
     return p, theta
 
 
-@pytest.mark.parametrize("tx", [False, True])
-def test_truncated_and_censored_jacobian_matches_finite_differences(tx):
-    p, theta = _problem(tx, np.random.default_rng(4))
+@pytest.mark.parametrize("tx,counts", [(False, False), (True, False), (True, True)])
+def test_truncated_and_censored_jacobian_matches_finite_differences(tx, counts):
+    p, theta = _problem(tx, np.random.default_rng(4), counts)
     jac = p.jacobian(theta)
     num = np.empty_like(jac)
     for k in range(len(theta)):
@@ -95,7 +99,7 @@ def test_truncated_and_censored_jacobian_matches_finite_differences(tx):
         e[k] = h
         num[:, k] = (p.residuals(theta + e) - p.residuals(theta - e)) / (2 * h)
     rows = slice(0, p.data_rows)  # the truncated slots and the censoring rows
-    assert p.data_rows == len(p.data.t_s) + 2
+    assert p.data_rows == len(p.data.t_s) + 2  # two silences, or two bursts
     np.testing.assert_allclose(jac[rows], num[rows], rtol=1e-5, atol=1e-7)
     np.testing.assert_allclose(jac, num, rtol=1e-5, atol=1e-7)
     # the cost is the data's -2 ln likelihood: Gaussian + 2 n (-ln Phi(-z)) + 2 k (-ln Phi(z))
