@@ -2,7 +2,8 @@
 
 Supported: COMPONENT_ARM_DISARM (400; param2 21196 forces), NAV_TAKEOFF (22; ArduPilot: GUIDED
 mode, param7 metres above home; PX4: param7 AMSL, NaN = MIS_TAKEOFF_ALT, switches to Takeoff),
-DO_SET_MODE (176) and SET_MODE, MISSION_START (300), NAV_RETURN_TO_LAUNCH (20), NAV_LAND (21),
+DO_SET_MODE (176) and SET_MODE, MISSION_START (300; PX4 also arms a disarmed vehicle),
+NAV_RETURN_TO_LAUNCH (20), NAV_LAND (21),
 DO_SET_MISSION_CURRENT (224; param1 -1 = keep, FAILED if out of range), DO_CHANGE_SPEED (178),
 SET_MESSAGE_INTERVAL (511), REQUEST_MESSAGE (512), REQUEST_AUTOPILOT_CAPABILITIES (520),
 GET_HOME_POSITION (410), PREFLIGHT_REBOOT_SHUTDOWN (246, param1 = 1), DO_REPOSITION (192, COMMAND_INT
@@ -98,7 +99,11 @@ def _dispatch(v: "FakeVehicle", cmd: int, p: list, extra: list, is_int: bool = F
             return DENIED  # ArduPilot: only 0, 0 (it resumes from its current item)
         if first > 0 and not v.set_current(first):
             return FAILED
-        return ACCEPTED if v.set_mode("AUTO") else FAILED
+        if not v.set_mode("AUTO"):
+            return FAILED
+        if v.flavour.mission_start_arms and not v.armed:
+            return ACCEPTED if v.arm() else DENIED  # PX4: "switch to AUTO_MISSION and ARM"
+        return ACCEPTED
     if cmd == mav.MAV_CMD_NAV_RETURN_TO_LAUNCH:
         return ACCEPTED if v.set_mode("RTL") else FAILED
     if cmd == mav.MAV_CMD_NAV_LAND:

@@ -68,6 +68,12 @@ class Flavour:
     set_current_command_unsupported: bool = False  # PX4: DO_SET_MISSION_CURRENT -> UNSUPPORTED
     set_current_on_finished_holds: bool = False  # AP: AUTO holds after set-current on a finished mission
     upload_restarts_leg: bool = False  # AP: a mission uploaded in flight restarts the current leg
+    # AP (ArduCopter ModeAuto::init): armed on the ground, AUTO is refused ("Auto: Missing Takeoff
+    # Cmd", MISSION_START FAILED) unless the mission goes on with a NAV_TAKEOFF
+    auto_needs_takeoff_on_ground: bool = False
+    # PX4 (Commander, VEHICLE_CMD_MISSION_START): "switch to AUTO_MISSION and ARM" -- a disarmed
+    # vehicle on the ground arms by mission start (DENIED when it cannot arm) and climbs to fly it
+    mission_start_arms: bool = False
     arm_refused_after_boot_s: float = 0.0  # refuses to arm this long after boot (simulated seconds)
     arm_refusal: tuple[int, str] = (mav.MAV_RESULT_FAILED, "Arm: Accels inconsistent")
     refusal_text_delay_s: float = 0.0  # PX4: the STATUSTEXT saying why comes ~0.6 s after the ACK
@@ -117,7 +123,7 @@ ARDUPILOT = Flavour(
     item_retry_s=1.0, upload_timeout_s=8.0, max_items=700, keep_mission_on_reboot=True,
     modes=AP_COPTER_MODES, takeoff_alt_default_m=2.5,
     positionless_download_frame0=True, mission_start_first_item_denied=True, set_current_on_finished_holds=True,
-    upload_restarts_leg=True, arm_refused_after_boot_s=3.0,
+    upload_restarts_leg=True, arm_refused_after_boot_s=3.0, auto_needs_takeoff_on_ground=True,
     arm_refusal=(mav.MAV_RESULT_FAILED, "Arm: Accels inconsistent"),
     default_streams=(mav.MAVLINK_MSG_ID_HEARTBEAT,),  # + HOME_POSITION, STATUSTEXT, TIMESYNC unasked
 )
@@ -128,6 +134,7 @@ PX4 = Flavour(
     item_retry_s=0.25, upload_timeout_s=5.0, max_items=2000, keep_mission_on_reboot=False,
     modes=PX4_MODES, takeoff_alt_default_m=2.5,
     download_int_frames=True, set_current_command_unsupported=True, arm_refused_after_boot_s=1.0,
+    mission_start_arms=True,
     arm_refusal=(mav.MAV_RESULT_TEMPORARILY_REJECTED, "Arming denied: Resolve system health failures first"),
     refusal_text_delay_s=0.6,
     default_streams=(mav.MAVLINK_MSG_ID_HEARTBEAT, mav.MAVLINK_MSG_ID_GLOBAL_POSITION_INT,

@@ -26,7 +26,7 @@ from uavloc_gcs.geo import LocalFrame
 from uavloc_gcs.mission import WireItem
 
 from .commands import handle_command, handle_position_target, handle_set_mode
-from .executor import MissionExecutor, Target, corner
+from .executor import NAV_COMMANDS, TAKEOFF, MissionExecutor, Target, corner
 from .flavour import Flavour
 from .flight import Kinematics
 from .mission_server import MissionServer, Peer, Reply
@@ -38,6 +38,7 @@ log = logging.getLogger(__name__)
 PHYSICS_DT_S = 0.05
 LAND_FINAL_ALT_M = 10.0
 LAND_FINAL_SPEED_M_S = 0.5
+POSITION_MODES = frozenset({"GUIDED", "AUTO", "LOITER", "RTL"})  # need a position estimate (ArduCopter)
 
 
 @dataclass(frozen=True)
@@ -78,6 +79,10 @@ class VehicleConfig:
     # Refuse to arm this long after boot with the flavour's STATUSTEXT; None: the flavour's measured
     # period. Off by default: MAVSDK and the pymavlink test clients arm at once without retrying.
     arm_refused_after_boot_s: float | None = 0.0
+    # ArduCopter before its EKF uses GPS: modes that need a position (GUIDED, AUTO, LOITER, RTL) are
+    # refused "Mode change to Auto failed: requires position" this long after boot [simulated s],
+    # while it still arms in a manual mode (issue 26: armed in STABILIZE, refused AUTO x3, disarmed).
+    position_after_boot_s: float = 0.0
 
 
 class FakeVehicle(TelemetryMixin):
@@ -209,10 +214,20 @@ class FakeVehicle(TelemetryMixin):
         return True
 
     def set_mode(self, mode: str) -> bool:
+        if mode in POSITION_MODES and self.t_s - self.boot_t_s < self.cfg.position_after_boot_s:
+            self._out.append(self.text(mav.MAV_SEVERITY_WARNING,
+                                       f"Mode change to {mode.title()} failed: requires position"))
+            return False
         if mode == "AUTO":
             items = self.mission.mission()
             if len(items) <= self.executor.first_seq:
                 self._out.append(self.text(mav.MAV_SEVERITY_WARNING, "Mission: no mission"))
+                return False
+            if self.flavour.auto_needs_takeoff_on_ground and self.armed and self.landed \
+                    and not self._starts_with_takeoff(items):
+                # ArduCopter ModeAuto::init: armed and landed, AUTO is refused unless the mission
+                # goes on with a take-off (mission.starts_with_takeoff_cmd); MISSION_START -> FAILED
+                self._out.append(self.text(mav.MAV_SEVERITY_CRITICAL, "Auto: Missing Takeoff Cmd"))
                 return False
             if self.auto_held:  # MISSION_START / AUTO after set-current on a finished mission
                 self.auto_held = False
@@ -233,6 +248,17 @@ class FakeVehicle(TelemetryMixin):
         self.mode = mode
         self._out.append(self.heartbeat_reply())
         return True
+
+    def _starts_with_takeoff(self, items: list[WireItem]) -> bool:
+        """Whether AUTO would begin with a take-off: the first navigation command from the item it
+        would run (its current one, or the first after a finished mission), DO items skipped, as
+        ArduPilot's ``AP_Mission::starts_with_takeoff_cmd`` looks from its current nav index."""
+        ex = self.executor
+        seq = ex.first_seq if (ex.complete or ex.current >= len(items)) else ex.current
+        for it in items[seq:]:
+            if it.command in NAV_COMMANDS:
+                return it.command == TAKEOFF
+        return False
 
     def takeoff(self, alt_m: float) -> bool:
         if not self.armed or not self.landed or not (alt_m > 0.0):

@@ -14,8 +14,8 @@ from .telemetry import StatusText, VehicleState, VehicleTracker
 from .mission_clear import clear_mission
 from .mission_download import download_mission, home_position, qgc_form
 from .mission_upload import UploadResult, upload_mission
-from .mission_control import (DEFAULT_STREAMS, StatusWatch, arm_when_ready, request_streams, return_home, set_current,
-                              start_mission_from, switch_mission, wait_until_positioned)
+from .mission_control import (DEFAULT_STREAMS, StartRefused, StatusWatch, arm_when_ready, request_streams, return_home,
+                              set_current, start_mission_from, switch_mission, wait_until_positioned)
 from .tlog import TlogWriter, iter_tlog
 from .transport import parse_connection
 
@@ -27,6 +27,6 @@ __all__ = [
     "clear_mission", "download_mission", "home_position", "qgc_form", "UploadResult", "upload_mission",
     "TlogWriter", "iter_tlog", "parse_connection",
     "StatusText", "VehicleState", "VehicleTracker",
-    "DEFAULT_STREAMS", "StatusWatch", "arm_when_ready", "request_streams", "return_home", "set_current",
+    "DEFAULT_STREAMS", "StartRefused", "StatusWatch", "arm_when_ready", "request_streams", "return_home", "set_current",
     "start_mission_from", "switch_mission", "wait_until_positioned",
 ]

@@ -88,7 +88,12 @@ class Flavour:
     set_current_command: bool = True  # PX4 answers DO_SET_MISSION_CURRENT UNSUPPORTED
     upload_restarts_mission: bool = False  # PX4 flies a mission uploaded in AUTO.MISSION from item 0
     finished_mission_needs_start: bool = False  # AP AUTO holds after set-current on a finished mission
-    armable_modes: tuple[str, ...] = ()  # modes the vehicle arms in (empty: any)
+    # The start arms only in these modes, switching to ``arm_mode`` first from any other (issue 26:
+    # ArduCopter armed in STABILIZE, then refused AUTO "requires position" and disarmed; GUIDED
+    # itself requires a position, so it is not armed before it knows where it is. PX4 refuses to
+    # arm in Return, which it stays in after landing). Empty: arm as it is.
+    armable_modes: tuple[str, ...] = ()
+    arm_mode: str = ""
 
     @property
     def first_mission_seq(self) -> int:
@@ -162,10 +167,11 @@ ARDUPILOT = Flavour("ardupilot", "ArduPilot", mavlink.MAV_AUTOPILOT_ARDUPILOTMEG
                     upload_request="MISSION_REQUEST", stored_params=_AP_STORED_PARAMS, alt_resolution_m=0.01,
                     positionless_read_back_as_frame0=True, mission_start_takes_first_item=False,
                     finished_mission_needs_start=True,
-                    armable_modes=("GUIDED", "LOITER", "STABILIZE", "ALT_HOLD", "POSHOLD"))
+                    armable_modes=("GUIDED",), arm_mode="GUIDED")
 PX4 = Flavour("px4", "PX4", mavlink.MAV_AUTOPILOT_PX4, home_at_seq0=False,
               upload_request="MISSION_REQUEST_INT", stored_params=_PX4_STORED_PARAMS, latlon_tolerance_e7=1,
-              set_current_command=False, upload_restarts_mission=True)
+              set_current_command=False, upload_restarts_mission=True,
+              armable_modes=("AUTO.LOITER",), arm_mode="AUTO.LOITER")
 GENERIC = Flavour("generic", "MAVLink vehicle", mavlink.MAV_AUTOPILOT_GENERIC, home_at_seq0=False,
                   upload_request="MISSION_REQUEST_INT")
 

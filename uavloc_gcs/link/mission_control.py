@@ -3,8 +3,10 @@
 Each sequence here was measured on ArduCopter and PX4 SITL (tests/sitl/test_flight.py keeps the
 measurement as a test); what differs is a named field of :class:`~.autopilots.Flavour`:
 
-* start on the ground -- put ArduPilot in GUIDED (it does not arm in AUTO), arm (waiting until the
-  vehicle is ready, see :func:`arm_when_ready`), make ``first_seq`` current, MISSION_START.
+* start on the ground -- put ArduPilot in GUIDED (it does not arm in AUTO; GUIDED needs a position,
+  so it is never armed in a manual mode waiting for one), PX4 in Hold (``Flavour.arm_mode``), arm
+  (waiting until the vehicle is ready, see :func:`arm_when_ready`), make ``first_seq`` current,
+  MISSION_START.
   ArduPilot DENIES MISSION_START with a first item other than 0 and resumes from its current
   item (``mission_start_takes_first_item``), so the first item is set with set-current first.
 * switch to a just-uploaded mission in flight -- PX4 restarts a mission uploaded in AUTO.MISSION
@@ -20,7 +22,7 @@ from __future__ import annotations
 import asyncio
 import logging
 import time
-from typing import Mapping
+from typing import Callable, Mapping
 
 from ..dialect import mavlink
 from ..errors import CommandError
@@ -48,6 +50,20 @@ POSITION_POLL_S = 2.0
 START_CONFIRM_S = 3.0  # wall seconds to wait for a HEARTBEAT after a mission start
 STATUSTEXT_GRACE_S = 1.5  # wall seconds to wait for the text explaining a refusal (PX4 SITL: 0.6 s after the ACK)
 STATUSTEXT_CHUNK_GAP_S = 0.2
+# Refusals that no repetition changes: the mission on board (or the vehicle's place in it) is wrong
+# for a start. ArduCopter ModeAuto::init: armed and landed, a mission that does not go on with a
+# take-off is refused with this text and MISSION_START answers FAILED.
+FINAL_START_REFUSALS = ("missing takeoff",)
+
+
+class StartRefused(CommandError):
+    """The vehicle refused to start its mission for a reason a repetition does not change
+    (``reason``: its own words, e.g. "Auto: Missing Takeoff Cmd")."""
+
+
+def final_start_refusal(text: str | None) -> bool:
+    """Whether a STATUSTEXT says the start can only succeed with another mission."""
+    return text is not None and any(w in text.lower() for w in FINAL_START_REFUSALS)
 
 
 async def request_streams(link: Link, system: int, flavour: Flavour,
@@ -132,6 +148,11 @@ class StatusWatch:
         fresh = [text for text, new in explaining if new]
         return fresh[-1] if fresh else (explaining[-1][0] if explaining else None)
 
+    def fresh_reason(self) -> str | None:
+        """The latest explaining text that came since :meth:`mark`, else None."""
+        fresh = [text for text, explains, marks in self._texts if explains and marks == self._marks]
+        return fresh[-1] if fresh else None
+
     async def reason_soon(self, wait_s: float = STATUSTEXT_GRACE_S) -> str | None:
         """:meth:`reason`, after waiting up to ``wait_s`` for an explaining text when none came
         since :meth:`mark` (and a moment more for the rest of a chunked text)."""
@@ -207,24 +228,40 @@ async def set_current(link: Link, system: int, component: int, flavour: Flavour,
 
 
 async def start_when_valid(link: Link, system: int, component: int, first_seq: int = 0, *,
-                           timeout_s: float = MISSION_VALID_TIMEOUT_S) -> None:
+                           timeout_s: float = MISSION_VALID_TIMEOUT_S,
+                           before_start: Callable[[], None] | None = None) -> None:
     """MISSION_START, repeated while the vehicle refuses it for a short while: PX4 checks a new
     mission in the background and DENIES the start until then ("Mission start denied! No valid
-    mission", seen on SITL right after an upload). The final error names the STATUSTEXT reason."""
+    mission", seen on SITL right after an upload). The final error names the STATUSTEXT reason;
+    a refusal no repetition changes ("Auto: Missing Takeoff Cmd") is :class:`StartRefused` at once.
+
+    ``before_start()`` is called right before every MISSION_START is sent and may raise: the
+    caller's check of the vehicle's state at the moment of the start, after every await."""
     deadline = time.monotonic() + timeout_s
     attempt = 0
     with StatusWatch(link, system) as watch:
         while True:
             watch.mark()
+            if before_start is not None:
+                before_start()
             try:
                 await start_mission(link, system, component, first_seq, 0)
                 return
             except CommandError as err:
-                if getattr(err, "result", None) not in ARM_REFUSALS or time.monotonic() >= deadline:
+                final = False
+                if getattr(err, "result", None) in ARM_REFUSALS:
+                    await watch.reason_soon()
+                    final = final_start_refusal(watch.fresh_reason())
+                if final or getattr(err, "result", None) not in ARM_REFUSALS or time.monotonic() >= deadline:
                     reason = await watch.reason_soon()
                     if reason:
                         err.args = (f"{err.args[0]} ({reason})",)
                         err.reason = reason
+                    if final:
+                        refused = StartRefused(str(err).split(": ", 1)[-1] if err.vehicle else str(err),
+                                               vehicle=str(system), operation="start")
+                        refused.result, refused.reason = getattr(err, "result", None), reason
+                        raise refused from None
                     raise
                 attempt += 1
                 await asyncio.sleep(ARM_BACKOFF_S[min(attempt - 1, len(ARM_BACKOFF_S) - 1)])
@@ -252,7 +289,8 @@ async def wait_until_positioned(link: Link, system: int, component: int = 1, *,
 
 
 async def start_mission_from(link: Link, system: int, component: int, flavour: Flavour, first_seq: int, *,
-                             armed: bool, mode: str, timeout_s: float = POSITION_READY_TIMEOUT_S) -> None:
+                             armed: bool, mode: str, timeout_s: float = POSITION_READY_TIMEOUT_S,
+                             before_start: Callable[[], None] | None = None) -> None:
     """Arm on the ground (when not ``armed``) and fly the uploaded mission from ``first_seq``.
 
     Judged from the vehicle, not only from the ACKs: a start counts once a HEARTBEAT sent after
@@ -260,7 +298,8 @@ async def start_mission_from(link: Link, system: int, component: int, flavour: F
     arms before its EKF uses GPS, refuses AUTO ("Mode change to Auto failed: requires position"),
     disarms by itself after DISARM_DELAY, and a MISSION_START accepted later leaves it in AUTO,
     disarmed, on the ground for good. Such a start is done again (mode, arm, start) until
-    ``timeout_s``."""
+    ``timeout_s``; a :class:`StartRefused` is not (the mission itself is wrong for a start).
+    ``before_start()``: see :func:`start_when_valid` (also called before arming)."""
     if not armed:
         await wait_until_positioned(link, system, component, timeout_s=timeout_s)
     deadline = time.monotonic() + timeout_s
@@ -275,14 +314,17 @@ async def start_mission_from(link: Link, system: int, component: int, flavour: F
             now_mode = mode if hb is None else flavour.mode_name(hb.custom_mode, hb.type)
             try:
                 if not now_armed:
-                    if flavour.name == "ardupilot" and now_mode not in flavour.armable_modes:
-                        await set_mode(link, system, component, "GUIDED", autopilot=flavour)
+                    if before_start is not None:
+                        before_start()
+                    if flavour.arm_mode and now_mode not in flavour.armable_modes:
+                        await set_mode(link, system, component, flavour.arm_mode, autopilot=flavour)
                     await arm_when_ready(link, system, component)
-                await _start_from(link, system, component, flavour, first_seq)
+                await _start_from(link, system, component, flavour, first_seq, before_start)
             except CommandError as err:
                 # only a vehicle that answered "no" is asked again here; a missing ACK goes to the
                 # caller, which judges from the vehicle's telemetry whether it started anyway
-                if getattr(err, "result", None) not in ARM_REFUSALS or time.monotonic() >= deadline:
+                if isinstance(err, StartRefused) or getattr(err, "result", None) not in ARM_REFUSALS \
+                        or time.monotonic() >= deadline:
                     raise
                 attempt += 1
                 await asyncio.sleep(ARM_BACKOFF_S[min(attempt - 1, len(ARM_BACKOFF_S) - 1)])
@@ -302,18 +344,24 @@ async def start_mission_from(link: Link, system: int, component: int, flavour: F
         sub.close()
 
 
-async def _start_from(link: Link, system: int, component: int, flavour: Flavour, first_seq: int) -> None:
+async def _start_from(link: Link, system: int, component: int, flavour: Flavour, first_seq: int,
+                      before_start: Callable[[], None] | None = None) -> None:
     if flavour.mission_start_takes_first_item:
-        await start_when_valid(link, system, component, first_seq)
+        await start_when_valid(link, system, component, first_seq, before_start=before_start)
         return
-    if first_seq != flavour.first_mission_seq:
-        await set_current(link, system, component, flavour, first_seq)
-    await start_when_valid(link, system, component, 0)
+    # Also when first_seq is the first item: ArduPilot keeps its item index across an upload and
+    # MISSION_START resumes a mission stopped by RTL from there (a second search on the same
+    # vehicles started the new scan at its old item 11, on the ground: "Auto: Missing Takeoff Cmd").
+    await set_current(link, system, component, flavour, first_seq)
+    await start_when_valid(link, system, component, 0, before_start=before_start)
 
 
 async def switch_mission(link: Link, system: int, component: int, flavour: Flavour, first_seq: int, *,
-                         in_mission_mode: bool, mission_state: int | None) -> None:
-    """Fly the just-uploaded mission from ``first_seq`` while airborne."""
+                         in_mission_mode: bool, mission_state: int | None,
+                         before_start: Callable[[], None] | None = None) -> None:
+    """Fly the just-uploaded mission from ``first_seq`` while airborne (``before_start``: see
+    :func:`start_when_valid`; PX4 arms by MISSION_START, so a vehicle that landed meanwhile would
+    take off)."""
     if in_mission_mode and flavour.upload_restarts_mission and first_seq == flavour.first_mission_seq:
         return  # the upload itself restarted it from its first item
     await set_current(link, system, component, flavour, first_seq)
@@ -321,7 +369,8 @@ async def switch_mission(link: Link, system: int, component: int, flavour: Flavo
     # ArduPilot ignores MISSION_START(0, 0) while its mission runs and resumes from the current
     # item when it does not, so it is always sent there: the state we last heard may be stale.
     if not in_mission_mode or finished or flavour.finished_mission_needs_start:
-        await start_when_valid(link, system, component, first_seq if flavour.mission_start_takes_first_item else 0)
+        await start_when_valid(link, system, component, first_seq if flavour.mission_start_takes_first_item else 0,
+                               before_start=before_start)
 
 
 async def return_home(link: Link, system: int, component: int = 1) -> None:
@@ -329,5 +378,5 @@ async def return_home(link: Link, system: int, component: int = 1) -> None:
     await return_to_launch(link, system, component)
 
 
-__all__ = ["DEFAULT_STREAMS", "StatusWatch", "arm_when_ready", "request_streams", "return_home", "set_current",
-           "start_mission_from", "start_when_valid", "switch_mission"]
+__all__ = ["DEFAULT_STREAMS", "StartRefused", "StatusWatch", "arm_when_ready", "final_start_refusal", "request_streams",
+           "return_home", "set_current", "start_mission_from", "start_when_valid", "switch_mission"]

@@ -39,6 +39,8 @@ from .lifecycle import allowed, persist
 from .liveview import LiveView, StatusSnapshot, VehicleStatus, person_view
 from .missionstate import ClockRate, final_seq, hold_seq, same_stored_mission, with_hold_before_rtl
 from .outcome import SearchOutcome, estimate_row, final_results, statement_for
+from .starting import (CLIMB_WAIT_S, StartFailed, UnsafeStart, read_facts, refusal_in, start_guard,
+                       takeoff_seen)
 from .store import Store, StoreReader, TelemetryRow
 from .vehicle import VehicleAgent
 
@@ -56,6 +58,7 @@ START_WAIT_S = 10.0  # the same for the scan starts
 IDLE_END_S = 10.0  # mission seconds with every vehicle home and no look planned before the search ends
 STOP_WAIT_S = 15.0  # wall seconds to send everyone home when stopped
 HOMING_MODES = ("RTL", "SMART_RTL", "LAND", "AUTO.RTL", "AUTO.LAND")  # ArduPilot, PX4
+LOOK_UPLOAD_TRIES = 2  # uploads of one look: the second with a take-off, for a vehicle that landed meanwhile
 
 
 @dataclass(frozen=True)
@@ -110,6 +113,7 @@ class _Vehicle:
     job_late: bool = False  # the brain stopped waiting for it: replan when it ends
     flew: bool = False  # seen airborne (armed, off the ground) since it was last on the ground
     odd_moves: list = field(default_factory=list)  # moves outside lifecycle.NEXT (logged, kept)
+    start_failed: str = ""  # why its scan could not be started ("": it was, or was never tried)
 
     @property
     def phase(self) -> str:
@@ -577,19 +581,73 @@ class Daemon:
         if not waypoints:
             return
         back = max(waypoints[0], min(then - 1, waypoints[-1]))
-        await self._switch(v, back, on_ground=False)
+        try:
+            await self._switch(v, back)
+        except UnsafeStart as exc:  # armed, but on the ground: not sent up without a take-off
+            self._event("resume", f"vehicle {v.id}: scan not re-flown ({exc})", v.id)
+            return
         v.agent.tel.mission_seq = back
         v.ignore_seq_until_wall = self.wall() + 1.0
         self._event("resume", f"vehicle {v.id} re-flies its scan from item {back} (flown while the daemon was "
                     f"down, now at item {now})", v.id)
 
     async def _start(self, v: _Vehicle) -> None:
+        """Start the scan on a vehicle on the ground; it is started once it climbs (starting.py)."""
         v.phase = "starting"
         a = v.agent
-        await self._persist(v, "start", a.start, lambda: a.tel.armed and a.in_mission_mode)
-        if v.phase == "starting":  # (the monitor may have seen it fly, or finish, meanwhile)
+        guard = start_guard(a, v.mission, a.flavour.first_mission_seq, v.id)
+        alt0 = self._ground_alt(a)
+        try:
+            try:
+                await self._persist(v, "start", lambda: a.start(before_start=guard),
+                                    lambda: a.tel.armed and a.in_mission_mode)
+            except (LinkError, UnsafeStart) as exc:
+                await self._disarm_on_ground(v)
+                if isinstance(exc, UnsafeStart):  # a failed start like any other: the vehicle is unusable
+                    raise StartFailed(f"scan start failed: {exc}", vehicle=str(v.id), operation="start") from exc
+                raise
+            await self._confirm_takeoff(v, "scan", self.wall(), alt0)
+        except LinkError as exc:
+            v.start_failed = str(exc)
+            raise
+        if v.phase == "starting":  # (the monitor may have seen it fly meanwhile)
             v.phase = "scanning"
         self._event("start", f"vehicle {v.id} started its scan", v.id)
+
+    @staticmethod
+    def _ground_alt(a: VehicleAgent) -> float:
+        alt = a.tel.rel_alt_m
+        return alt if math.isfinite(alt) and a.on_ground() else 0.0
+
+    async def _disarm_on_ground(self, v: _Vehicle) -> None:
+        """After a failed start: a vehicle left armed on the ground is disarmed (best effort; the
+        autopilots also disarm by themselves after a while)."""
+        a = v.agent
+        if a.tel.armed and a.on_ground():
+            try:
+                await a.disarm()
+                self._event("start", f"vehicle {v.id} disarmed on the ground after its failed start", v.id)
+            except LinkError as exc:
+                log.info("vehicle %d: disarm after a failed start: %s", v.id, exc)
+
+    async def _confirm_takeoff(self, v: _Vehicle, purpose: str, since_wall_s: float, ground_alt_m: float) -> None:
+        """A start from the ground is a start once the vehicle leaves the ground. A refusal it states
+        after the start was accepted (STATUSTEXT since ``since_wall_s``; refusals during the start
+        exchange are the exchange's to retry) or no climb within CLIMB_WAIT_S is a failed start:
+        a vehicle left armed on the ground is disarmed, and StartFailed names the reason (the
+        vehicle becomes unusable; its scan is not counted as flown)."""
+        a = v.agent
+        deadline = self.wall() + CLIMB_WAIT_S
+        while not takeoff_seen(read_facts(a), ground_alt_m):
+            refusal = refusal_in(a.texts, since_wall_s)
+            late = self.wall() >= deadline
+            if refusal is not None or late:
+                why = (f"the vehicle refused it: \"{refusal}\"" if refusal is not None else
+                       f"it did not leave the ground within {CLIMB_WAIT_S:g} s ({a.tel.mode}, "
+                       f"{'armed' if a.tel.armed else 'disarmed'})")
+                await self._disarm_on_ground(v)
+                raise StartFailed(f"{purpose} start failed: {why}", vehicle=str(v.id), operation="start")
+            await asyncio.sleep(0.05)
 
     # -- exchanges, judged from what the vehicle then reports (lifecycle.persist) --------------------
     async def _persist(self, v: _Vehicle, what: str, action, done, check=None) -> str:
@@ -601,15 +659,28 @@ class Daemon:
             self._event("retry", f"vehicle {v.id} {what}: not acknowledged, but the vehicle does it", v.id)
         return how
 
-    async def _switch(self, v: _Vehicle, first_seq: int, *, on_ground: bool) -> None:
+    async def _switch(self, v: _Vehicle, first_seq: int) -> None:
+        """Fly the mission on board from ``first_seq``. Whether the vehicle is on the ground is read
+        when each try begins and again right before each arm and MISSION_START (starting.py): a
+        mission without a take-off is never started on a vehicle on the ground (UnsafeStart)."""
         a = v.agent
+        guard = start_guard(a, v.mission, first_seq, v.id)
+        guard()
+        from_ground, alt0 = a.on_ground(), self._ground_alt(a)
 
         def flying_it() -> bool:
             seq = a.tel.mission_seq
             return a.tel.armed and a.in_mission_mode and seq is not None and first_seq <= seq <= max(first_seq, v.end_seq)
 
-        await self._persist(v, f"switch to item {first_seq}",
-                            lambda: a.switch_to(first_seq, on_ground=on_ground and not a.tel.armed), flying_it)
+        try:
+            await self._persist(v, f"switch to item {first_seq}", lambda: a.switch_to(first_seq, before_start=guard),
+                                flying_it)
+        except (LinkError, UnsafeStart):
+            if from_ground:
+                await self._disarm_on_ground(v)
+            raise
+        if from_ground:
+            await self._confirm_takeoff(v, v.purpose or "mission", self.wall(), alt0)
 
     def _adopt(self, v: _Vehicle, purpose: str, items: list) -> None:
         v.purpose, v.mission = purpose, list(items)
@@ -619,7 +690,7 @@ class Daemon:
             v.phase = {"scan": "scanning", "look": "localizing", "home": "returning"}.get(purpose, purpose)
 
     async def _upload(self, v: _Vehicle, purpose: str, items: list, first_seq: int | None,
-                      on_ground: bool = False, plan_text: str | None = None) -> None:
+                      plan_text: str | None = None) -> None:
         """Upload ``items`` and (``first_seq``) switch the vehicle to it. The upload's event, and
         the "plan" event ``plan_text``, come as soon as the mission is on board, before the
         switch: a switch whose ACKs are lost can outlast the flight it starts (measured at 25x: a
@@ -640,7 +711,7 @@ class Daemon:
         if plan_text is not None:
             self._event("plan", plan_text, v.id)
         if first_seq is not None:
-            await self._switch(v, first_seq, on_ground=on_ground)
+            await self._switch(v, first_seq)
             a.tel.mission_seq = first_seq
             v.ignore_seq_until_wall = self.wall() + 1.0
 
@@ -700,7 +771,7 @@ class Daemon:
         else:  # a scan stored by an older daemon: done once it hovers at its end
             complete = fresh and (a.tel.mission_state == MISSION_STATE_COMPLETE or (
                 past_end and a.tel.ground_speed_m_s < 1.0 and not a.on_ground()))
-        if v.phase == "scanning" and complete:
+        if v.phase == "scanning" and complete and v.flew:  # (a stale item of a vehicle never airborne: not flown)
             v.scan_done = True
             v.phase = "hovering (scan done)"
             self._event("scan", f"vehicle {v.id} finished its scan", v.id)
@@ -910,15 +981,31 @@ class Daemon:
             move_tolerance_m=self.sc.people.required_accuracy_m, same_tolerance_m=WAYPOINT_TOLERANCE_M)
 
     async def _upload_look(self, v: _Vehicle, pts: np.ndarray, targets: tuple) -> None:
+        """Upload the looks ``pts`` (a take-off first when the vehicle is on the ground) and fly
+        them. Whether it is on the ground is read before the upload to plan, and again at the start
+        (``_switch``): a vehicle that landed while a look without a take-off was uploaded gets the
+        look again with one; if it still cannot be started safely it holds where it is."""
         latlon = self.frame.to_wgs84_latlon(pts)
         f = self.sc.fleet
-        on_ground = v.home or v.agent.on_ground()
-        plan = flight_mission(latlon.tolist(), alt_m=f.altitude_m, speed_m_s=f.speed_m_s, autopilot=f.autopilot,
-                              home_latlon_deg=self.sc.launch_latlon_deg, include_takeoff=on_ground)
-        items = to_wire(plan, f.autopilot)
         first = 1 if v.agent.flavour.home_at_seq0 else 0  # the takeoff (on the ground) or the speed item
-        await self._upload(v, "look", items, first_seq=first, on_ground=on_ground,
-                           plan_text=f"vehicle {v.id} looks at {', '.join(map(str, targets))}")
+        for attempt in range(LOOK_UPLOAD_TRIES):
+            on_ground = v.home or v.agent.on_ground()
+            plan = flight_mission(latlon.tolist(), alt_m=f.altitude_m, speed_m_s=f.speed_m_s, autopilot=f.autopilot,
+                                  home_latlon_deg=self.sc.launch_latlon_deg, include_takeoff=on_ground)
+            items = to_wire(plan, f.autopilot)
+            try:
+                await self._upload(v, "look", items, first_seq=first,
+                                   plan_text=f"vehicle {v.id} looks at {', '.join(map(str, targets))}")
+                break
+            except UnsafeStart as exc:
+                if attempt + 1 < LOOK_UPLOAD_TRIES:
+                    self._event("plan", f"vehicle {v.id} landed while its look was uploaded ({exc}); "
+                                "uploading the look again with a take-off", v.id)
+                    continue
+                v.home, v.phase = True, "landed"
+                self._event("hold", f"vehicle {v.id}: look not started, it stays on the ground ({exc}); "
+                            "no take-off without a take-off item", v.id)
+                return
         v.targets, v.look_xy_m, v.looks_reported = targets, pts, 0
         v.look_first_seq = next(it.seq for it in items if it.command == NAV_WAYPOINT and it.seq > 0)
         v.home = False
@@ -968,6 +1055,9 @@ class Daemon:
         returning = tuple(v.id for v in self.vehicles.values() if not v.home and not v.lost and v.phase == "returning")
         other = tuple(v.id for v in self.vehicles.values() if not v.home and not v.lost and v.phase != "returning")
         text = statement_for(people, self.sc.people.required_accuracy_m, lost, other, returning)
+        unflown = [v for v in self.vehicles.values() if v.start_failed and not v.scan_done]
+        for v in unflown:  # a refused start is no scan flown: say so, whatever else is said
+            text += f" Vehicle {v.id} did not fly its scan ({v.start_failed}); its part of the area was not searched."
         self._event("end", text)
         self.store.set_meta("finished", True)
         self.store.flush()

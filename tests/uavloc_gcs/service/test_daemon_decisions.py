@@ -17,6 +17,7 @@ class _Agent:
         self.tel = Telemetry(battery_pct=80.0, mission_seq=0, armed=True, mode="AUTO")
         self.flavour = SimpleNamespace(home_at_seq0=True, name="ardupilot")
         self.uploads, self.switches, self.homes = [], [], 0
+        self.texts = []  # STATUSTEXTs (wall s, text)
 
     def position_xy_m(self):
         return self.xy
@@ -27,8 +28,18 @@ class _Agent:
     async def upload(self, items):
         self.uploads.append(items)
 
-    async def switch_to(self, seq, *, on_ground):
+    async def switch_to(self, seq, *, before_start=None, **_kw):
+        if before_start is not None:
+            before_start()
         self.switches.append(seq)
+        if self.on_ground():  # started from the ground: it takes off
+            self.take_off()
+
+    def take_off(self):
+        self.tel.armed, self.tel.rel_alt_m = True, 10.0
+
+    async def disarm(self):
+        self.tel.armed = False
 
     async def return_home(self):
         self.homes += 1
@@ -228,6 +239,10 @@ class _LandingAgent(_Agent):
     def on_ground(self):
         return self.ground
 
+    def take_off(self):
+        super().take_off()
+        self.ground = False
+
     def silent_for_s(self):
         return 0.0
 
@@ -369,7 +384,7 @@ def test_a_looks_events_are_logged_once_it_is_on_board_before_its_start(tmp_path
     d, policy = _daemon(tmp_path)
 
     class _SlowStart(_Agent):
-        async def switch_to(self, seq, *, on_ground):
+        async def switch_to(self, seq, **_kw):
             await asyncio.sleep(30.0)  # ACKs that do not come
 
     async def go():
