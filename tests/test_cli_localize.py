@@ -166,6 +166,108 @@ def test_csv_round_trip_keeps_the_slots(flight):
     assert np.allclose(back.xyz_m, s.xyz_m, atol=0.01) and np.allclose(back.rssi_dbm, s.rssi_dbm, atol=0.005)
 
 
+SENSOR_HEADER = ",".join(COLUMNS) + ",address,fingerprint,channel\n"
+
+
+def test_csv_with_the_sensor_columns_reads_addresses_in_both_spellings_and_defaults_empty_cells():
+    frame = load_scenario(SMALL).frame
+    text = (SENSOR_HEADER
+            + "1.0,1,47.3977,8.5456,100,42,-80.5,10,da:0A:1b:2c:3d:4e,3735928559,6\n"
+            + "1.1,1,47.3977,8.5456,100,43,-80.5,3,FFFFFFFFFFFF,0xdeadbeef,11\n"
+            + "1.2,1,47.3977,8.5456,100,44,-80.5,3,02-00-00-00-00-01,,\n"
+            + "1.3,1,47.3977,8.5456,100,45,-80.5,3,,,\n")
+    b = loads_slots_csv(text, frame)
+    assert b.address.tolist() == [0xDA0A1B2C3D4E, 0xFFFFFFFFFFFF, 0x020000000001, 45]
+    assert b.fingerprint.tolist() == [0xDEADBEEF, 0xDEADBEEF, 0, 0] and b.channel.tolist() == [6, 11, 0, 0]
+    assert b.emitter_id.tolist() == [42, 43, 44, 45]
+    # the optional columns in another order, or only some of them
+    some = loads_slots_csv(",".join(COLUMNS) + ",channel,address\n1.0,1,47.3977,8.5456,100,42,-80.5,10,1,"
+                           "0a0b0c0d0e0f\n", frame)
+    assert some.address.tolist() == [0x0A0B0C0D0E0F] and some.channel.tolist() == [1]
+    assert some.fingerprint.tolist() == [0]
+    # an old CSV: address = emitter id, fingerprint and channel unknown
+    old = loads_slots_csv(GOOD, frame)
+    assert old.address.tolist() == [42] and old.fingerprint.tolist() == [0] and old.channel.tolist() == [0]
+
+
+@pytest.mark.parametrize("cell, field", [
+    ("da:0a:1b:2c:3d,1,6", "address"),  # five octets
+    ("da0a1b2c3d4e5f,1,6", "address"),  # 14 digits
+    ("da:0a:1b:2c:3d:4g,1,6", "address"),
+    ("da0a1b2c3d4e,x,6", "fingerprint"),
+    ("da0a1b2c3d4e,1,256", "channel"),
+])
+def test_malformed_sensor_cells_are_named(cell, field):
+    text = SENSOR_HEADER + "1.0,1,47.3977,8.5456,100,42,-80.5,10," + cell + "\n"
+    with pytest.raises(FileFormatError, match=f"bad.csv, line 2, field '{field}'"):
+        loads_slots_csv(text, load_scenario(SMALL).frame, path="bad.csv")
+
+
+def test_header_with_unknown_or_repeated_optional_columns_is_refused():
+    frame = load_scenario(SMALL).frame
+    for extra in (",mac", ",channel,channel", ",address,fingerprint,channel,x"):
+        with pytest.raises(FileFormatError, match="line 1.*optionally followed by"):
+            loads_slots_csv(",".join(COLUMNS) + extra + "\n", frame, path="x.csv")
+
+
+def _sensor_slots(slots, seed=3):
+    """The flight as a Wi-Fi sensor reports it: each person under one 48-bit address (high bits
+    set), a 32-bit fingerprint and a channel per slot."""
+    rng = np.random.default_rng(seed)
+    ids = np.unique(slots.emitter_id)
+    addr = dict(zip(ids.tolist(), (0xDA0000000000 + rng.integers(0, 2**40, size=len(ids))).tolist()))
+    address = np.array([addr[int(e)] for e in slots.emitter_id], dtype=np.int64)
+    return SlotBatch.from_columns(slots.t_s, slots.vehicle, slots.xyz_m, address, slots.rssi_dbm, slots.n_samples,
+                                  address=address, fingerprint=rng.integers(1, 2**32, size=len(slots)),
+                                  channel=rng.choice([1, 6, 11], size=len(slots)))
+
+
+def test_csv_round_trip_keeps_the_sensor_columns(flight):
+    sc, _, slots = flight
+    sensor = _sensor_slots(slots)
+    text = dumps_slots_csv(sensor, sc.frame)
+    assert text.splitlines()[0] == SENSOR_HEADER.strip() and ":" in text.splitlines()[1]
+    back, s = loads_slots_csv(text, sc.frame), sensor.sorted_by_time()
+    for col in ("emitter_id", "address", "fingerprint", "channel", "n_samples"):
+        assert np.array_equal(getattr(back, col), getattr(s, col)), col
+    # slots without sensor columns are written in the old 8-column format
+    assert dumps_slots_csv(slots, sc.frame).splitlines()[0] == ",".join(COLUMNS)
+
+
+def test_tlog_of_new_and_old_messages_replays_every_column(tmp_path, flight):
+    """A .tlog holding UAVLOC_RSSI_BATCH2 (a new companion) and UAVLOC_RSSI_BATCH (an old one)
+    gives the slots of both, the new ones with their address, fingerprint and channel."""
+    from uavloc_gcs.cli.localize import load_slots
+    from uavloc_gcs.dialect import mavlink
+    from uavloc_gcs.dialect.rssi import BATCH, BATCH2, encode_rssi_batches
+    from uavloc_gcs.link.tlog import TlogWriter
+
+    sc, _, slots = flight
+    sensor = _sensor_slots(slots.take(slots.vehicle == 1))
+    old = slots.take(slots.vehicle == 2)
+    epoch = 1_700_000_000.0
+    tlog = tmp_path / "mixed.tlog"
+    w = TlogWriter(tlog)
+    for v, part, kind in ((1, sensor, BATCH2), (2, old, BATCH)):
+        codec = mavlink.MAVLink(None, srcSystem=v, srcComponent=191)
+        for m in encode_rssi_batches(part, sc.frame, epoch_unix_s=epoch, message=kind):
+            assert m.get_type() == kind
+            w.write(m.pack(codec), t_us=int(m.time_usec))
+    w.close()
+    back = load_slots(tlog, sc)
+    b1, b2 = back.take(back.vehicle == 1).sorted_by_time(), back.take(back.vehicle == 2).sorted_by_time()
+    s1, s2 = sensor.sorted_by_time(), old.sorted_by_time()
+    for col in ("address", "fingerprint", "channel", "n_samples"):
+        assert np.array_equal(getattr(b1, col), getattr(s1, col)), col
+    assert np.array_equal(b1.emitter_id, s1.address)
+    assert np.array_equal(b2.address, s2.emitter_id) and not b2.fingerprint.any() and not b2.channel.any()
+    assert np.allclose(b1.t_s - b1.t_s[0], s1.t_s - s1.t_s[0], atol=1e-6)
+    # and the CLI localizes from it (three people: one under its addresses, two under old ids)
+    r = uavloc("localize", tlog, "--scenario", SMALL, "--out", tmp_path / "o")
+    assert r.returncode == 0, r.stderr
+    assert len(_read_estimates(tmp_path / "o" / "estimates.csv")) >= 3
+
+
 def test_missing_input_file(tmp_path, capsys):
     from uavloc_gcs.cli import main
 

@@ -1,9 +1,12 @@
 """Telemetry budget: bytes per second a fake vehicle sends while flying its scan mission.
 
-Every message a vehicle emits (all streams, STATUSTEXT, MISSION_ITEM_REACHED and the
-UAVLOC_RSSI_BATCH of its companion) is packed as MAVLink 2 exactly as on the wire and counted
-per simulated second, from arming to landing. No sockets: the vehicles run in-process on the
-scenario's world, so the numbers are deterministic for a seed.
+Every message a vehicle emits (all streams, STATUSTEXT, MISSION_ITEM_REACHED and the RSSI
+messages of its companion) is packed as MAVLink 2 exactly as on the wire and counted per
+simulated second, from arming to landing. No sockets: the vehicles run in-process on the
+scenario's world, so the numbers are deterministic for a seed. The RSSI goes as
+UAVLOC_RSSI_BATCH2 (what the companion emulator sends: address, fingerprint, channel per entry)
+unless ``--message`` asks for the old UAVLOC_RSSI_BATCH or ``auto`` (the old one whenever it
+carries the slots losslessly, as in the paper's continuous world).
 
 Two RSSI paths (docs/readme/daemon.md, "The RSSI path"): ``through`` -- the companion's RSSI goes
 through the autopilot (ArduPilot with MAVn_OPTIONS bit 3) and shares the one radio with the
@@ -13,6 +16,7 @@ companion's messages (component 191). A router on the companion that merges both
 costs the same bytes as ``through``.
 
     python -m sim_link.vehicles.budget examples/paper.toml [--seed 1] [--signed] [--path through|beside]
+                                       [--message UAVLOC_RSSI_BATCH2|UAVLOC_RSSI_BATCH|auto]
 """
 
 from __future__ import annotations
@@ -22,7 +26,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from uavloc_gcs.dialect import RSSI_MESSAGE_TYPES
 from uavloc_gcs.dialect import mavlink as mav
+from uavloc_gcs.dialect.rssi import BATCH2, MESSAGES, RssiBatcher
 from uavloc_gcs.mission import to_wire
 from uavloc_gcs.scan import plan_scan, scan_missions
 from uavloc_gcs.scenario import Scenario, load_scenario
@@ -49,9 +55,9 @@ class VehicleBudget:
 
 
 def measure(scenario: Scenario, *, seed: int | None = None, signed: bool = False,
-            vehicles: list[int] | None = None) -> list[VehicleBudget]:
+            vehicles: list[int] | None = None, message: str = BATCH2) -> list[VehicleBudget]:
     """Fly each vehicle's scan mission (or only ``vehicles``, 1-based) and count its downlink
-    bytes per simulated second."""
+    bytes per simulated second, the RSSI sent as ``message`` (rssi.MESSAGES)."""
     from ..world import World
 
     world = World(scenario, seed=seed)
@@ -66,6 +72,7 @@ def measure(scenario: Scenario, *, seed: int | None = None, signed: bool = False
                             power=scenario.power_model, slot_s=scenario.channel.slot_s, epoch_unix_s=1.8e9,
                             companion_heartbeat=True)  # a real companion's 1 Hz HEARTBEAT counts too
         v = FakeVehicle(cfg, world)
+        v.batcher = RssiBatcher(scenario.frame, cfg.epoch_unix_s, cfg.slot_s, message=message)  # as the companion
         v.mission.stores[0] = to_wire(plan, f.autopilot)
         v.executor.reset()
         v.set_mode("AUTO")
@@ -86,7 +93,7 @@ def measure(scenario: Scenario, *, seed: int | None = None, signed: bool = False
                 comp[sec] = comp.get(sec, 0) + n
                 name = r.msg.get_type()
                 by_type[name] = by_type.get(name, 0) + n
-                if name == "UAVLOC_RSSI_BATCH":
+                if name in RSSI_MESSAGE_TYPES:
                     entries += r.msg.count
                     msgs += 1
         secs = range(int(np.ceil(t)))
@@ -105,7 +112,7 @@ def report(budgets: list[VehicleBudget], path: str = "through") -> str:
     lines = ["| vehicle | flight [s] | mean [B/s] | peak 1 s [B/s] | of 57.6 kbit/s (peak) | RSSI B/s | entries/msg |",
              "|---|---|---|---|---|---|---|"]
     for b in budgets:
-        rssi = b.bytes_by_type.get("UAVLOC_RSSI_BATCH", 0.0)
+        rssi = sum(b.bytes_by_type.get(k, 0.0) for k in RSSI_MESSAGE_TYPES)
         per = b.rssi_entries / b.rssi_messages if b.rssi_messages else 0.0
         lines.append(f"| uav{b.vehicle} | {b.flight_s:.0f} | {b.mean_bytes_s:.0f} | {b.peak_bytes_s:.0f} | "
                      f"{100 * b.peak_bytes_s / RADIO_BYTES_S:.0f} % | {rssi:.0f} | {per:.1f} |")
@@ -135,8 +142,10 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--signed", action="store_true", help="count the 13-byte MAVLink 2 signature too")
     p.add_argument("--path", choices=("through", "beside"), default="through",
                    help="RSSI through the autopilot's radio (default) or on a link of its own")
+    p.add_argument("--message", choices=MESSAGES, default=BATCH2,
+                   help="the RSSI message (default: UAVLOC_RSSI_BATCH2, as the companion emulator sends)")
     a = p.parse_args(argv)
-    print(report(measure(load_scenario(a.scenario), seed=a.seed, signed=a.signed), a.path))
+    print(report(measure(load_scenario(a.scenario), seed=a.seed, signed=a.signed, message=a.message), a.path))
     return 0
 
 

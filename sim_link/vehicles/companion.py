@@ -3,8 +3,10 @@
 Attach it to ArduPilot or PX4 SITL (``tcp:127.0.0.1:5760``, ``udpin:0.0.0.0:14540``, ...). It
 follows the autopilot's GLOBAL_POSITION_INT, asks :class:`sim_link.world.World` what a receiver at
 that position hears in each time slot (the same world model the fake vehicles use), and sends
-UAVLOC_RSSI_BATCH from component 191 of the autopilot's system, with a 1 Hz HEARTBEAT
-(MAV_TYPE_ONBOARD_CONTROLLER).
+UAVLOC_RSSI_BATCH2 from component 191 of the autopilot's system, with a 1 Hz HEARTBEAT
+(MAV_TYPE_ONBOARD_CONTROLLER). Each entry carries what the world says a sensor heard in the slot:
+the source address, the content fingerprint, the channel, the frame count and the mean RSSI (the
+paper's continuous world gives address = emitter id, fingerprint 0 and channel 0, sent as they are).
 
 Two paths to the ground (docs/readme/daemon.md, "The RSSI path"):
 
@@ -36,7 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from uavloc_gcs.dialect import mavlink as mav
-from uavloc_gcs.dialect.rssi import COMPANION_COMPONENT_ID, RssiBatcher
+from uavloc_gcs.dialect.rssi import BATCH2, COMPANION_COMPONENT_ID, RssiBatcher
 from uavloc_gcs.scenario import Scenario
 
 from .connection import ByteLink, open_link, parse_url
@@ -169,7 +171,8 @@ class CompanionEmulator:
         xyz = np.array([float(e), float(n), msg.relative_alt / 1000.0])
         self.stats.positions += 1
         if self._batcher is None:
-            self._batcher = RssiBatcher(self.scenario.frame, self.epoch_unix_s, self.scenario.channel.slot_s)
+            self._batcher = RssiBatcher(self.scenario.frame, self.epoch_unix_s, self.scenario.channel.slot_s,
+                                        message=BATCH2)
         last, self._last = self._last, (t, xyz)
         slot = self.scenario.channel.slot_s
         if last is None or t - last[0] > self.max_gap_s or t <= last[0]:

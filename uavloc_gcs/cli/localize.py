@@ -1,7 +1,8 @@
 """``uavloc localize INPUT --scenario SCENARIO.toml --out DIR``: offline localization.
 
-INPUT is a slot CSV (``t_s,vehicle_id,lat_deg,lon_deg,alt_m,emitter_id,rssi_dbm,n_samples``) or a
-``.tlog`` whose UAVLOC_RSSI_BATCH messages are replayed. Writes ``estimates.csv``,
+INPUT is a slot CSV (``t_s,vehicle_id,lat_deg,lon_deg,alt_m,emitter_id,rssi_dbm,n_samples``, optionally
+``address,fingerprint,channel``) or a ``.tlog`` whose UAVLOC_RSSI_BATCH2 and (older) UAVLOC_RSSI_BATCH
+messages are replayed. Writes ``estimates.csv``,
 ``estimates.geojson`` and ``estimates.png`` into DIR (all or nothing) and prints a table.
 """
 
@@ -23,7 +24,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                     "estimates.csv, estimates.geojson and estimates.png into --out.",
     )
     p.add_argument("input", metavar="INPUT", help="slot CSV (t_s,vehicle_id,lat_deg,lon_deg,alt_m,emitter_id,"
-                                                  "rssi_dbm,n_samples) or a .tlog")
+                                                  "rssi_dbm,n_samples[,address,fingerprint,channel]) or a .tlog")
     p.add_argument("--scenario", required=True, help="scenario TOML (channel, people's speed bound, frame)")
     p.add_argument("--out", required=True, help="output directory")
     p.add_argument("--static", action="store_true", help="assume people do not move (the paper's NM variant)")
@@ -35,20 +36,21 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def load_slots(path: Path, scenario):
-    """Slots from a CSV or a .tlog, in the scenario's frame. For a .tlog, t_s counts from the
-    whole second of its first RSSI message."""
+    """Slots from a CSV or a .tlog, in the scenario's frame, with their address, fingerprint and
+    channel where the input has them. For a .tlog, t_s counts from the whole second of its first
+    RSSI message (either version)."""
     from ..errors import FileFormatError
     from ..estimation.slots_csv import read_slots_csv
 
     if not path.exists():
         raise FileFormatError("file not found", path=str(path))
     if path.suffix.lower() == ".tlog":
-        from ..dialect.rssi import decode_rssi_batches
+        from ..dialect.rssi import decode_rssi_batches, is_rssi_message
         from ..link.tlog import iter_tlog
 
-        msgs = [m for _, m in iter_tlog(path) if m.get_type() == "UAVLOC_RSSI_BATCH"]
+        msgs = [m for _, m in iter_tlog(path) if is_rssi_message(m)]
         if not msgs:
-            log.warning("%s holds no UAVLOC_RSSI_BATCH messages", path)
+            log.warning("%s holds no UAVLOC_RSSI_BATCH2 or UAVLOC_RSSI_BATCH messages", path)
         epoch = math.floor(min((m.time_usec for m in msgs), default=0) / 1e6)
         return decode_rssi_batches(msgs, scenario.frame, epoch_unix_s=epoch)
     return read_slots_csv(path, scenario.frame)

@@ -1,17 +1,34 @@
-"""UAVLOC_RSSI_BATCH <-> SlotBatch: the RSSI dialect's codec.
+"""UAVLOC_RSSI_BATCH2 / UAVLOC_RSSI_BATCH <-> SlotBatch: the RSSI dialect's codec.
 
-One message carries up to 12 (slot, emitter) entries heard by one vehicle within 255 ms. The
+One message carries up to 12 (slot, source) entries heard by one vehicle within 255 ms. The
 vehicle position is sent once (lat/lon degE7, height above home in mm, velocity NED in cm/s at
 ``time_usec``); the position of entry i is reconstructed as ``position + velocity * dt_ms[i]``.
 The encoder picks the reference as the first entry's slot and the velocity as the least-squares
 slope of the entries' positions over time, which is exact for straight, constant-speed flight and
 off by a few centimetres in a 5 m/s^2 turn (a t^2 / 8 over 0.2 s).
 
+Two messages (``RSSI_DIALECT.md``):
+
+- ``UAVLOC_RSSI_BATCH2`` (54101) carries per entry what a Wi-Fi sensor knows: the 48-bit source
+  address, a 32-bit content fingerprint, the channel, the frame count and the mean RSSI. The
+  ground's ``emitter_id`` of a decoded entry is its address (a sensor knows no person).
+- ``UAVLOC_RSSI_BATCH`` (54100, the first version) carries a uint32 emitter id, the RSSI and the
+  sample count; decoded entries get ``address = emitter_id``, fingerprint 0 and channel 0
+  (unknown). Old ``.tlog`` files and old companions speak it.
+
+The encoders take ``message``: :data:`BATCH2`, :data:`BATCH` or :data:`AUTO` (the default), which
+sends the old message when it carries the slots losslessly (every address equal to its emitter id
+and within uint32, no fingerprint, no channel: the paper's continuous world), so that a ground
+station older than UAVLOC_RSSI_BATCH2 still understands it, and UAVLOC_RSSI_BATCH2 otherwise. Both
+cost the same bytes then: BATCH2's address-high, channel and fingerprint arrays are extension
+fields, last on the wire, and MAVLink 2 trims them when they are zero.
+
 Time: ``time_usec`` is UNIX time in microseconds. A :class:`SlotBatch` time ``t_s`` is seconds on
 the mission clock, ``t_s = unix_s - epoch_unix_s``; both directions take ``epoch_unix_s``.
 
 Quantisation (what a round trip loses): time 1 ms (entries relative to the reference; slot
-starts that are whole milliseconds apart come back exactly), position ~1 cm, RSSI 0.01 dB.
+starts that are whole milliseconds apart come back exactly), position ~1 cm, RSSI 0.01 dB; a
+fingerprint wider than 32 bits travels as its low 32 bits (:func:`wire_fingerprint`).
 """
 
 from __future__ import annotations
@@ -23,14 +40,53 @@ import numpy as np
 
 from ..geo import LocalFrame
 from ..observations import SlotBatch
-from . import RSSI_BATCH_MAX_ENTRIES, mavlink
+from . import RSSI_BATCH_MAX_ENTRIES, RSSI_MESSAGE_TYPES, mavlink
 
 MAX_ENTRIES = RSSI_BATCH_MAX_ENTRIES
 MAX_SPAN_MS = 255  # dt_ms is uint8
 DEFAULT_WINDOW_S = 0.2  # a companion flushes 200 ms after the first entry at the latest
 COMPANION_COMPONENT_ID = 191  # MAV_COMP_ID_ONBOARD_COMPUTER
 
+BATCH = "UAVLOC_RSSI_BATCH"
+BATCH2 = "UAVLOC_RSSI_BATCH2"
+AUTO = "auto"
+MESSAGES = (AUTO, BATCH2, BATCH)
+
+ADDRESS_BITS = 48
+FINGERPRINT_BITS = 32
 _UINT32_MAX = 2**32 - 1
+_ADDRESS_MAX = 2**ADDRESS_BITS - 1
+
+
+def is_rssi_message(msg) -> bool:
+    """Whether ``msg`` carries heard slots (either version of the batch)."""
+    return msg.get_type() in RSSI_MESSAGE_TYPES
+
+
+def wire_fingerprint(fingerprint) -> np.ndarray:
+    """The fingerprint as the wire carries it: its low 32 bits (int64 array); a nonzero fingerprint
+    whose low 32 bits are 0 becomes 1, since 0 means unknown."""
+    fp = np.asarray(fingerprint, dtype=np.int64)
+    low = fp & np.int64(_UINT32_MAX)
+    return np.where((low == 0) & (fp != 0), np.int64(1), low)
+
+
+def split_address(address) -> tuple[np.ndarray, np.ndarray]:
+    """48-bit addresses -> (high 16 bits, low 32 bits): 0x123456789abc -> (0x1234, 0x56789abc)."""
+    a = np.asarray(address, dtype=np.int64)
+    return a >> 32, a & np.int64(_UINT32_MAX)
+
+
+def join_address(hi, lo) -> np.ndarray:
+    """(high 16 bits, low 32 bits) -> 48-bit addresses (int64)."""
+    return (np.asarray(hi, dtype=np.int64) << 32) | np.asarray(lo, dtype=np.int64)
+
+
+def fits_batch(slots: SlotBatch) -> bool:
+    """Whether the old UAVLOC_RSSI_BATCH carries ``slots`` without losing a column."""
+    return bool(np.array_equal(slots.address, slots.emitter_id)
+                and np.all((slots.emitter_id >= 0) & (slots.emitter_id <= _UINT32_MAX))
+                and not np.any(slots.fingerprint) and not np.any(slots.channel))
 
 
 def encode_rssi_batches(
@@ -40,20 +96,26 @@ def encode_rssi_batches(
     epoch_unix_s: float = 0.0,
     slot_s: float = 0.025,
     window_s: float = DEFAULT_WINDOW_S,
-) -> list[mavlink.MAVLink_uavloc_rssi_batch_message]:
-    """Pack the slots of ONE vehicle into UAVLOC_RSSI_BATCH messages, in time order.
+    message: str = AUTO,
+) -> list:
+    """Pack the slots of ONE vehicle into RSSI messages (``message``: BATCH2, BATCH or AUTO), in
+    time order.
 
     ``frame`` is the scenario's local frame (``xyz_m`` east/north/up about the launch point);
     ``window_s`` (<= 0.255 s) bounds how far an entry may lie after its message's reference slot.
     Raises ValueError when the slots span several vehicles or a value does not fit the wire type.
     """
+    if message not in MESSAGES:
+        raise ValueError(f"encode_rssi_batches: message must be one of {', '.join(MESSAGES)}, got {message!r}")
     if len(slots) == 0:
         return []
     if len(np.unique(slots.vehicle)) > 1:
         raise ValueError("encode_rssi_batches: slots of several vehicles; encode each vehicle separately")
     if not 0.0 < window_s <= MAX_SPAN_MS / 1000.0:
         raise ValueError(f"encode_rssi_batches: window_s must be in (0, {MAX_SPAN_MS / 1000}] s, got {window_s}")
-    _check_wire_ranges(slots)
+    if message == AUTO:
+        message = BATCH if fits_batch(slots) else BATCH2
+    _check_wire_ranges(slots, message)
     s = slots.sorted_by_time()
     t_ms = np.round((s.t_s - s.t_s[0]) * 1000.0).astype(np.int64)  # ms after the first slot
     window_ms = int(round(window_s * 1000.0))
@@ -64,34 +126,39 @@ def encode_rssi_batches(
         stop = start + 1
         while stop < n and stop - start < MAX_ENTRIES and t_ms[stop] - t_ms[start] <= window_ms:
             stop += 1
-        out.append(_encode_one(s, start, stop, t_ms, frame, epoch_unix_s, slot_s))
+        out.append(_encode_one(s, start, stop, t_ms, frame, epoch_unix_s, slot_s, message))
         start = stop
     return out
 
 
-def _check_wire_ranges(s: SlotBatch) -> None:
-    if np.any(s.emitter_id < 0) or np.any(s.emitter_id > _UINT32_MAX):
-        raise ValueError("UAVLOC_RSSI_BATCH: emitter_id must fit uint32 (0 .. 4294967295)")
+def _check_wire_ranges(s: SlotBatch, message: str) -> None:
+    if message == BATCH:
+        if np.any(s.emitter_id < 0) or np.any(s.emitter_id > _UINT32_MAX):
+            raise ValueError("UAVLOC_RSSI_BATCH: emitter_id must fit uint32 (0 .. 4294967295)")
+    else:
+        if np.any(s.address < 0) or np.any(s.address > _ADDRESS_MAX):
+            raise ValueError("UAVLOC_RSSI_BATCH2: address must fit 48 bits (0 .. 0xffffffffffff)")
+        if np.any(s.channel < 0) or np.any(s.channel > 255):
+            raise ValueError("UAVLOC_RSSI_BATCH2: channel must be 0 .. 255")
     if np.any(s.n_samples < 1) or np.any(s.n_samples > 255):
-        raise ValueError("UAVLOC_RSSI_BATCH: n_samples must be 1 .. 255")
+        raise ValueError(f"{message}: n_samples must be 1 .. 255")
     if not np.all(np.isfinite(s.rssi_dbm)) or np.any(np.abs(s.rssi_dbm) > 327.0):
-        raise ValueError("UAVLOC_RSSI_BATCH: rssi_dbm must be finite and within +-327 dBm")
+        raise ValueError(f"{message}: rssi_dbm must be finite and within +-327 dBm")
     if not np.all(np.isfinite(s.xyz_m)) or not np.all(np.isfinite(s.t_s)):
-        raise ValueError("UAVLOC_RSSI_BATCH: times and positions must be finite")
+        raise ValueError(f"{message}: times and positions must be finite")
 
 
 def _encode_one(s: SlotBatch, start: int, stop: int, t_ms: np.ndarray, frame: LocalFrame,
-                epoch_unix_s: float, slot_s: float) -> mavlink.MAVLink_uavloc_rssi_batch_message:
+                epoch_unix_s: float, slot_s: float, message: str):
     dt_ms = t_ms[start:stop] - t_ms[start]
     xyz = s.xyz_m[start:stop]
     vel = _slope(dt_ms / 1000.0, xyz)
     ref = xyz[0]
     lat, lon = frame.to_wgs84(ref[0], ref[1])
-    time_usec = int(round((epoch_unix_s + float(s.t_s[start])) * 1e6))
     k = stop - start
-    pad = MAX_ENTRIES - k
-    return mavlink.MAVLink_uavloc_rssi_batch_message(
-        time_usec=time_usec,
+    pad = [0] * (MAX_ENTRIES - k)
+    head = dict(
+        time_usec=int(round((epoch_unix_s + float(s.t_s[start])) * 1e6)),
         lat=int(round(float(lat) * 1e7)),
         lon=int(round(float(lon) * 1e7)),
         relative_alt=int(round(float(ref[2]) * 1000.0)),
@@ -100,10 +167,23 @@ def _encode_one(s: SlotBatch, start: int, stop: int, t_ms: np.ndarray, frame: Lo
         vz=_clip_i16(-vel[2] * 100.0),  # down
         slot_us=int(min(65535, round(slot_s * 1e6))),
         count=k,
-        dt_ms=[int(v) for v in dt_ms] + [0] * pad,
-        emitter_id=[int(v) for v in s.emitter_id[start:stop]] + [0] * pad,
-        rssi_cdbm=[int(round(float(v) * 100.0)) for v in s.rssi_dbm[start:stop]] + [0] * pad,
-        n_samples=[int(v) for v in s.n_samples[start:stop]] + [0] * pad,
+        dt_ms=[int(v) for v in dt_ms] + pad,
+    )
+    rssi_cdbm = [int(round(float(v) * 100.0)) for v in s.rssi_dbm[start:stop]] + pad
+    counts = [int(v) for v in s.n_samples[start:stop]] + pad
+    if message == BATCH:
+        return mavlink.MAVLink_uavloc_rssi_batch_message(
+            **head, emitter_id=[int(v) for v in s.emitter_id[start:stop]] + pad, rssi_cdbm=rssi_cdbm,
+            n_samples=counts)
+    hi, lo = split_address(s.address[start:stop])
+    return mavlink.MAVLink_uavloc_rssi_batch2_message(
+        **head,
+        addr_lo=[int(v) for v in lo] + pad,
+        addr_hi=[int(v) for v in hi] + pad,
+        fingerprint=[int(v) for v in wire_fingerprint(s.fingerprint[start:stop])] + pad,
+        channel=[int(v) for v in s.channel[start:stop]] + pad,
+        n_frames=counts,
+        rssi_cdbm=rssi_cdbm,
     )
 
 
@@ -123,10 +203,16 @@ def _clip_i16(v: float) -> int:
 def decode_rssi_batch(
     msg, frame: LocalFrame, *, vehicle: int | None = None, epoch_unix_s: float = 0.0
 ) -> SlotBatch:
-    """Decode one UAVLOC_RSSI_BATCH into a SlotBatch (``vehicle`` defaults to the sender's system id).
+    """Decode one UAVLOC_RSSI_BATCH2 or UAVLOC_RSSI_BATCH into a SlotBatch (``vehicle`` defaults to
+    the sender's system id).
 
-    Entries beyond ``count`` are ignored; a ``count`` above 12 is clipped to 12.
+    UAVLOC_RSSI_BATCH2: ``emitter_id`` = ``address``. UAVLOC_RSSI_BATCH: ``address`` =
+    ``emitter_id``, fingerprint and channel 0 (unknown). Entries beyond ``count`` are ignored; a
+    ``count`` above 12 is clipped to 12. Raises ValueError for any other message.
     """
+    kind = msg.get_type()
+    if kind not in RSSI_MESSAGE_TYPES:
+        raise ValueError(f"decode_rssi_batch: {kind} is not an RSSI message ({', '.join(RSSI_MESSAGE_TYPES)})")
     k = min(int(msg.count), MAX_ENTRIES)
     if k == 0:
         return SlotBatch.empty()
@@ -139,18 +225,21 @@ def decode_rssi_batch(
     xyz = ref[None, :] + dt_s[:, None] * vel[None, :]
     epoch_us = int(round(epoch_unix_s * 1e6))
     t0_s = (int(msg.time_usec) - epoch_us) / 1e6
-    return SlotBatch.from_columns(
-        t0_s + dt_s,
-        np.full(k, int(vehicle)),
-        xyz,
-        np.asarray(msg.emitter_id[:k], dtype=np.int64),
-        np.asarray(msg.rssi_cdbm[:k], dtype=float) / 100.0,
-        np.asarray(msg.n_samples[:k], dtype=int),
-    )
+    rssi = np.asarray(msg.rssi_cdbm[:k], dtype=float) / 100.0
+    if kind == BATCH:
+        return SlotBatch.from_columns(t0_s + dt_s, np.full(k, int(vehicle)), xyz,
+                                      np.asarray(msg.emitter_id[:k], dtype=np.int64), rssi,
+                                      np.asarray(msg.n_samples[:k], dtype=int))
+    address = join_address(msg.addr_hi[:k], msg.addr_lo[:k])
+    return SlotBatch.from_columns(t0_s + dt_s, np.full(k, int(vehicle)), xyz, address, rssi,
+                                  np.asarray(msg.n_frames[:k], dtype=int), address=address,
+                                  fingerprint=np.asarray(msg.fingerprint[:k], dtype=np.int64),
+                                  channel=np.asarray(msg.channel[:k], dtype=int))
 
 
 def decode_rssi_batches(msgs: Iterable, frame: LocalFrame, *, epoch_unix_s: float = 0.0) -> SlotBatch:
-    """Decode many messages (each attributed to its sender's system id) into one SlotBatch."""
+    """Decode many messages of either version (each attributed to its sender's system id) into one
+    SlotBatch."""
     return SlotBatch.concat([decode_rssi_batch(m, frame, epoch_unix_s=epoch_unix_s) for m in msgs])
 
 
@@ -160,14 +249,20 @@ class RssiBatcher:
 
     A message is emitted when it holds 12 entries or when the next slot is more than
     ``window_s`` after its first entry; :meth:`flush` (call it on a timer, e.g. every 50 ms of
-    mission time) also emits a pending message once ``window_s`` has passed.
+    mission time) also emits a pending message once ``window_s`` has passed. ``message`` as in
+    :func:`encode_rssi_batches` (a companion sends BATCH2).
     """
 
     frame: LocalFrame
     epoch_unix_s: float = 0.0
     slot_s: float = 0.025
     window_s: float = DEFAULT_WINDOW_S
+    message: str = AUTO
     _pending: list = field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        if self.message not in MESSAGES:
+            raise ValueError(f"RssiBatcher: message must be one of {', '.join(MESSAGES)}, got {self.message!r}")
 
     def add(self, slots: SlotBatch) -> list:
         """Queue the slots (time-ordered, one vehicle); return the messages that are complete."""
@@ -188,7 +283,7 @@ class RssiBatcher:
                 return []
         pending = SlotBatch.concat(self._pending)
         msgs = encode_rssi_batches(pending, self.frame, epoch_unix_s=self.epoch_unix_s,
-                                   slot_s=self.slot_s, window_s=self.window_s)
+                                   slot_s=self.slot_s, window_s=self.window_s, message=self.message)
         if force:
             self._pending = []
             return msgs

@@ -6317,6 +6317,7 @@ enums["MAV_COMPONENT"][251] = EnumEntry("MAV_COMPONENT_ENUM_END", """""")
 MAVLINK_MSG_ID_BAD_DATA = -1
 MAVLINK_MSG_ID_UNKNOWN = -2
 MAVLINK_MSG_ID_UAVLOC_RSSI_BATCH = 54100
+MAVLINK_MSG_ID_UAVLOC_RSSI_BATCH2 = 54101
 MAVLINK_MSG_ID_SYS_STATUS = 1
 MAVLINK_MSG_ID_SYSTEM_TIME = 2
 MAVLINK_MSG_ID_PING = 4
@@ -6584,6 +6585,73 @@ class MAVLink_uavloc_rssi_batch_message(MAVLink_message):
 # Define name on the class for backwards compatibility (it is now msgname).
 # Done with setattr to hide the class variable from mypy.
 setattr(MAVLink_uavloc_rssi_batch_message, "name", mavlink_msg_deprecated_name_property())
+
+
+class MAVLink_uavloc_rssi_batch2_message(MAVLink_message):
+    """
+    What a receiver heard from ground transmitters in consecutive time
+    slots, batched; the         successor of UAVLOC_RSSI_BATCH (which
+    ground stations keep decoding). Each entry is one (slot,
+    source address) pair: the 802.11 source address the frames came
+    from, a fingerprint of their         content, the channel, the
+    number of frames heard and their mean RSSI. The vehicle position
+    is         given once at time_usec with its velocity; the position
+    of entry i is         position + velocity * dt_ms[i] / 1000 (valid
+    for the short batch windows used, at most 255 ms).         A
+    companion computer sends one message when it has 12 entries or 200
+    ms after the first entry.         The columns a receiver may not
+    know (address high bits, channel, fingerprint) are extension
+    fields         so that they come last on the wire: when they are
+    zero, MAVLink 2's trimming of trailing zero         bytes drops
+    them and the message costs what UAVLOC_RSSI_BATCH costs.
+    """
+
+    id = MAVLINK_MSG_ID_UAVLOC_RSSI_BATCH2
+    msgname = "UAVLOC_RSSI_BATCH2"
+    fieldnames = ["time_usec", "lat", "lon", "relative_alt", "vx", "vy", "vz", "slot_us", "count", "dt_ms", "addr_lo", "rssi_cdbm", "n_frames", "addr_hi", "channel", "fingerprint"]
+    ordered_fieldnames = ["time_usec", "lat", "lon", "relative_alt", "addr_lo", "vx", "vy", "vz", "slot_us", "rssi_cdbm", "count", "dt_ms", "n_frames", "addr_hi", "channel", "fingerprint"]
+    fieldtypes = ["uint64_t", "int32_t", "int32_t", "int32_t", "int16_t", "int16_t", "int16_t", "uint16_t", "uint8_t", "uint8_t", "uint32_t", "int16_t", "uint8_t", "uint16_t", "uint8_t", "uint32_t"]
+    fielddisplays_by_name: Dict[str, str] = {}
+    fieldenums_by_name: Dict[str, str] = {}
+    fieldunits_by_name: Dict[str, str] = {"time_usec": "us", "lat": "degE7", "lon": "degE7", "relative_alt": "mm", "vx": "cm/s", "vy": "cm/s", "vz": "cm/s", "slot_us": "us", "dt_ms": "ms", "rssi_cdbm": "cdBm"}
+    native_format = bytearray(b"<QiiiIhhhHhBBBHBI")
+    orders = [0, 1, 2, 3, 5, 6, 7, 8, 10, 11, 4, 9, 12, 13, 14, 15]
+    lengths = [1, 1, 1, 1, 12, 1, 1, 1, 1, 12, 1, 12, 12, 12, 12, 12]
+    array_lengths = [0, 0, 0, 0, 12, 0, 0, 0, 0, 12, 0, 12, 12, 12, 12, 12]
+    crc_extra = 154
+    unpacker = struct.Struct("<Qiii12IhhhH12hB12B12B12H12B12I")
+    instance_field = None
+    instance_offset = -1
+
+    def __init__(self, time_usec: int, lat: int, lon: int, relative_alt: int, vx: int, vy: int, vz: int, slot_us: int, count: int, dt_ms: Sequence[int], addr_lo: Sequence[int], rssi_cdbm: Sequence[int], n_frames: Sequence[int], addr_hi: Sequence[int] = (0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0), channel: Sequence[int] = (0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0), fingerprint: Sequence[int] = (0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0)):
+        MAVLink_message.__init__(self, MAVLink_uavloc_rssi_batch2_message.id, MAVLink_uavloc_rssi_batch2_message.msgname)
+        self._fieldnames = MAVLink_uavloc_rssi_batch2_message.fieldnames
+        self._instance_field = MAVLink_uavloc_rssi_batch2_message.instance_field
+        self._instance_offset = MAVLink_uavloc_rssi_batch2_message.instance_offset
+        self.time_usec = time_usec
+        self.lat = lat
+        self.lon = lon
+        self.relative_alt = relative_alt
+        self.vx = vx
+        self.vy = vy
+        self.vz = vz
+        self.slot_us = slot_us
+        self.count = count
+        self.dt_ms = dt_ms
+        self.addr_lo = addr_lo
+        self.rssi_cdbm = rssi_cdbm
+        self.n_frames = n_frames
+        self.addr_hi = addr_hi
+        self.channel = channel
+        self.fingerprint = fingerprint
+
+    def pack(self, mav: "MAVLink", force_mavlink1: bool = False) -> bytes:
+        return self._pack(mav, self.crc_extra, self.unpacker.pack(self.time_usec, self.lat, self.lon, self.relative_alt, self.addr_lo[0], self.addr_lo[1], self.addr_lo[2], self.addr_lo[3], self.addr_lo[4], self.addr_lo[5], self.addr_lo[6], self.addr_lo[7], self.addr_lo[8], self.addr_lo[9], self.addr_lo[10], self.addr_lo[11], self.vx, self.vy, self.vz, self.slot_us, self.rssi_cdbm[0], self.rssi_cdbm[1], self.rssi_cdbm[2], self.rssi_cdbm[3], self.rssi_cdbm[4], self.rssi_cdbm[5], self.rssi_cdbm[6], self.rssi_cdbm[7], self.rssi_cdbm[8], self.rssi_cdbm[9], self.rssi_cdbm[10], self.rssi_cdbm[11], self.count, self.dt_ms[0], self.dt_ms[1], self.dt_ms[2], self.dt_ms[3], self.dt_ms[4], self.dt_ms[5], self.dt_ms[6], self.dt_ms[7], self.dt_ms[8], self.dt_ms[9], self.dt_ms[10], self.dt_ms[11], self.n_frames[0], self.n_frames[1], self.n_frames[2], self.n_frames[3], self.n_frames[4], self.n_frames[5], self.n_frames[6], self.n_frames[7], self.n_frames[8], self.n_frames[9], self.n_frames[10], self.n_frames[11], self.addr_hi[0], self.addr_hi[1], self.addr_hi[2], self.addr_hi[3], self.addr_hi[4], self.addr_hi[5], self.addr_hi[6], self.addr_hi[7], self.addr_hi[8], self.addr_hi[9], self.addr_hi[10], self.addr_hi[11], self.channel[0], self.channel[1], self.channel[2], self.channel[3], self.channel[4], self.channel[5], self.channel[6], self.channel[7], self.channel[8], self.channel[9], self.channel[10], self.channel[11], self.fingerprint[0], self.fingerprint[1], self.fingerprint[2], self.fingerprint[3], self.fingerprint[4], self.fingerprint[5], self.fingerprint[6], self.fingerprint[7], self.fingerprint[8], self.fingerprint[9], self.fingerprint[10], self.fingerprint[11]), force_mavlink1=force_mavlink1)
+
+
+# Define name on the class for backwards compatibility (it is now msgname).
+# Done with setattr to hide the class variable from mypy.
+setattr(MAVLink_uavloc_rssi_batch2_message, "name", mavlink_msg_deprecated_name_property())
 
 
 class MAVLink_sys_status_message(MAVLink_message):
@@ -16660,6 +16728,7 @@ setattr(MAVLink_heartbeat_message, "name", mavlink_msg_deprecated_name_property(
 
 mavlink_map: Dict[int, Type[MAVLink_message]] = {
     MAVLINK_MSG_ID_UAVLOC_RSSI_BATCH: MAVLink_uavloc_rssi_batch_message,
+    MAVLINK_MSG_ID_UAVLOC_RSSI_BATCH2: MAVLink_uavloc_rssi_batch2_message,
     MAVLINK_MSG_ID_SYS_STATUS: MAVLink_sys_status_message,
     MAVLINK_MSG_ID_SYSTEM_TIME: MAVLink_system_time_message,
     MAVLINK_MSG_ID_PING: MAVLink_ping_message,
@@ -17321,6 +17390,84 @@ class MAVLink(object):
 
         """
         self.send(self.uavloc_rssi_batch_encode(time_usec, lat, lon, relative_alt, vx, vy, vz, slot_us, count, dt_ms, emitter_id, rssi_cdbm, n_samples), force_mavlink1=force_mavlink1)
+
+    def uavloc_rssi_batch2_encode(self, time_usec: int, lat: int, lon: int, relative_alt: int, vx: int, vy: int, vz: int, slot_us: int, count: int, dt_ms: Sequence[int], addr_lo: Sequence[int], rssi_cdbm: Sequence[int], n_frames: Sequence[int], addr_hi: Sequence[int] = (0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0), channel: Sequence[int] = (0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0), fingerprint: Sequence[int] = (0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0)) -> MAVLink_uavloc_rssi_batch2_message:
+        """
+        What a receiver heard from ground transmitters in consecutive time
+        slots, batched; the         successor of UAVLOC_RSSI_BATCH
+        (which ground stations keep decoding). Each entry is one
+        (slot,         source address) pair: the 802.11 source address
+        the frames came from, a fingerprint of their         content,
+        the channel, the number of frames heard and their mean RSSI.
+        The vehicle position is         given once at time_usec with
+        its velocity; the position of entry i is         position +
+        velocity * dt_ms[i] / 1000 (valid for the short batch windows
+        used, at most 255 ms).         A companion computer sends one
+        message when it has 12 entries or 200 ms after the first
+        entry.         The columns a receiver may not know (address
+        high bits, channel, fingerprint) are extension fields
+        so that they come last on the wire: when they are zero,
+        MAVLink 2's trimming of trailing zero         bytes drops them
+        and the message costs what UAVLOC_RSSI_BATCH costs.
+
+        time_usec                 : UNIX epoch time (GPS-synchronised) of the reference position. [us] (type:uint64_t)
+        lat                       : Vehicle latitude at time_usec (WGS84). [degE7] (type:int32_t)
+        lon                       : Vehicle longitude at time_usec (WGS84). [degE7] (type:int32_t)
+        relative_alt              : Vehicle altitude above home at time_usec. [mm] (type:int32_t)
+        vx                        : Ground speed, north. [cm/s] (type:int16_t)
+        vy                        : Ground speed, east. [cm/s] (type:int16_t)
+        vz                        : Ground speed, down. [cm/s] (type:int16_t)
+        slot_us                   : Duration of one time slot. [us] (type:uint16_t)
+        count                     : Number of valid entries (0-12); later array elements are ignored. (type:uint8_t)
+        dt_ms                     : Start of each entry's slot relative to time_usec. [ms] (type:uint8_t)
+        addr_lo                   : Low 32 bits of the 48-bit 802.11 source address (address 12:34:56:78:9a:bc: addr_hi 0x1234, addr_lo 0x56789abc). (type:uint32_t)
+        rssi_cdbm                 : Mean RSSI of the slot's frames in centi-dBm (mean of dBm values). [cdBm] (type:int16_t)
+        n_frames                  : Number of frames heard from the address in the slot (at least 1). (type:uint8_t)
+        addr_hi                   : High 16 bits of the 48-bit 802.11 source address (its first two octets). (type:uint16_t)
+        channel                   : 802.11 channel number the frames were heard on, 0 if unknown. (type:uint8_t)
+        fingerprint               : Hash of the frames' content (information elements) identifying the phone model, 0 if unknown. (type:uint32_t)
+
+        """
+        return MAVLink_uavloc_rssi_batch2_message(time_usec, lat, lon, relative_alt, vx, vy, vz, slot_us, count, dt_ms, addr_lo, rssi_cdbm, n_frames, addr_hi, channel, fingerprint)
+
+    def uavloc_rssi_batch2_send(self, time_usec: int, lat: int, lon: int, relative_alt: int, vx: int, vy: int, vz: int, slot_us: int, count: int, dt_ms: Sequence[int], addr_lo: Sequence[int], rssi_cdbm: Sequence[int], n_frames: Sequence[int], addr_hi: Sequence[int] = (0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0), channel: Sequence[int] = (0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0), fingerprint: Sequence[int] = (0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0), force_mavlink1: bool = False) -> None:
+        """
+        What a receiver heard from ground transmitters in consecutive time
+        slots, batched; the         successor of UAVLOC_RSSI_BATCH
+        (which ground stations keep decoding). Each entry is one
+        (slot,         source address) pair: the 802.11 source address
+        the frames came from, a fingerprint of their         content,
+        the channel, the number of frames heard and their mean RSSI.
+        The vehicle position is         given once at time_usec with
+        its velocity; the position of entry i is         position +
+        velocity * dt_ms[i] / 1000 (valid for the short batch windows
+        used, at most 255 ms).         A companion computer sends one
+        message when it has 12 entries or 200 ms after the first
+        entry.         The columns a receiver may not know (address
+        high bits, channel, fingerprint) are extension fields
+        so that they come last on the wire: when they are zero,
+        MAVLink 2's trimming of trailing zero         bytes drops them
+        and the message costs what UAVLOC_RSSI_BATCH costs.
+
+        time_usec                 : UNIX epoch time (GPS-synchronised) of the reference position. [us] (type:uint64_t)
+        lat                       : Vehicle latitude at time_usec (WGS84). [degE7] (type:int32_t)
+        lon                       : Vehicle longitude at time_usec (WGS84). [degE7] (type:int32_t)
+        relative_alt              : Vehicle altitude above home at time_usec. [mm] (type:int32_t)
+        vx                        : Ground speed, north. [cm/s] (type:int16_t)
+        vy                        : Ground speed, east. [cm/s] (type:int16_t)
+        vz                        : Ground speed, down. [cm/s] (type:int16_t)
+        slot_us                   : Duration of one time slot. [us] (type:uint16_t)
+        count                     : Number of valid entries (0-12); later array elements are ignored. (type:uint8_t)
+        dt_ms                     : Start of each entry's slot relative to time_usec. [ms] (type:uint8_t)
+        addr_lo                   : Low 32 bits of the 48-bit 802.11 source address (address 12:34:56:78:9a:bc: addr_hi 0x1234, addr_lo 0x56789abc). (type:uint32_t)
+        rssi_cdbm                 : Mean RSSI of the slot's frames in centi-dBm (mean of dBm values). [cdBm] (type:int16_t)
+        n_frames                  : Number of frames heard from the address in the slot (at least 1). (type:uint8_t)
+        addr_hi                   : High 16 bits of the 48-bit 802.11 source address (its first two octets). (type:uint16_t)
+        channel                   : 802.11 channel number the frames were heard on, 0 if unknown. (type:uint8_t)
+        fingerprint               : Hash of the frames' content (information elements) identifying the phone model, 0 if unknown. (type:uint32_t)
+
+        """
+        self.send(self.uavloc_rssi_batch2_encode(time_usec, lat, lon, relative_alt, vx, vy, vz, slot_us, count, dt_ms, addr_lo, rssi_cdbm, n_frames, addr_hi, channel, fingerprint), force_mavlink1=force_mavlink1)
 
     def sys_status_encode(self, onboard_control_sensors_present: int, onboard_control_sensors_enabled: int, onboard_control_sensors_health: int, load: int, voltage_battery: int, current_battery: int, battery_remaining: int, drop_rate_comm: int, errors_comm: int, errors_count1: int, errors_count2: int, errors_count3: int, errors_count4: int, onboard_control_sensors_present_extended: int = 0, onboard_control_sensors_enabled_extended: int = 0, onboard_control_sensors_health_extended: int = 0) -> MAVLink_sys_status_message:
         """

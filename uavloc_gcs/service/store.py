@@ -37,7 +37,8 @@ CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
 CREATE TABLE IF NOT EXISTS slots (
     t_s REAL NOT NULL, vehicle INTEGER NOT NULL, x_m REAL NOT NULL, y_m REAL NOT NULL,
     z_m REAL NOT NULL, emitter_id INTEGER NOT NULL, rssi_dbm REAL NOT NULL,
-    n_samples INTEGER NOT NULL);
+    n_samples INTEGER NOT NULL, address INTEGER, fingerprint INTEGER NOT NULL DEFAULT 0,
+    channel INTEGER NOT NULL DEFAULT 0);
 CREATE TABLE IF NOT EXISTS telemetry (
     t_s REAL NOT NULL, vehicle INTEGER NOT NULL, lat_deg REAL, lon_deg REAL, alt_m REAL,
     battery_pct REAL, mode TEXT, mission_seq INTEGER, lost INTEGER NOT NULL DEFAULT 0);
@@ -55,8 +56,18 @@ CREATE INDEX IF NOT EXISTS telemetry_vehicle ON telemetry (vehicle, t_s);
 CREATE INDEX IF NOT EXISTS missions_vehicle ON missions (vehicle, t_s);
 """
 
+# Columns added to ``slots`` after the first schema, with the definition ALTER TABLE adds them by:
+# a store written before them opens (and migrates) with address NULL (read as the emitter id),
+# fingerprint 0 and channel 0 (unknown).
+_SLOT_COLUMNS_ADDED = (
+    ("address", "INTEGER"),  # 48-bit 802.11 source address; NULL: the emitter id
+    ("fingerprint", "INTEGER NOT NULL DEFAULT 0"),  # content fingerprint, 0 unknown
+    ("channel", "INTEGER NOT NULL DEFAULT 0"),  # 802.11 channel, 0 unknown
+)
+
 _INSERT = {
-    "slots": "INSERT INTO slots VALUES (?,?,?,?,?,?,?,?)",
+    "slots": "INSERT INTO slots (t_s, vehicle, x_m, y_m, z_m, emitter_id, rssi_dbm, n_samples, address, "
+             "fingerprint, channel) VALUES (?,?,?,?,?,?,?,?,?,?,?)",
     "telemetry": "INSERT INTO telemetry VALUES (?,?,?,?,?,?,?,?,?)",
     "estimates": "INSERT INTO estimates VALUES (?,?,?,?,?,?,?,?,?,?,?)",
     "plans": "INSERT INTO plans VALUES (?,?)",
@@ -132,6 +143,7 @@ class Store:
             conn = sqlite3.connect(self.path)
             conn.execute("PRAGMA journal_mode=WAL")
             conn.executescript(_SCHEMA)
+            _migrate_slots(conn)
             conn.commit()
             conn.close()
         except sqlite3.DatabaseError as exc:
@@ -160,7 +172,8 @@ class Store:
         rows = list(zip(batch.t_s.tolist(), batch.vehicle.tolist(), batch.xyz_m[:, 0].tolist(),
                         batch.xyz_m[:, 1].tolist(), batch.xyz_m[:, 2].tolist(),
                         batch.emitter_id.tolist(), batch.rssi_dbm.tolist(),
-                        batch.n_samples.tolist()))
+                        batch.n_samples.tolist(), batch.address.tolist(), batch.fingerprint.tolist(),
+                        batch.channel.tolist()))
         self._put("slots", rows)
 
     def add_telemetry(self, rows: Iterable[TelemetryRow]) -> None:
@@ -259,6 +272,19 @@ class Store:
             conn.close()
 
 
+def _slot_columns(conn: sqlite3.Connection) -> set[str]:
+    return {row[1] for row in conn.execute("PRAGMA table_info(slots)")}
+
+
+def _migrate_slots(conn: sqlite3.Connection) -> None:
+    """Add the slot columns a store of an older schema lacks (see ``_SLOT_COLUMNS_ADDED``)."""
+    have = _slot_columns(conn)
+    for name, definition in _SLOT_COLUMNS_ADDED:
+        if name not in have:
+            conn.execute(f"ALTER TABLE slots ADD COLUMN {name} {definition}")
+            log.info("store: added the slots column %s", name)
+
+
 # ---------------------------------------------------------------------------------------------
 # Reading (resume after a restart, results)
 
@@ -285,14 +311,20 @@ class StoreReader:
         return {k: json.loads(v) for k, v in self._conn.execute("SELECT key, value FROM meta")}
 
     def slots(self) -> SlotBatch:
+        """Every slot in arrival order. A store of the older schema (read-only here, so not
+        migrated) reads with address = emitter id, fingerprint 0 and channel 0."""
+        have = _slot_columns(self._conn)
+        extra = [("COALESCE(address, emitter_id)" if name == "address" else name) if name in have
+                 else ("emitter_id" if name == "address" else "0") for name, _ in _SLOT_COLUMNS_ADDED]
         rows = self._conn.execute(
-            "SELECT t_s, vehicle, x_m, y_m, z_m, emitter_id, rssi_dbm, n_samples FROM slots ORDER BY rowid"
-        ).fetchall()
+            "SELECT t_s, x_m, y_m, z_m, rssi_dbm, vehicle, emitter_id, n_samples, " + ", ".join(extra)
+            + " FROM slots ORDER BY rowid").fetchall()
         if not rows:
             return SlotBatch.empty()
-        a = np.array(rows, dtype=float)
-        return SlotBatch.from_columns(a[:, 0], a[:, 1].astype(int), a[:, 2:5], a[:, 5].astype(np.int64),
-                                      a[:, 6], a[:, 7].astype(int))
+        real = np.array([r[:5] for r in rows], dtype=float)
+        ints = np.array([r[5:] for r in rows], dtype=np.int64)  # exact: addresses are 48 bits
+        return SlotBatch.from_columns(real[:, 0], ints[:, 0], real[:, 1:4], ints[:, 1], real[:, 4], ints[:, 2],
+                                      address=ints[:, 3], fingerprint=ints[:, 4], channel=ints[:, 5])
 
     def slot_count(self) -> int:
         return int(self._conn.execute("SELECT COUNT(*) FROM slots").fetchone()[0])

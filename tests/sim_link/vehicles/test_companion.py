@@ -11,6 +11,7 @@ import pytest
 from uavloc_gcs.dialect import mavlink as mav
 from uavloc_gcs.dialect.rssi import decode_rssi_batches
 from uavloc_gcs.errors import ConfigError
+from uavloc_gcs.observations import SlotBatch
 from uavloc_gcs.scenario import load_scenario
 from sim_link.vehicles.companion import CompanionEmulator
 from sim_link.vehicles.connection import parse_url
@@ -40,7 +41,7 @@ def test_companion_on_a_fake_autopilot_reaches_the_ground_station():
             await asyncio.sleep(1.2)  # 24 s of mission time: the climb to 100 m
             stop.set()
             await task
-            msgs = [m for m in gcs.log if m.get_type() == "UAVLOC_RSSI_BATCH"]
+            msgs = [m for m in gcs.log if m.get_type() == "UAVLOC_RSSI_BATCH2"]
             assert msgs and {(m.get_srcSystem(), m.get_srcComponent()) for m in msgs} == {(1, 191)}
             assert comp.sysid == 1 and comp.stats.messages >= len(msgs) > 20
             slots = decode_rssi_batches(msgs, SC.frame, epoch_unix_s=fleet.epoch_unix_s)
@@ -48,6 +49,9 @@ def test_companion_on_a_fake_autopilot_reaches_the_ground_station():
             assert np.abs(slots.xyz_m[:, :2]).max() < 1.0
             assert slots.xyz_m[:, 2].min() >= 0.5 and slots.xyz_m[:, 2].max() <= 100.5
             assert set(slots.emitter_id.tolist()) == set(world.emitter_ids[:2].tolist())  # not the far one
+            # the paper's world gives no sensor columns: address = emitter id, the rest unknown
+            assert np.array_equal(slots.address, slots.emitter_id)
+            assert not slots.fingerprint.any() and not slots.channel.any()
             assert slots.t_s.max() <= fleet.now_s()
             # consistent with the channel model at the true distances
             xy = world.positions(slots.t_s)[np.arange(len(slots)), [world.index_of(e) for e in slots.emitter_id]]
@@ -98,7 +102,7 @@ def test_companion_over_tcp_uses_the_autopilot_clock_and_track():
         return comp
 
     comp = asyncio.run(main())
-    msgs = [m for m in received if m.get_type() == "UAVLOC_RSSI_BATCH"]
+    msgs = [m for m in received if m.get_type() == "UAVLOC_RSSI_BATCH2"]
     assert {(m.get_srcSystem(), m.get_srcComponent()) for m in received} == {(7, 191)}
     assert any(m.get_type() == "HEARTBEAT" and m.type == mav.MAV_TYPE_ONBOARD_CONTROLLER for m in received)
     slots = decode_rssi_batches(msgs, SC.frame, epoch_unix_s=epoch_us / 1e6)
@@ -108,6 +112,73 @@ def test_companion_over_tcp_uses_the_autopilot_clock_and_track():
     np.testing.assert_allclose(slots.xyz_m[:, 0], 20.0 * (slots.t_s - 10.0), atol=0.05)
     np.testing.assert_allclose(slots.xyz_m[:, 1:], np.tile([80.0, 100.0], (len(slots), 1)), atol=0.05)
     np.testing.assert_allclose(np.diff(np.unique(slots.t_s)), SC.channel.slot_s, atol=1e-3)
+
+
+class _SensorWorld:
+    """The world as a Wi-Fi sensor hears it: every heard slot under a 48-bit address (high and
+    locally administered bits set) changing every 2 s, a 32-bit fingerprint per person, a channel."""
+
+    def __init__(self, world):
+        self.world = world
+        self.sent: list[SlotBatch] = []
+
+    def hear_track(self, vehicle, t_s, xyz_m) -> SlotBatch:
+        b = self.world.hear_track(vehicle, t_s, xyz_m)
+        person = np.array([self.world.index_of(e) for e in b.emitter_id], dtype=np.int64)
+        address = 0xDA0000000000 + (person << 20) + np.floor(b.t_s / 2.0).astype(np.int64)
+        out = SlotBatch.from_columns(b.t_s, b.vehicle, b.xyz_m, address, b.rssi_dbm, b.n_samples, address=address,
+                                     fingerprint=0xFEDC0000 + person, channel=np.array([1, 6, 11])[person % 3])
+        self.sent.append(out)
+        return out
+
+
+def test_companion_sends_the_address_fingerprint_and_channel_the_world_gives():
+    world = World.with_people(SC, [[200.0, 80.0], [260.0, 60.0]], seed=2)
+    sensor = _SensorWorld(world)
+    epoch_us = 1_800_000_000_000_000
+    received: list = []
+
+    async def autopilot(reader, writer):
+        ap = mav.MAVLink(None, srcSystem=7, srcComponent=1)
+        rx = mav.MAVLink(None)
+        rx.robust_parsing = True
+
+        async def read():
+            while data := await reader.read(4096):
+                received.extend(m for m in rx.parse_buffer(data) or [] if m.get_type() != "BAD_DATA")
+
+        reader_task = asyncio.create_task(read())
+        writer.write(ap.heartbeat_encode(mav.MAV_TYPE_QUADROTOR, mav.MAV_AUTOPILOT_ARDUPILOTMEGA, 0, 0, 4).pack(ap))
+        writer.write(ap.system_time_encode(epoch_us, 0).pack(ap))
+        for k in range(40):  # 8 s along y = 80 m at 20 m/s, 100 m up, at 5 Hz
+            lat, lon = SC.frame.to_wgs84(20.0 * k * 0.2 + 100.0, 80.0)
+            writer.write(ap.global_position_int_encode(200 * k, int(round(lat * 1e7)), int(round(lon * 1e7)),
+                                                       100000, 100000, 0, 2000, 0, 9000).pack(ap))
+            await writer.drain()
+            await asyncio.sleep(0.002)
+        await asyncio.sleep(0.2)
+        writer.close()
+        reader_task.cancel()
+
+    async def main():
+        server = await asyncio.start_server(autopilot, "127.0.0.1", 0)
+        port = server.sockets[0].getsockname()[1]
+        comp = CompanionEmulator(SC, f"tcp:127.0.0.1:{port}", world=sensor, epoch_unix_s=epoch_us / 1e6)
+        await asyncio.wait_for(comp.run(), 10)
+        server.close()
+
+    asyncio.run(main())
+    msgs = [m for m in received if m.get_type() == "UAVLOC_RSSI_BATCH2"]
+    assert msgs and not [m for m in received if m.get_type() == "UAVLOC_RSSI_BATCH"]
+    got = decode_rssi_batches(msgs, SC.frame, epoch_unix_s=epoch_us / 1e6).sorted_by_time()
+    sent = SlotBatch.concat(sensor.sent).sorted_by_time()
+    assert len(sent) - 12 < len(got) <= len(sent) and len(got) > 100  # the last batch may be unsent at the end
+    sent = sent.take(np.arange(len(got)))
+    for col in ("address", "fingerprint", "channel", "n_samples"):
+        np.testing.assert_array_equal(getattr(got, col), getattr(sent, col), err_msg=col)
+    assert np.array_equal(got.emitter_id, got.address) and (got.address >> 40).min() == 0xDA
+    assert len(np.unique(got.address)) >= 6  # the addresses changed along the pass
+    np.testing.assert_allclose(got.rssi_dbm, sent.rssi_dbm, atol=0.005)
 
 
 def test_connection_strings():
@@ -142,7 +213,7 @@ def test_cli_companion_against_a_fake_autopilot():
             lat, lon = sc.frame.to_wgs84(560.0, 320.0)  # the middle of the area: people around
             c.send(mav.MAVLink_set_position_target_global_int_message(
                 0, 1, 1, 6, 0b110111111000, int(lat * 1e7), int(lon * 1e7), 100.0, 0, 0, 0, 0, 0, 0, 0, 0))
-            m = await c.recv("UAVLOC_RSSI_BATCH", timeout=15)
+            m = await c.recv("UAVLOC_RSSI_BATCH2", timeout=15)
             c.close()
             return m
 
@@ -197,8 +268,8 @@ def test_companion_sends_rssi_beside_the_autopilot_when_given_its_own_connection
             await task
             gcs.close()
         transport.close()
-        beside = [m for m in sink.msgs if m.get_type() == "UAVLOC_RSSI_BATCH"]
-        through = [m for m in gcs.log if m.get_type() == "UAVLOC_RSSI_BATCH"]
+        beside = [m for m in sink.msgs if m.get_type() == "UAVLOC_RSSI_BATCH2"]
+        through = [m for m in gcs.log if m.get_type() == "UAVLOC_RSSI_BATCH2"]
         assert len(beside) > 20 and not through
         assert {(m.get_srcSystem(), m.get_srcComponent()) for m in beside} == {(1, 191)}
         assert any(m.get_type() == "HEARTBEAT" for m in sink.msgs)

@@ -38,3 +38,27 @@ def test_dumps_then_loads_round_trip(rows):
     assert np.allclose(back.rssi_dbm, s.rssi_dbm, atol=5e-3)
     assert np.allclose(back.xyz_m[:, :2], s.xyz_m[:, :2], atol=2e-3)  # 1e-8 degrees ~ 1 mm
     assert np.allclose(back.xyz_m[:, 2], s.xyz_m[:, 2], atol=5e-3)
+
+
+sensor_row = st.tuples(
+    st.floats(0, 1e5, allow_nan=False), st.integers(0, 255),
+    st.floats(-5000, 5000), st.floats(-5000, 5000), st.floats(0, 500),
+    st.integers(0, 2**48 - 1),  # address (= emitter id, as a sensor reports it)
+    st.floats(-130, 0), st.integers(1, 255),
+    st.integers(0, 2**32 - 1),  # fingerprint
+    st.integers(0, 255),  # channel
+)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(sensor_row, min_size=1, max_size=30))
+def test_sensor_columns_round_trip(rows):
+    a = np.array(rows, dtype=object)
+    address = a[:, 5].astype(np.int64)
+    slots = SlotBatch.from_columns(a[:, 0].astype(float), a[:, 1].astype(int), a[:, 2:5].astype(float), address,
+                                   a[:, 6].astype(float), a[:, 7].astype(int), address=address,
+                                   fingerprint=a[:, 8].astype(np.int64), channel=a[:, 9].astype(int))
+    back = loads_slots_csv(dumps_slots_csv(slots, FRAME), FRAME)
+    s = slots.sorted_by_time()
+    for col in ("emitter_id", "address", "fingerprint", "channel", "n_samples", "vehicle"):
+        assert np.array_equal(getattr(back, col), getattr(s, col)), col

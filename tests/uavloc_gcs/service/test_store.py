@@ -51,6 +51,62 @@ def test_round_trip_of_every_table(tmp_path):
         assert rd.meta() == {"scenario": {"name": "paper"}}
 
 
+def test_slots_keep_address_fingerprint_and_channel(tmp_path):
+    path = tmp_path / "run.sqlite"
+    b = _batch(6)
+    address = np.array([0xFFFFFFFFFFFF, 0x020000000001, 0xDA0000000000, 5, 6, 2**47 + 3])
+    sensor = SlotBatch.from_columns(b.t_s, b.vehicle, b.xyz_m, address, b.rssi_dbm, b.n_samples, address=address,
+                                    fingerprint=[2**32 - 1, 0, 7, 7, 8, 9], channel=[1, 6, 11, 0, 165, 1])
+    with Store(path) as st:
+        st.add_slots(sensor)
+        st.add_slots(b)  # defaults: address = emitter id, fingerprint 0, channel 0
+    with StoreReader(path) as rd:
+        got = rd.slots()
+    want = SlotBatch.concat([sensor, b])
+    for col in ("emitter_id", "address", "fingerprint", "channel", "n_samples", "vehicle"):
+        np.testing.assert_array_equal(getattr(got, col), getattr(want, col), err_msg=col)
+    assert got.address.dtype == np.int64
+
+
+_OLD_SCHEMA = """
+CREATE TABLE meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
+CREATE TABLE slots (
+    t_s REAL NOT NULL, vehicle INTEGER NOT NULL, x_m REAL NOT NULL, y_m REAL NOT NULL,
+    z_m REAL NOT NULL, emitter_id INTEGER NOT NULL, rssi_dbm REAL NOT NULL,
+    n_samples INTEGER NOT NULL);
+INSERT INTO slots VALUES (1.5, 2, 10.0, 20.0, 100.0, 4000000000, -75.5, 10);
+INSERT INTO slots VALUES (1.525, 2, 11.0, 20.0, 100.0, 17, -80.0, 3);
+"""
+
+
+def _old_store(path):
+    import sqlite3
+
+    conn = sqlite3.connect(path)
+    conn.executescript(_OLD_SCHEMA)
+    conn.commit()
+    conn.close()
+
+
+def test_a_store_of_the_old_schema_reads_and_migrates(tmp_path):
+    path = tmp_path / "old.sqlite"
+    _old_store(path)
+    with StoreReader(path) as rd:  # read-only: not migrated, defaults read
+        got = rd.slots()
+        assert got.emitter_id.tolist() == [4000000000, 17] and got.address.tolist() == [4000000000, 17]
+        assert got.fingerprint.tolist() == [0, 0] and got.channel.tolist() == [0, 0]
+        assert got.n_samples.tolist() == [10, 3] and got.vehicle.tolist() == [2, 2]
+    with Store(path) as st:  # the daemon resuming on it: columns added, old rows kept
+        st.add_slots(SlotBatch.from_columns([2.0], [2], [[0, 0, 100]], [0xDA0000000001], [-70.0], [4],
+                                            fingerprint=[99], channel=[6]))
+    with StoreReader(path) as rd:
+        got = rd.slots()
+        assert got.address.tolist() == [4000000000, 17, 0xDA0000000001]
+        assert got.emitter_id.tolist() == [4000000000, 17, 0xDA0000000001]
+        assert got.fingerprint.tolist() == [0, 0, 99] and got.channel.tolist() == [0, 0, 6]
+        assert rd.slot_count() == 3
+
+
 def test_commits_within_the_bounded_delay_without_close(tmp_path):
     path = tmp_path / "run.sqlite"
     st = Store(path, commit_interval_s=0.05)

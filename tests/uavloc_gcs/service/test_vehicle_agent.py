@@ -20,7 +20,7 @@ class _Link:
 
     def feed(self, msg):
         for types, _, cb in self.callbacks:
-            if types is None or msg.get_type() == types:
+            if types is None or msg.get_type() in ((types,) if isinstance(types, str) else types):
                 cb(msg)
 
 
@@ -95,3 +95,34 @@ def test_a_vehicle_the_autopilot_says_landed_and_disarmed_is_on_the_ground_at_an
     link.feed(armed)
     link.feed(mav.MAVLink_global_position_int_message(374404, 426250008, 132829885, 899947, 2201, 800, 0, 3, 0))
     assert not a.on_ground()  # armed and moving: the altitude rule decides, as before
+
+
+def test_rssi_of_both_message_versions_arrives_with_its_sensor_columns_on_either_path():
+    """UAVLOC_RSSI_BATCH2 (address, fingerprint, channel) and the old UAVLOC_RSSI_BATCH, through
+    the autopilot's link and on a connection beside it."""
+    import numpy as np
+
+    from uavloc_gcs.dialect.rssi import BATCH, BATCH2, encode_rssi_batches
+    from uavloc_gcs.observations import SlotBatch
+
+    frame = LocalFrame(42.625, 13.283)
+    link, beside, got = _Link(), _Link(), []
+    a = VehicleAgent(1, link, frame, autopilot="px4", epoch_unix_s=lambda: 1.8e9, on_slots=got.append,
+                     wall=lambda: 0.0)
+    a.attach_rssi(beside)
+    address = np.array([0xDA0102030405, 0xFFFFFFFFFFFF])
+    sensor = SlotBatch.from_columns([1.0, 1.025], [1, 1], [[0, 0, 100], [0.5, 0, 100]], address, [-70.0, -80.0],
+                                    [3, 1], address=address, fingerprint=[0xDEADBEEF, 5], channel=[6, 11])
+    tx = mav.MAVLink(None, srcSystem=1, srcComponent=191)
+    rx = mav.MAVLink(None)
+    for path, kind in ((link, BATCH2), (beside, BATCH2), (link, BATCH)):
+        slots = sensor if kind == BATCH2 else SlotBatch.from_columns([2.0], [1], [[0, 0, 100]], [7], [-75.0], [10])
+        for m in encode_rssi_batches(slots, frame, epoch_unix_s=1.8e9, message=kind):
+            (msg,) = rx.parse_buffer(m.pack(tx))
+            path.feed(msg)
+    assert a.rssi_messages == 3 and len(got) == 3
+    for b in got[:2]:
+        assert b.address.tolist() == address.tolist() and b.emitter_id.tolist() == address.tolist()
+        assert b.fingerprint.tolist() == [0xDEADBEEF, 5] and b.channel.tolist() == [6, 11]
+        assert b.n_samples.tolist() == [3, 1]
+    assert got[2].address.tolist() == [7] and got[2].fingerprint.tolist() == [0] and got[2].channel.tolist() == [0]
