@@ -12,12 +12,13 @@ from __future__ import annotations
 import logging
 import math
 import time
+from collections import deque
 from dataclasses import dataclass
 from typing import Callable, Sequence
 
 from ..dialect import RSSI_MESSAGE_TYPES, mavlink
 from ..dialect.rssi import decode_rssi_batch
-from ..link import (download_mission, flavour_named, return_home, start_mission_from, switch_mission,
+from ..link import (disarm, download_mission, flavour_named, return_home, start_mission_from, switch_mission,
                     upload_mission)
 from ..geo import LocalFrame
 from ..mission import WireItem
@@ -78,6 +79,7 @@ class VehicleAgent:
         self.upload_opaque_id = 0  # the plan id of our last upload's MISSION_ACK (0: not given)
         self._acked_wall_s: float | None = None  # when our last upload was acknowledged
         self._time_anchor: tuple[float, int] | None = None  # (unix s, time_boot_ms) of the first SYSTEM_TIME
+        self.texts: deque[tuple[float, str]] = deque(maxlen=20)  # (daemon wall s, STATUSTEXT), newest last
         self._sub = link.subscribe(None, source_system=vehicle, callback=self._on_message)
         self._rssi_subs: list = []
 
@@ -136,8 +138,11 @@ class VehicleAgent:
                 if self._time_anchor is None or msg.time_boot_ms < self._time_anchor[1]:  # first, or rebooted
                     self._time_anchor = (msg.time_unix_usec / 1e6, int(msg.time_boot_ms))
                 self._clock(int(msg.time_boot_ms))
-        elif kind == "STATUSTEXT" and self._on_status_text is not None:
-            self._on_status_text(self.vehicle, str(msg.text).rstrip("\x00"))
+        elif kind == "STATUSTEXT":
+            text = str(msg.text).rstrip("\x00")
+            self.texts.append((t.wall_s, text))
+            if self._on_status_text is not None:
+                self._on_status_text(self.vehicle, text)
 
     def _rssi(self, msg) -> None:
         epoch = self._epoch()
@@ -219,21 +224,30 @@ class VehicleAgent:
     async def download(self) -> list[WireItem]:
         return list(await download_mission(self.link, self.vehicle, 1))
 
-    async def start(self, first_seq: int | None = None) -> None:
+    async def start(self, first_seq: int | None = None, *, before_start: Callable[[], None] | None = None) -> None:
         """Arm on the ground (waiting until the vehicle is ready; the error names its own reason)
         and fly the uploaded mission from ``first_seq`` (default: its first item, the takeoff).
-        The per-autopilot sequence is the link layer's (link/mission_control.py)."""
+        The per-autopilot sequence is the link layer's (link/mission_control.py); ``before_start()``
+        is called right before arming and before every MISSION_START, and may raise."""
         first = self.flavour.first_mission_seq if first_seq is None else max(first_seq, self.flavour.first_mission_seq)
         await start_mission_from(self.link, self.vehicle, 1, self.flavour, first, armed=self.tel.armed,
-                                 mode=self.tel.mode)
+                                 mode=self.tel.mode, before_start=before_start)
 
-    async def switch_to(self, first_seq: int, *, on_ground: bool) -> None:
-        """Fly the just-uploaded mission from item ``first_seq`` (taking off when on the ground)."""
-        if on_ground:
-            await self.start(first_seq)
+    async def switch_to(self, first_seq: int, *, before_start: Callable[[], None] | None = None,
+                        on_ground: bool | None = None) -> None:
+        """Fly the just-uploaded mission from item ``first_seq``: started (armed, taking off) when
+        the vehicle is on the ground and disarmed now, switched to in flight otherwise.
+        ``on_ground`` is ignored (kept for old callers): whether it is on the ground is read here,
+        when the switch begins, never taken from before an upload (issue 26)."""
+        if self.on_ground() and not self.tel.armed:
+            await self.start(first_seq, before_start=before_start)
             return
-        await switch_mission(self.link, self.vehicle, 1, self.flavour, first_seq,
-                             in_mission_mode=self.in_mission_mode, mission_state=self.tel.mission_state)
+        await switch_mission(self.link, self.vehicle, 1, self.flavour, first_seq, in_mission_mode=self.in_mission_mode,
+                             mission_state=self.tel.mission_state, before_start=before_start)
+
+    async def disarm(self) -> None:
+        """Disarm (not forced: an autopilot refuses it in the air)."""
+        await disarm(self.link, self.vehicle, 1)
 
     async def return_home(self) -> None:
         await return_home(self.link, self.vehicle, 1)
