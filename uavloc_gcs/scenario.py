@@ -125,9 +125,9 @@ class EmissionSpec:
     [``burst_gap_median_min_s``, ``burst_gap_median_max_s``] and its 90th percentile in
     [``burst_gap_p90_min_s``, ``burst_gap_p90_max_s``] (a log-normal gap distribution per phone);
     a gap is replaced by a silence of ``long_silence_min_s``..``long_silence_max_s`` with probability
-    ``long_silence_per_gap``; a burst lasts ``burst_duration_min_s``..``burst_duration_max_s`` and
-    carries a per-phone median of ``frames_per_burst_median_min``..``frames_per_burst_median_max``
-    frames, at most ``frames_per_burst_max``.
+    ``long_silence_per_gap``; a burst carries a per-phone median of
+    ``frames_per_burst_median_min``..``frames_per_burst_median_max`` frames, at most
+    ``frames_per_burst_max``, ``frame_spacing_s`` apart.
     """
 
     model: Literal["continuous", "probe-bursts"] = "continuous"
@@ -137,14 +137,13 @@ class EmissionSpec:
     burst_gap_median_max_s: float = 135.0
     burst_gap_p90_min_s: float = 60.0
     burst_gap_p90_max_s: float = 270.0
-    long_silence_per_gap: float = 0.002
+    long_silence_per_gap: float = 0.0094
     long_silence_min_s: float = 1800.0
     long_silence_max_s: float = 5400.0
     frames_per_burst_median_min: int = 4
-    frames_per_burst_median_max: int = 40
+    frames_per_burst_median_max: int = 27
     frames_per_burst_max: int = 80
-    burst_duration_min_s: float = 1.0
-    burst_duration_max_s: float = 2.0
+    frame_spacing_s: float = 0.040
 
 
 @dataclass(frozen=True)
@@ -505,13 +504,12 @@ def _check_emission(sc: Scenario) -> None:
     _check(em.elicitation_rate_hz <= 1000, f"{em.elicitation_rate_hz} Hz is more than any phone answers "
            "(at most 1000)", sc, "emission.elicitation_rate_hz")
     for key in ("burst_gap_median_min_s", "burst_gap_median_max_s", "burst_gap_p90_min_s", "burst_gap_p90_max_s",
-                "long_silence_min_s", "long_silence_max_s", "burst_duration_min_s", "burst_duration_max_s"):
+                "long_silence_min_s", "long_silence_max_s", "frame_spacing_s"):
         value = getattr(em, key)
         _check(value > 0, f"must be positive, got {value} s", sc, f"emission.{key}")
     for low, high in (("burst_gap_median_min_s", "burst_gap_median_max_s"),
                       ("burst_gap_p90_min_s", "burst_gap_p90_max_s"),
                       ("long_silence_min_s", "long_silence_max_s"),
-                      ("burst_duration_min_s", "burst_duration_max_s"),
                       ("frames_per_burst_median_min", "frames_per_burst_median_max"),
                       ("frames_per_burst_median_max", "frames_per_burst_max")):
         _check(getattr(em, low) <= getattr(em, high),
@@ -521,9 +519,10 @@ def _check_emission(sc: Scenario) -> None:
         _check(getattr(em, p90) > getattr(em, med),
                f"a 90th percentile of {getattr(em, p90)} s must exceed the median emission.{med} = "
                f"{getattr(em, med)} s", sc, f"emission.{p90}")
-    _check(em.burst_duration_max_s < em.burst_gap_median_min_s,
-           f"bursts of {em.burst_duration_max_s} s would overlap gaps of {em.burst_gap_median_min_s} s "
-           "(emission.burst_gap_median_min_s)", sc, "emission.burst_duration_max_s")
+    longest = em.frames_per_burst_max * em.frame_spacing_s
+    _check(longest < em.burst_gap_median_min_s,
+           f"bursts of up to {longest:g} s (frames_per_burst_max x frame_spacing_s) would overlap gaps of "
+           f"{em.burst_gap_median_min_s} s (emission.burst_gap_median_min_s)", sc, "emission.frame_spacing_s")
     _check(0.0 <= em.long_silence_per_gap < 1.0, f"must be in [0, 1), got {em.long_silence_per_gap}", sc,
            "emission.long_silence_per_gap")
     _check(em.frames_per_burst_median_min >= 1, f"must be at least 1, got {em.frames_per_burst_median_min}",

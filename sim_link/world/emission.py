@@ -11,29 +11,33 @@
   regular ones); with probability :data:`LONG_SILENCE_PER_GAP` a gap is a long silence, log-uniform
   in [:data:`LONG_SILENCE_MIN_S`, :data:`LONG_SILENCE_MAX_S`]. Gaps are at least the longest burst
   plus :data:`MIN_QUIET_S`, so bursts never overlap;
-- a burst lasts U(:data:`BURST_DURATION_MIN_S`, :data:`BURST_DURATION_MAX_S`) and carries
-  n = round(m exp(:data:`FRAMES_LOG_SIGMA` z)) frames, clipped to [1, :data:`FRAMES_PER_BURST_MAX`],
-  where the phone's median m is log-uniform in [:data:`FRAMES_MEDIAN_MIN`, :data:`FRAMES_MEDIAN_MAX`];
-  frame times are uniform in the burst, channels drawn from :data:`CHANNEL_WEIGHTS` and sent in
-  ascending order (a channel sweep);
+- a burst carries n = round(m exp(:data:`FRAMES_LOG_SIGMA` z)) frames, clipped to
+  [1, :data:`FRAMES_PER_BURST_MAX`], where the phone's median m is log-uniform in
+  [:data:`FRAMES_MEDIAN_MIN`, :data:`FRAMES_MEDIAN_MAX`]; it lasts n x :data:`FRAME_SPACING_S`, frame
+  times uniform within; each frame reaches one of the receiver's radios on 1, 6 or 11 with the
+  shares :data:`CHANNEL_WEIGHTS` (channels ascending over the burst, a sweep);
 - identity: each phone's model is drawn from :data:`CATALOGUE` by population share. The content
-  fingerprint is a hash of the model (same-model phones collide). A randomizing model (iOS 14+,
-  Android 10+ when not associated) uses a new random, locally administered unicast address for
-  every burst and restarts its 802.11 sequence number at 0 with it; the others keep one address
-  and a running sequence number;
+  fingerprint is a hash of the model (same-model phones collide). A randomizing model uses a new
+  random, locally administered unicast address for every burst -- recent iPhones for every
+  ``frames_per_address`` frames, i.e. several per burst -- and restarts its 802.11 sequence number
+  at 0 with each; the others keep one address and a running sequence number;
 - an elicited frame (an on-board access point that imitates a known network) is sent under the
   phone's per-network address: phones bind one random address to each saved network.
 
-Sources and fit (docs/readme/world.md has the full story): the gap figures are the per-phone medians
-(20-135 s) and 90th percentiles (60-270 s) measured on public labelled captures of 11 phones
-(iOS 15-16, Android 13; Realtek monitor-mode dongles on channels 1/6/11) as reported in uavloc
-issue 24 and SPEC 1.1. The captures themselves were not downloaded here, so the constants below
-reproduce those published per-phone figures (both ends of both ranges exactly), not a fit to raw
-frames. The frames per burst ("a few to ~80 within 1-2 s") and the 85-minute silence of one phone
-are from the same report. Public labelled probe-request datasets of this kind: the single-device
-captures on channels 1/6/11 made with github.com/luciapintor/WiFi-Sniffer; Simončič et al.,
-Sensors 23(5) 2588, 2023 (Zenodo 7503594). The catalogue's population shares, the channel weights
-and the long-silence range are assumptions, stated as such.
+Sources and fit (docs/readme/world.md has the tables):
+
+- within a burst (frames, spacing, channels, addresses per burst) and the rate of long silences:
+  fitted with ``python -m sim_link.world.calibrate`` to the labelled per-device captures of 11 phones
+  (Pixel 3A, Galaxy M31/S7/S21 Ultra/J6, Redmi Note 9S, Honor 9, iPhone 6/XR/11/12) captured on
+  channels 1/6/11, as published in the Politecnico di Milano MAC de-randomization lab datasets
+  (github.com/amanzargari/Network-Measurement-Lab-MAC_De-randomization, Data/). No data ships.
+- the gaps between bursts: the per-phone medians 20-135 s and 90th percentiles 60-270 s of 11 modern
+  phones (iOS 15-16, Android 13) that SPEC 1.1 and uavloc issue 24 report -- those captures were not
+  available here, so the constants reproduce the published per-phone figures (both ends of both
+  ranges exactly), not raw frames. The lab captures above, with older phones and unknown screen
+  states, spread wider (medians 8-270 s, p90 78-738 s); a scenario can set those instead.
+- assumptions, stated as such: the catalogue's population shares; long silences up to 90 min (the
+  lab captures' longest is 48 min, SPEC 1.1 reports one of 85 min).
 
 Everything is drawn from per-phone random streams in fixed chunks of :data:`CHUNK_BURSTS` bursts,
 so a phone's bursts do not depend on when or how often the world is asked about them.
@@ -46,28 +50,25 @@ from dataclasses import dataclass
 
 import numpy as np
 
-# -- fitted to the published per-phone figures (uavloc issue 24; see the module docstring) ----
+# -- gaps: fitted to the published per-phone figures (SPEC 1.1, issue 24; module docstring) --
 GAP_MEDIAN_MIN_S = 20.0  # the most frequent prober's median gap between bursts
 GAP_MEDIAN_MAX_S = 135.0  # the least frequent prober's median gap
 GAP_P90_MIN_S = 60.0  # 90th percentile of the gap, most frequent prober
 GAP_P90_MAX_S = 270.0  # 90th percentile, least frequent prober
-LONG_SILENCE_PER_GAP = 0.002  # one phone in 11 silent for 85 min over ~500 observed gaps
+# -- fitted to the lab captures with ``python -m sim_link.world.calibrate`` (module docstring) --
+LONG_SILENCE_PER_GAP = 0.0094  # 6 gaps of 30-48 min among 641 within-session gaps
 LONG_SILENCE_MIN_S = 1800.0
-LONG_SILENCE_MAX_S = 5400.0  # the 85-minute silence lies inside
-FRAMES_MEDIAN_MIN = 4  # "a few ..."
-FRAMES_MEDIAN_MAX = 40
-FRAMES_PER_BURST_MAX = 80  # "... to ~80 frames"
-FRAMES_LOG_SIGMA = 0.5  # burst-to-burst spread of one phone's frame count (assumption)
-BURST_DURATION_MIN_S = 1.0  # "within ~1-2 s"
-BURST_DURATION_MAX_S = 2.0
+LONG_SILENCE_MAX_S = 5400.0  # assumption: SPEC 1.1's 85-minute silence lies inside
+FRAMES_MEDIAN_MIN = 4  # per-phone median frames per burst: 4 (iPhone XR) ...
+FRAMES_MEDIAN_MAX = 27  # ... to 27 (Galaxy J6)
+FRAMES_PER_BURST_MAX = 80  # SPEC 1.1's "~80"; the captures' largest burst had 71
+FRAMES_LOG_SIGMA = 0.41  # burst-to-burst spread of one phone's frame count (median over phones)
+FRAME_SPACING_S = 0.040  # median time between frames of a burst (per phone 25-97 ms)
 MIN_QUIET_S = 1.0  # shortest quiet time between the end of one burst and the next
+# Share of frames heard by the sniffer on 1, 6 and 11 (adjacent channels leak into them).
+CHANNEL_WEIGHTS = {1: 0.349, 6: 0.254, 11: 0.398}
 # z of the 90th percentile of a standard normal
 _Z90 = 1.2815515655446004
-
-# -- assumptions (not measured): channels and the phone population ---------------------------
-# A phone's scan sweeps the 2.4 GHz channels; partial scans favour 1/6/11 where networks were seen.
-# 60 % of frames go out on 1, 6 or 11 (20 % each), 4 % on each of the ten others.
-CHANNEL_WEIGHTS = {c: (0.2 if c in (1, 6, 11) else 0.04) for c in range(1, 14)}
 
 
 @dataclass(frozen=True)
@@ -76,7 +77,8 @@ class PhoneModel:
 
     name: str
     share: float
-    randomizes: bool  # a new random address for every burst
+    randomizes: bool  # random, locally administered addresses
+    frames_per_address: int = 0  # a new address every this many frames; 0: one per burst
 
     @property
     def fingerprint(self) -> int:
@@ -85,12 +87,14 @@ class PhoneModel:
         return h or 1
 
 
-# Shares are a plausible 2025 handset mix (assumption); randomizing = iOS 14+, Android 10+.
+# Shares are a plausible current handset mix (assumption). Address behaviour from the lab
+# captures: iPhone 11/12 change address every 1-2 frames (one per channel visit, two copies each),
+# iPhone 6/XR and the Androids once per burst; SPEC 1.1: one iPhone used 465 addresses in 53 min.
 CATALOGUE = (
-    PhoneModel("Apple iPhone 11, iOS 16", 0.12, True),
-    PhoneModel("Apple iPhone 12, iOS 16", 0.12, True),
-    PhoneModel("Apple iPhone 13, iOS 17", 0.12, True),
-    PhoneModel("Apple iPhone 14, iOS 17", 0.10, True),
+    PhoneModel("Apple iPhone 11, iOS 16", 0.12, True, 2),
+    PhoneModel("Apple iPhone 12, iOS 16", 0.12, True, 2),
+    PhoneModel("Apple iPhone 13, iOS 17", 0.12, True, 2),
+    PhoneModel("Apple iPhone 14, iOS 17", 0.10, True, 2),
     PhoneModel("Samsung Galaxy S21, Android 13", 0.10, True),
     PhoneModel("Samsung Galaxy A52, Android 13", 0.10, True),
     PhoneModel("Oppo A74, Android 13", 0.06, True),
@@ -121,8 +125,7 @@ class BurstParams:
     frames_median_min: int = FRAMES_MEDIAN_MIN
     frames_median_max: int = FRAMES_MEDIAN_MAX
     frames_max: int = FRAMES_PER_BURST_MAX
-    duration_min_s: float = BURST_DURATION_MIN_S
-    duration_max_s: float = BURST_DURATION_MAX_S
+    frame_spacing_s: float = FRAME_SPACING_S
 
     @staticmethod
     def from_scenario(sc) -> "BurstParams":
@@ -131,7 +134,7 @@ class BurstParams:
             em.burst_gap_median_min_s, em.burst_gap_median_max_s, em.burst_gap_p90_min_s, em.burst_gap_p90_max_s,
             em.long_silence_per_gap, em.long_silence_min_s, em.long_silence_max_s,
             em.frames_per_burst_median_min, em.frames_per_burst_median_max, em.frames_per_burst_max,
-            em.burst_duration_min_s, em.burst_duration_max_s,
+            em.frame_spacing_s,
         )
 
     def gap_quantiles_s(self, u) -> tuple[np.ndarray, np.ndarray]:
@@ -196,6 +199,7 @@ class ProbeBursts:
         lo, hi = np.log(params.frames_median_min), np.log(params.frames_median_max)
         self.frames_median = np.exp(traits_rng.uniform(lo, hi, size=n))
         self.randomizes = np.array([CATALOGUE[k].randomizes for k in self.model], dtype=bool)
+        self.frames_per_address = np.array([CATALOGUE[k].frames_per_address for k in self.model], dtype=int)
         self.fingerprint = np.array([CATALOGUE[k].fingerprint for k in self.model], dtype=np.int64)
         # a global (vendor) address for non-randomizing phones: universally administered, unicast
         glob = traits_rng.integers(0, 1 << 48, size=n, dtype=np.int64) & ~np.int64(_LOCAL_BIT | _MULTICAST_BIT)
@@ -238,7 +242,7 @@ class ProbeBursts:
         gaps = np.exp(np.log(self.gap_median_s[i]) + self.gap_log_sigma[i] * rng.standard_normal(nb))
         silent = rng.uniform(size=nb) < p.long_silence_per_gap
         silence = np.exp(rng.uniform(np.log(p.long_silence_min_s), np.log(p.long_silence_max_s), size=nb))
-        gaps = np.maximum(np.where(silent, silence, gaps), p.duration_max_s + MIN_QUIET_S)
+        gaps = np.maximum(np.where(silent, silence, gaps), p.frames_max * p.frame_spacing_s + MIN_QUIET_S)
         if self._first[i]:  # in steady state at t = 0: the first burst a fraction of a gap away
             start0 = rng.uniform() * gaps[0]
             self._first[i] = False
@@ -248,7 +252,7 @@ class ProbeBursts:
         self._next_start_s[i] = starts[-1] + gaps[-1]
         n = np.rint(self.frames_median[i] * np.exp(FRAMES_LOG_SIGMA * rng.standard_normal(nb)))
         n = np.clip(n, 1, p.frames_max).astype(int)
-        duration = rng.uniform(p.duration_min_s, p.duration_max_s, size=nb)
+        duration = n * p.frame_spacing_s
         total = int(n.sum())
         burst_local = np.repeat(np.arange(nb), n)
         offset = rng.uniform(size=total)
@@ -262,9 +266,13 @@ class ProbeBursts:
         first = np.concatenate([[0], np.cumsum(n)[:-1]])
         within = np.arange(total) - np.repeat(first, n)
         if self.randomizes[i]:
-            addr = random_local_addresses(rng, nb)
-            address = addr[burst_local]
-            seq = within % SEQ_MODULO  # restarts with every new address
+            k = self.frames_per_address[i]
+            # address groups: one per burst, or one per k frames of a burst
+            group = burst_local if k <= 0 else np.cumsum(np.concatenate([[True], (within[1:] == 0) | (within[1:] % k == 0)])) - 1
+            addr = random_local_addresses(rng, int(group[-1]) + 1)
+            address = addr[group]
+            first_of_group = np.concatenate([[0], np.nonzero(np.diff(group))[0] + 1])
+            seq = (np.arange(total) - np.repeat(first_of_group, np.diff(np.append(first_of_group, total)))) % SEQ_MODULO
             for a in addr.tolist():
                 self.owner[a] = i
         else:
