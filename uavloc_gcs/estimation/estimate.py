@@ -527,13 +527,17 @@ def _candidates(solutions: list[tuple[_Solution, float]], moving: bool, dt: floa
 
 
 def estimate_all(slots: SlotBatch, channel: ChannelModel, *, max_speed_m_s: float,
-                 previous: "dict[int, Estimate] | None" = None, **options) -> dict[int, Estimate]:
-    """:func:`estimate_emitter` for every emitter id in ``slots``, keyed by id."""
+                 previous: "dict[int, Estimate] | None" = None,
+                 censored: "dict[int, Censored] | None" = None, **options) -> dict[int, Estimate]:
+    """:func:`estimate_emitter` for every emitter id in ``slots``, keyed by id; ``censored``: each
+    emitter's censored observations by id (see :func:`.evidence.censored_silence`), none for an id
+    it lacks."""
     previous = previous or {}
+    censored = censored or {}
     out = {}
     for e in slots.emitters():
         out[int(e)] = estimate_emitter(slots.for_emitter(e), channel, max_speed_m_s=max_speed_m_s,
-                                       previous=previous.get(int(e)), **options)
+                                       previous=previous.get(int(e)), censored=censored.get(int(e)), **options)
     return out
 
 

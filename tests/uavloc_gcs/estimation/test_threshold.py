@@ -219,3 +219,27 @@ def test_transmit_power_is_estimated_under_the_threshold():
     est = estimate_emitter(slots, FIELD, max_speed_m_s=0.0, model_motion=False, estimate_tx_power=True)
     assert abs(est.tx_offset_db - 6.0) < 3.0
     assert np.linalg.norm(est.position_xy_m - truth) < 30.0
+
+
+def test_estimate_all_takes_each_emitters_censored_rows():
+    truth, slots, tracks = _one_leg_bursts(np.random.default_rng(0))
+    from uavloc_gcs.estimation import estimate_all
+
+    cens = censored_silence(tracks, slots)
+    out = estimate_all(slots, FIELD, max_speed_m_s=1.5, model_motion=False, censored={0: cens})
+    one = estimate_emitter(slots, FIELD, max_speed_m_s=1.5, model_motion=False, censored=cens)
+    np.testing.assert_array_equal(out[0].position_xy_m, one.position_xy_m)
+    assert out[0].position_xy_m[1] > 0
+
+
+def test_hearing_counts_with_a_frames_prior_rule_out_the_far_side_too():
+    """The same bursts with every listening vehicle's count (a frames prior of 1-12 frames): the
+    estimate stays on the true side and its radius is no larger than with the silences alone."""
+    truth, slots, tracks = _one_leg_bursts(np.random.default_rng(1))
+    plain = estimate_emitter(slots, FIELD, max_speed_m_s=1.5, model_motion=False,
+                             censored=censored_silence(tracks, slots))
+    cens = censored_silence(tracks, slots, frames_prior=FramesPrior(np.ones(12)))
+    assert len(cens) == 6 and set(cens.heard[cens.heard > 0]) and cens.prior is not None
+    est = estimate_emitter(slots, FIELD, max_speed_m_s=1.5, model_motion=False, censored=cens)
+    assert est.position_xy_m[1] > 0 and not est.ambiguous
+    assert np.linalg.norm(est.position_xy_m - truth) <= est.radius95_m <= plain.radius95_m
