@@ -88,8 +88,9 @@ def main(argv: list[str] | None = None) -> int:
         for c, k in f.channel_counts.items():
             total[c] = total.get(c, 0) + k
     n = sum(total.values())
-    print("per-device gap medians", f"{min(f.gap_median_s for f in fits):.0f}-{max(f.gap_median_s for f in fits):.0f} s,",
-          "p90", f"{min(f.gap_p90_s for f in fits):.0f}-{max(f.gap_p90_s for f in fits):.0f} s")
+    med, p90 = [f.gap_median_s for f in fits], [f.gap_p90_s for f in fits]
+    print(f"per-device gap medians {min(med):.0f}-{max(med):.0f} s,",
+          f"p90 {min(p90):.0f}-{max(p90):.0f} s")
     print("long silences (> 30 min) per gap", f"{sum(f.long_silences for f in fits) / sum(f.gaps for f in fits):.4f}")
     print("frames per burst, per-device medians", f"{min(f.frames_median for f in fits):.0f}-"
           f"{max(f.frames_median for f in fits):.0f}, median log-sd {np.median([f.frames_log_sd for f in fits]):.2f}, "

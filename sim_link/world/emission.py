@@ -263,26 +263,32 @@ class ProbeBursts:
         by_chan = np.lexsort((channel, burst_local))
         t = starts[burst_local] + duration[burst_local] * offset[by_time]
         channel = channel[by_chan]  # the sweep: channels ascending over the burst
-        first = np.concatenate([[0], np.cumsum(n)[:-1]])
-        within = np.arange(total) - np.repeat(first, n)
-        if self.randomizes[i]:
-            k = self.frames_per_address[i]
-            # address groups: one per burst, or one per k frames of a burst
-            group = burst_local if k <= 0 else np.cumsum(np.concatenate([[True], (within[1:] == 0) | (within[1:] % k == 0)])) - 1
-            addr = random_local_addresses(rng, int(group[-1]) + 1)
-            address = addr[group]
-            first_of_group = np.concatenate([[0], np.nonzero(np.diff(group))[0] + 1])
-            seq = (np.arange(total) - np.repeat(first_of_group, np.diff(np.append(first_of_group, total)))) % SEQ_MODULO
-            for a in addr.tolist():
-                self.owner[a] = i
-        else:
-            address = np.full(total, self.stable_address[i], dtype=np.int64)
-            seq = (self._seq[i] + np.arange(total)) % SEQ_MODULO
-            self._seq[i] = (self._seq[i] + total) % SEQ_MODULO
-            self.owner[int(self.stable_address[i])] = i
+        address, seq = self._addresses(i, rng, n)
         burst = self._bursts[i] + burst_local
         self._bursts[i] += nb
         return Frames(np.full(total, i), t, channel.astype(int), address.astype(np.int64), seq.astype(int), burst)
+
+    def _addresses(self, i: int, rng: np.random.Generator, n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Source address and 802.11 sequence number of every frame of bursts with n frames each."""
+        total = int(n.sum())
+        burst = np.repeat(np.arange(len(n)), n)
+        within = np.arange(total) - np.repeat(np.concatenate([[0], np.cumsum(n)[:-1]]), n)  # index in burst
+        if not self.randomizes[i]:  # one global address, a running sequence number
+            seq = (self._seq[i] + np.arange(total)) % SEQ_MODULO
+            self._seq[i] = (self._seq[i] + total) % SEQ_MODULO
+            self.owner[int(self.stable_address[i])] = i
+            return np.full(total, self.stable_address[i], dtype=np.int64), seq
+        k = self.frames_per_address[i]
+        if k <= 0:  # a new address per burst
+            group = burst
+        else:  # a new address every k frames of a burst
+            group = np.cumsum((within == 0) | (within % k == 0)) - 1
+        addr = random_local_addresses(rng, int(group[-1]) + 1)
+        for a in addr.tolist():
+            self.owner[a] = i
+        first = np.concatenate([[0], np.nonzero(np.diff(group))[0] + 1])  # first frame of each address
+        seq = (np.arange(total) - np.repeat(first, np.diff(np.append(first, total)))) % SEQ_MODULO
+        return addr[group], seq
 
 
 def _empty_frames() -> Frames:

@@ -242,3 +242,20 @@ def test_paper_scan_hears_few_people_in_the_burst_world(paper):
     twice = np.mean([r.twice for r in runs])
     assert 0.15 < once < 0.5 and twice < 0.15  # the issue's 25-28 % / 5-7 %; README states ours
     assert scan_coverage(World(paper, people=40, seed=1)).once == 1.0  # the paper's world hears everyone
+
+
+def test_calibration_recovers_the_simulated_phone():
+    """The fitting script, run on frames of the model itself, gives back the model's parameters."""
+    from sim_link.world.calibrate import fit_device
+
+    bursts = _bursts(3, seed=11)
+    f = bursts.frames(0.0, 30 * 3600.0)
+    for i in range(3):
+        mine = f.take(f.person == i)
+        fit = fit_device("sim", mine.t_s, mine.address, mine.channel)
+        med, p90 = bursts.params.gap_quantiles_s(bursts.gap_quantile[i])
+        assert fit.gap_median_s == pytest.approx(med, rel=0.15) and fit.gap_p90_s == pytest.approx(p90, rel=0.2)
+        assert fit.frames_median == pytest.approx(bursts.frames_median[i], rel=0.2)
+        assert fit.spacing_s == pytest.approx(em.FRAME_SPACING_S, rel=0.3)
+        k = bursts.frames_per_address[i] if bursts.randomizes[i] else 0
+        assert fit.frames_per_address <= (k if k else fit.frames_median * 3)
