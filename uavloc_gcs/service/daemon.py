@@ -596,7 +596,7 @@ class Daemon:
         v.phase = "starting"
         a = v.agent
         guard = start_guard(a, v.mission, a.flavour.first_mission_seq, v.id)
-        alt0 = self._ground_alt(a)
+        alt0, began = self._ground_alt(a), self.wall()
         try:
             try:
                 await self._persist(v, "start", lambda: a.start(before_start=guard),
@@ -606,7 +606,7 @@ class Daemon:
                 if isinstance(exc, UnsafeStart):  # a failed start like any other: the vehicle is unusable
                     raise StartFailed(f"scan start failed: {exc}", vehicle=str(v.id), operation="start") from exc
                 raise
-            await self._confirm_takeoff(v, "scan", self.wall(), alt0)
+            await self._confirm_takeoff(v, "scan", began, self.wall(), alt0)
         except LinkError as exc:
             v.start_failed = str(exc)
             raise
@@ -630,15 +630,18 @@ class Daemon:
             except LinkError as exc:
                 log.info("vehicle %d: disarm after a failed start: %s", v.id, exc)
 
-    async def _confirm_takeoff(self, v: _Vehicle, purpose: str, since_wall_s: float, ground_alt_m: float) -> None:
-        """A start from the ground is a start once the vehicle leaves the ground. A refusal it states
+    async def _confirm_takeoff(self, v: _Vehicle, purpose: str, began_wall_s: float, since_wall_s: float,
+                               ground_alt_m: float) -> None:
+        """A start from the ground is a start once the vehicle leaves the ground (or was seen
+        airborne since the start began at ``began_wall_s``: a start whose ACKs were lost can last
+        as long as a short look, flown and landed from meanwhile). A refusal it states
         after the start was accepted (STATUSTEXT since ``since_wall_s``; refusals during the start
         exchange are the exchange's to retry) or no climb within CLIMB_WAIT_S is a failed start:
         a vehicle left armed on the ground is disarmed, and StartFailed names the reason (the
         vehicle becomes unusable; its scan is not counted as flown)."""
         a = v.agent
         deadline = self.wall() + CLIMB_WAIT_S
-        while not takeoff_seen(read_facts(a), ground_alt_m):
+        while not (takeoff_seen(read_facts(a), ground_alt_m) or a.airborne_wall_s >= began_wall_s):
             refusal = refusal_in(a.texts, since_wall_s)
             late = self.wall() >= deadline
             if refusal is not None or late:
@@ -666,7 +669,7 @@ class Daemon:
         a = v.agent
         guard = start_guard(a, v.mission, first_seq, v.id)
         guard()
-        from_ground, alt0 = a.on_ground(), self._ground_alt(a)
+        from_ground, alt0, began = a.on_ground(), self._ground_alt(a), self.wall()
 
         def flying_it() -> bool:
             seq = a.tel.mission_seq
@@ -680,7 +683,7 @@ class Daemon:
                 await self._disarm_on_ground(v)
             raise
         if from_ground:
-            await self._confirm_takeoff(v, v.purpose or "mission", self.wall(), alt0)
+            await self._confirm_takeoff(v, v.purpose or "mission", began, self.wall(), alt0)
 
     def _adopt(self, v: _Vehicle, purpose: str, items: list) -> None:
         v.purpose, v.mission = purpose, list(items)

@@ -80,6 +80,7 @@ class VehicleAgent:
         self._acked_wall_s: float | None = None  # when our last upload was acknowledged
         self._time_anchor: tuple[float, int] | None = None  # (unix s, time_boot_ms) of the first SYSTEM_TIME
         self.texts: deque[tuple[float, str]] = deque(maxlen=20)  # (daemon wall s, STATUSTEXT), newest last
+        self.airborne_wall_s = -math.inf  # when it was last seen armed and off the ground (daemon wall s)
         self._sub = link.subscribe(None, source_system=vehicle, callback=self._on_message)
         self._rssi_subs: list = []
 
@@ -112,6 +113,8 @@ class VehicleAgent:
             t.lat_deg, t.lon_deg = msg.lat / 1e7, msg.lon / 1e7
             t.rel_alt_m = msg.relative_alt / 1000.0
             t.ground_speed_m_s = math.hypot(msg.vx, msg.vy) / 100.0
+            if t.armed and not self.on_ground():
+                self.airborne_wall_s = t.wall_s
             if self._on_position is not None:
                 self._on_position(self.vehicle, t)
         elif kind == "HEARTBEAT":

@@ -18,6 +18,7 @@ class _Agent:
         self.flavour = SimpleNamespace(home_at_seq0=True, name="ardupilot")
         self.uploads, self.switches, self.homes = [], [], 0
         self.texts = []  # STATUSTEXTs (wall s, text)
+        self.airborne_wall_s = float("-inf")
 
     def position_xy_m(self):
         return self.xy
