@@ -378,3 +378,55 @@ def test_return_home_sent_again_while_landing(target):
     # PX4 SITL rose 0.9 m once (its land controller settling); a restarted return climbs to the
     # return altitude (ArduCopter RTL_ALT 15 m, PX4 RTL_RETURN_ALT), well above 2 m more
     assert highest < again_at + 2.0, f"RTL again at {again_at:.1f} m climbed back to {highest:.1f} m"
+
+
+def test_mission_start_on_the_ground_without_a_takeoff(target):
+    """Issue 26: a mission without a take-off started on the ground.
+    * ArduCopter, armed in GUIDED: MISSION_START is refused (MAV_RESULT_FAILED) with "Auto: Missing
+      Takeoff Cmd" and the vehicle stays on the ground (ModeAuto::init);
+    * PX4, disarmed: MISSION_START arms it ("switch to AUTO_MISSION and ARM") and it climbs by
+      itself to fly the mission -- why the daemon must never send one there.
+    The fakes must do the same."""
+    import asyncio
+
+    from uavloc_gcs.link import disarm, set_mode, start_mission
+
+    async def go():
+        link, flavour = await _connect(target)
+        async with link:
+            watch = Watch(link, target.sysid)
+            await request_streams(link, target.sysid, flavour)
+            await watch.until("heartbeat and position", lambda: all(
+                k in watch.last for k in ("HEARTBEAT", "GLOBAL_POSITION_INT")), 30)
+            await upload_mission(link, target.sysid, 1, _mission(target.kind, takeoff=False), verify=False,
+                                 autopilot=flavour)
+            result = mavlink.MAV_RESULT_ACCEPTED
+            if target.kind == "ardupilot":
+                await set_mode(link, target.sysid, 1, "GUIDED", autopilot=flavour)
+                await arm_when_ready(link, target.sysid, 1)
+                await watch.until("armed", lambda: watch.armed, 30)
+            try:
+                await start_mission(link, target.sysid, 1, 0, 0)
+            except CommandError as err:
+                result = err.result
+            climbed = False
+            deadline = time.monotonic() + 20.0
+            while time.monotonic() < deadline and not climbed:
+                climbed = watch.rel_alt_m > 3.0
+                await asyncio.sleep(0.1)
+            armed = watch.armed
+            if climbed:
+                await return_home(link, target.sysid, 1)
+                await watch.until("landing at home", lambda: not watch.armed, 150)
+            elif watch.armed:
+                await disarm(link, target.sysid, 1)
+            return result, armed, climbed, list(watch.texts)
+
+    result, armed, climbed, texts = harness.run(go(), 360)
+    print(f"{target.backend}-{target.kind}: MISSION_START {result}, armed {armed}, climbed {climbed}; "
+          f"said {texts[-6:]}")
+    if target.kind == "ardupilot":
+        assert result == mavlink.MAV_RESULT_FAILED and not climbed, (result, climbed)
+        assert any("Missing Takeoff Cmd" in t for t in texts), texts
+    else:
+        assert result == mavlink.MAV_RESULT_ACCEPTED and armed and climbed, (result, armed, climbed)
