@@ -17,6 +17,7 @@ BENCHMARKS = {
     "link": "mission upload vs MAVSDK, replanning latency, RSSI ingestion rate",
     "scan_coverage": "full adaptive mission with double vs single lane coverage (time, accuracy)",
     "looks": "look-planning rules on and off on paired worlds (located, inside radius, time vs clairvoyant)",
+    "identity": "linking addresses into people vs truth (people reported, bursts on the wrong person, splits, merges)",
 }
 
 

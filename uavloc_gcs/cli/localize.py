@@ -2,8 +2,11 @@
 
 INPUT is a slot CSV (``t_s,vehicle_id,lat_deg,lon_deg,alt_m,emitter_id,rssi_dbm,n_samples``, optionally
 ``address,fingerprint,channel``) or a ``.tlog`` whose UAVLOC_RSSI_BATCH2 and (older) UAVLOC_RSSI_BATCH
-messages are replayed. Writes ``estimates.csv``,
-``estimates.geojson`` and ``estimates.png`` into DIR (all or nothing) and prints a table.
+messages are replayed. The addresses heard are first linked into people
+(:mod:`uavloc_gcs.estimation.identity`; the identity for old inputs, where every address is stable),
+then every person is estimated. Writes ``estimates.csv``, ``estimates.geojson`` (each person with
+the addresses they were heard under and whether the link is uncertain) and ``estimates.png`` into
+DIR (all or nothing) and prints a table.
 """
 
 from __future__ import annotations
@@ -62,6 +65,7 @@ def run(args: argparse.Namespace) -> int:
     from ..estimation import ChannelModel, estimate_all, survey_slots
     from ..estimation.model import MIN_ALTITUDE_FRACTION
     from ..estimation.export import estimates_csv, estimates_geojson, heard_tracks
+    from ..estimation.identity import UNKNOWN_TX_MARGIN_DB, format_address, link
     from ..render.maps import origin_caption, save_figure
     from ..render.estimates import estimates_figure
     from ..render.terminal import format_table
@@ -74,13 +78,19 @@ def run(args: argparse.Namespace) -> int:
     slots = survey_slots(heard, sc.fleet.altitude_m)
     low = len(heard) - len(slots)
     channel = ChannelModel.from_scenario(sc)
-    estimates = estimate_all(slots, channel, max_speed_m_s=sc.people.max_speed_m_s, t_ref_s=args.t_ref,
-                             model_motion=not args.static,
-                             estimate_tx_power=args.tx_power or sc.channel.estimate_tx_power)
+    tx_power = args.tx_power or sc.channel.estimate_tx_power
+    # the addresses heard, linked into people (the identity when every address is stable or no
+    # fingerprint is known, as in old logs and the paper's world); real phones differ in transmit
+    # power by several dB (SPEC 1), so the range bounds allow for it
+    linking = link(slots, channel, max_speed_m_s=sc.people.max_speed_m_s, area_m2=_polygon_area_m2(sc.area_xy_m()),
+                   tx_margin_db=UNKNOWN_TX_MARGIN_DB)
+    estimates = estimate_all(linking.slots, channel, max_speed_m_s=sc.people.max_speed_m_s, t_ref_s=args.t_ref,
+                             model_motion=not args.static, estimate_tx_power=tx_power)
     tracks = heard_tracks(slots)
     with atomic_output_dir(args.out) as tmp:
-        (tmp / "estimates.csv").write_text(estimates_csv(estimates, sc.frame), encoding="utf-8")
-        (tmp / "estimates.geojson").write_text(estimates_geojson(estimates, sc.frame, slots), encoding="utf-8")
+        (tmp / "estimates.csv").write_text(estimates_csv(estimates, sc.frame, linking), encoding="utf-8")
+        (tmp / "estimates.geojson").write_text(estimates_geojson(estimates, sc.frame, slots, linking),
+                                               encoding="utf-8")
         fig = estimates_figure(estimates, area_xy_m=sc.area_xy_m(), tracks_xy_m=tracks,
                                title=f"Localization: {Path(args.input).name}",
                                subtitle=origin_caption(*sc.launch_latlon_deg))
@@ -90,13 +100,36 @@ def run(args: argparse.Namespace) -> int:
         lat, lon = sc.frame.to_wgs84(*e.position_xy_m) if e.ok else (math.nan, math.nan)
         rows.append([eid, e.status, f"{lat:.6f}" if e.ok else "", f"{lon:.6f}" if e.ok else "",
                      f"{np.hypot(*e.velocity_m_s):.2f}" if e.ok else "", _r(e.radius95_m), _r(e.annulus_bound_m),
-                     "yes" if e.ambiguous else "", e.n_slots])
-    print(format_table(["emitter", "status", "lat", "lon", "speed m/s", "r95 m", "annulus m", "mirror?", "slots"],
+                     "yes" if e.ambiguous else "", e.n_slots, _addresses_cell(linking.addresses(eid), format_address),
+                     "uncertain" if linking.uncertain(eid) else ""])
+    print(format_table(["emitter", "status", "lat", "lon", "speed m/s", "r95 m", "annulus m", "mirror?", "slots",
+                        "addresses", "link"],
                        rows, title=f"{len(slots)} slots, {len(estimates)} emitter(s)" + (
                            f" ({low} slots heard below {MIN_ALTITUDE_FRACTION * sc.fleet.altitude_m:g} m, taking off "
                            "or landing, not used)" if low else "")))
+    n_addr = len(np.unique(slots.address))
+    unsure = [p for p in linking.people() if linking.uncertain(p)]
+    print(f"{n_addr} address(es) heard, linked into {len(linking.people())} people"
+          + (f"; uncertain links: {len(unsure)} (see the link_reason column)" if unsure else ""))
+    for p in unsure[:5]:
+        print(f"  {p}: {linking.uncertain(p)}")
     print(f"wrote {Path(args.out) / 'estimates.csv'}, estimates.geojson, estimates.png")
     return 0
+
+
+def _addresses_cell(addresses: list[int], fmt) -> str:
+    """The first address as a MAC, with how many more (the CSV has them all)."""
+    if not addresses:
+        return ""
+    return fmt(addresses[0]) + (f" (+{len(addresses) - 1})" if len(addresses) > 1 else "")
+
+
+def _polygon_area_m2(xy) -> float:
+    """Area [m²] of a polygon given as (K, 2) vertices (shoelace)."""
+    import numpy as np
+
+    x, y = xy[:, 0], xy[:, 1]
+    return float(abs(0.5 * np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y)))
 
 
 def _r(x: float) -> str:

@@ -2,8 +2,11 @@
 
 CSV columns: ``emitter_id, lat_deg, lon_deg, vel_east_m_s, vel_north_m_s, radius95_m,
 annulus_bound_m, t_ref_s, ambiguous, mirror_lat_deg, mirror_lon_deg`` (the mirror only when
-ambiguous), then ``mirror_relative_likelihood, status, n_slots``. Unknown values (no estimate
-yet, an infinite radius, an empty ring intersection) are empty cells.
+ambiguous), then ``mirror_relative_likelihood, status, n_slots``, then who the person is on the
+air: ``addresses`` (the 802.11 addresses they were heard under, ';'-separated MACs, first heard
+first; the emitter id is the first), ``link`` ('sure' or 'uncertain') and ``link_reason``
+(:mod:`.identity`). Unknown values (no estimate yet, an infinite radius, an empty ring
+intersection) are empty cells.
 """
 
 from __future__ import annotations
@@ -18,10 +21,11 @@ import numpy as np
 from ..geo import LocalFrame
 from ..observations import SlotBatch
 from .estimate import Estimate
+from .identity import Linking, format_addresses
 
 CSV_COLUMNS = ("emitter_id", "lat_deg", "lon_deg", "vel_east_m_s", "vel_north_m_s", "radius95_m",
                "annulus_bound_m", "t_ref_s", "ambiguous", "mirror_lat_deg", "mirror_lon_deg",
-               "mirror_relative_likelihood", "status", "n_slots")
+               "mirror_relative_likelihood", "status", "n_slots", "addresses", "link", "link_reason")
 TRACK_GAP_S = 2.0
 
 
@@ -33,7 +37,16 @@ def _clean(x, nd: int):
     return None if x is None or not math.isfinite(float(x)) else round(float(x), nd)
 
 
-def estimates_csv(estimates: Mapping[int, Estimate], frame: LocalFrame) -> str:
+def identity_fields(eid: int, linking: Linking | None) -> tuple[list[int], str, str]:
+    """A person's addresses, 'sure'/'uncertain' and the reason (''), from ``linking``; without one
+    the emitter id is the address (old logs, the paper's world)."""
+    if linking is None or not linking.addresses(eid):
+        return [int(eid)], "sure", ""
+    why = linking.uncertain(eid)
+    return linking.addresses(eid), "uncertain" if why else "sure", why or ""
+
+
+def estimates_csv(estimates: Mapping[int, Estimate], frame: LocalFrame, linking: Linking | None = None) -> str:
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(CSV_COLUMNS)
@@ -44,15 +57,19 @@ def estimates_csv(estimates: Mapping[int, Estimate], frame: LocalFrame) -> str:
         if e.ambiguous and e.mirror is not None:
             mlat, mlon = frame.to_wgs84(*e.mirror.position_xy_m)
             rel = e.mirror.relative_likelihood
+        addresses, state, why = identity_fields(eid, linking)
         w.writerow([eid, _num(lat, 8), _num(lon, 8), _num(e.velocity_m_s[0], 3), _num(e.velocity_m_s[1], 3),
                     _num(e.radius95_m, 2), _num(e.annulus_bound_m, 2), _num(e.t_ref_s, 3), int(e.ambiguous),
-                    _num(mlat, 8), _num(mlon, 8), _num(rel, 4), e.status, e.n_slots])
+                    _num(mlat, 8), _num(mlon, 8), _num(rel, 4), e.status, e.n_slots, format_addresses(addresses),
+                    state, why])
     return buf.getvalue()
 
 
-def estimates_geojson(estimates: Mapping[int, Estimate], frame: LocalFrame, slots: SlotBatch | None = None) -> str:
-    """A FeatureCollection: per emitter its estimate (Point), 95 % circle (Polygon) and, when
-    ambiguous, the mirror candidate (Point); per vehicle the positions where it heard anyone."""
+def estimates_geojson(estimates: Mapping[int, Estimate], frame: LocalFrame, slots: SlotBatch | None = None,
+                      linking: Linking | None = None) -> str:
+    """A FeatureCollection: per emitter its estimate (Point; with its ``addresses`` as MACs,
+    ``link`` and ``link_reason``), 95 % circle (Polygon) and, when ambiguous, the mirror candidate
+    (Point); per vehicle the positions where it heard anyone."""
     from mission_io import geojson as gj
 
     feats = []
@@ -65,6 +82,8 @@ def estimates_geojson(estimates: Mapping[int, Estimate], frame: LocalFrame, slot
                      annulus_bound_m=_clean(e.annulus_bound_m, 2), vel_east_m_s=_clean(e.velocity_m_s[0], 3),
                      vel_north_m_s=_clean(e.velocity_m_s[1], 3), t_ref_s=_clean(e.t_ref_s, 3),
                      ambiguous=bool(e.ambiguous), n_slots=int(e.n_slots), marker_color="#d62728")
+        addresses, state, why = identity_fields(eid, linking)
+        props.update(addresses=format_addresses(addresses).split(";"), link=state, link_reason=why or None)
         feats.append(gj.feature(gj.point(float(lat), float(lon)), **props))
         if math.isfinite(e.radius95_m) and e.radius95_m > 0:
             ring = _circle(e.position_xy_m, e.radius95_m)

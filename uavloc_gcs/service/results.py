@@ -19,12 +19,13 @@ from xml.sax.saxutils import escape
 
 import numpy as np
 
+from ..estimation.identity import format_address, format_addresses
 from ..geo import LocalFrame
 
 CSV_COLUMNS = (
     "label", "emitter_id", "state", "located", "time_utc", "t_ref_s", "lat_deg", "lon_deg", "east_m",
     "north_m", "vel_east_m_s", "vel_north_m_s", "speed_m_s", "radius95_m", "annulus_bound_m",
-    "fix_time_s", "fix_time_utc", "ambiguity_resolved", "reason",
+    "fix_time_s", "fix_time_utc", "ambiguity_resolved", "reason", "addresses", "link", "link_reason",
 )
 STATES = ("located", "heard", "given up", "never heard")
 
@@ -35,7 +36,10 @@ class PersonResult:
 
     ``located`` means the calibrated 95 % radius is within the required accuracy;
     ``reason`` says why not otherwise (one phrase). ``fix_time_s`` and ``t_ref_s`` are mission
-    seconds (the daemon's clock).
+    seconds (the daemon's clock). ``addresses``: the 802.11 addresses the person was heard under
+    (first heard first; empty: the emitter id is the only one, as in old logs and the paper's
+    world); ``link_reason``: why linking those addresses into one person is uncertain ('' = sure;
+    :mod:`uavloc_gcs.estimation.identity`).
     """
 
     emitter_id: int
@@ -53,6 +57,17 @@ class PersonResult:
     reason: str = ""
     t_ref_s: float = math.nan  # mission time [s] the position refers to (people move)
     label: str = ""  # "P01", ... (service.labels): the same in the table, the files and the maps
+    addresses: tuple = ()  # int 48-bit addresses; () = (emitter_id,)
+    link_reason: str = ""
+
+    @property
+    def link(self) -> str:
+        """'uncertain' when one of the person's address links is, else 'sure'."""
+        return "uncertain" if self.link_reason else "sure"
+
+    @property
+    def address_list(self) -> list[int]:
+        return [int(a) for a in self.addresses] or [int(self.emitter_id)]
 
     @property
     def state(self) -> str:
@@ -108,7 +123,8 @@ def people_csv(people: Sequence[PersonResult], epoch_unix_s: float | None = None
                     _num(p.t_ref_s, 2), _num(p.lat_deg, 7), _num(p.lon_deg, 7), _num(p.east_m, 2),
                     _num(p.north_m, 2), _num(p.vel_east_m_s, 3), _num(p.vel_north_m_s, 3), _num(_speed(p), 3),
                     _num(p.radius95_m, 2), _num(p.annulus_bound_m, 2), _num(p.fix_time_s, 2),
-                    utc_text(epoch_unix_s, p.fix_time_s), int(p.ambiguity_resolved), p.reason])
+                    utc_text(epoch_unix_s, p.fix_time_s), int(p.ambiguity_resolved), p.reason,
+                    format_addresses(p.address_list), p.link, p.link_reason])
     return buf.getvalue()
 
 
@@ -125,6 +141,8 @@ def _properties(p: PersonResult, epoch_unix_s: float | None) -> dict:
         "speed_m_s": _clean(_speed(p), 3), "fix_time_s": _clean(p.fix_time_s, 2),
         "fix_time_utc": utc_text(epoch_unix_s, p.fix_time_s) or None,
         "ambiguity_resolved": p.ambiguity_resolved, "reason": p.reason,
+        "addresses": [format_address(a) for a in p.address_list], "link": p.link,
+        "link_reason": p.link_reason or None,
     }
 
 
@@ -192,8 +210,9 @@ def people_kml(people: Sequence[PersonResult], frame: LocalFrame, name: str = "u
         state = "located" if p.located else f"{p.state}: {p.reason}" if p.reason else p.state
         desc = (f"{state}; 95 % radius {_num(p.radius95_m, 1)} m; position at {when or '?'} UTC "
                 f"(mission {_num(p.t_ref_s, 1)} s); velocity east {_num(p.vel_east_m_s, 2)} m/s, "
-                f"north {_num(p.vel_north_m_s, 2)} m/s")
-        data = "".join(f'<Data name="{k}"><value>{escape("" if v is None else str(v))}</value></Data>'
+                f"north {_num(p.vel_north_m_s, 2)} m/s; heard under {format_addresses(p.address_list, ', ')}"
+                + (f"; link uncertain: {p.link_reason}" if p.link_reason else ""))
+        data = "".join(f'<Data name="{k}"><value>{escape(_kml_value(v))}</value></Data>'
                        for k, v in _properties(p, epoch_unix_s).items())
         out.append(f"<Placemark><name>{escape(p.name)}</name>{stamp}{style}"
                    f"<description>{escape(desc)}</description><ExtendedData>{data}</ExtendedData>"
@@ -206,6 +225,12 @@ def people_kml(people: Sequence[PersonResult], frame: LocalFrame, name: str = "u
                        "</Polygon></Placemark>")
     out.append("</Document></kml>")
     return "\n".join(out) + "\n"
+
+
+def _kml_value(v) -> str:
+    if v is None:
+        return ""
+    return ";".join(map(str, v)) if isinstance(v, list) else str(v)
 
 
 def results_table(people: Sequence[PersonResult], required_accuracy_m: float,
