@@ -82,8 +82,9 @@ class PhoneModel:
 
     @property
     def fingerprint(self) -> int:
-        """Content hash of the model's probe requests: nonzero, 62 bits, same for same-model phones."""
-        h = int.from_bytes(hashlib.blake2b(self.name.encode(), digest_size=8).digest(), "big") >> 2
+        """Content hash of the model's probe requests: nonzero, 32 bits (what the RSSI message
+        carries, dialect.rssi.wire_fingerprint), same for same-model phones."""
+        h = int.from_bytes(hashlib.blake2b(self.name.encode(), digest_size=4).digest(), "big")
         return h or 1
 
 

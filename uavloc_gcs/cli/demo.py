@@ -1,4 +1,7 @@
-"""``uavloc demo``: the paper scenario on fake vehicles, the daemon flying them over UDP.
+"""``uavloc demo``: the paper's search area on fake vehicles, the daemon flying them over UDP.
+
+By default in the field world (``field``: phones that send probe bursts under changing addresses,
+heard above a receiver's sensitivity); ``--scenario paper`` is the paper's own world.
 
 Starts the simulated fleet (people, radio channel, MAVLink vehicles on loopback) at a speed-up,
 runs the same daemon ``uavloc daemon`` runs against real vehicles, shows the live status, and
@@ -19,9 +22,10 @@ from .daemon import add_web_options, print_web_url, reporter, web_options_from
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("demo", help="paper scenario on fake vehicles + daemon + live view (about a minute)",
+    p = sub.add_parser("demo", help="the paper's area in the field world on fake vehicles + daemon + live view (about a minute)",
                        description=__doc__.replace("``", ""), formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--scenario", metavar="FILE.toml", help="scenario TOML, or a shipped one by name: paper, small (default: paper)")
+    p.add_argument("--scenario", metavar="FILE.toml", help="scenario TOML, or a shipped one by name: field, paper, small (default: field, "
+                        "the paper's area in the field world; paper is the paper's own world)")
     p.add_argument("--out", default="uavloc-demo", metavar="DIR", help="output directory (default uavloc-demo)")
     p.add_argument("--speedup", type=float, metavar="K", help="simulated seconds per second (default: scenario's)")
     p.add_argument("--autopilot", choices=("ardupilot", "px4"), help="fake vehicle flavour (default: scenario's)")
@@ -42,7 +46,7 @@ def run(args: argparse.Namespace) -> int:
     from ..scenario import load_scenario
     from ..service.lock import store_lock
 
-    sc = load_scenario(scenario_path(args.scenario or "paper"))
+    sc = load_scenario(scenario_path(args.scenario or "field"))
     sim = {}
     if args.speedup is not None:
         sim["speedup"] = args.speedup
@@ -104,16 +108,24 @@ def _run(args, sc, key, out: Path, web) -> int:
         world = World(sc, seed=sc.simulation.seed)  # the fleet's world, rebuilt from the same seed
 
         def truth(people, epoch_unix_s: float):
-            """True position of every simulated person at the time its estimate refers to."""
+            """True position of every simulated person at the time its estimate refers to, under
+            the id the search reported them by (in the field world the first address heard of
+            them, so one person split in two by the linking appears twice); people never heard
+            under their world id."""
             shift = epoch_unix_s - fleet.epoch_unix_s
             refs = [p.t_ref_s for p in people if math.isfinite(p.t_ref_s)]
             t_end = max(refs, default=0.0) + shift
-            by_id = {p.emitter_id: p for p in people}
-            out_xy = {}
+            out_xy, reported = {}, set()
+            for p in people:
+                i = int(world.person_of([p.emitter_id])[0])
+                if i < 0:
+                    continue
+                t = p.t_ref_s + shift if math.isfinite(p.t_ref_s) else t_end
+                out_xy[p.emitter_id] = tuple(np.asarray(world.positions(t))[i][:2].tolist())
+                reported.add(i)
             for i, eid in enumerate(int(e) for e in world.emitter_ids):
-                p = by_id.get(eid)
-                t = t_end if p is None or not math.isfinite(p.t_ref_s) else p.t_ref_s + shift
-                out_xy[eid] = tuple(np.asarray(world.positions(t))[i][:2].tolist())
+                if i not in reported:
+                    out_xy[eid] = tuple(np.asarray(world.positions(t_end))[i][:2].tolist())
             return out_xy
 
         opts = DaemonOptions(store_path=out / "search.sqlite", signing_key=key, tlog_dir=out,
