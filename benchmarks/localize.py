@@ -165,6 +165,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="also the attainable floor of the walker families: the RMSE of the Bayes-optimal "
                              "estimator of the RSSI alone (the posterior mean by importance sampling; under a "
                              "minute per 200 runs and family)")
+    parser.add_argument("--emission", choices=("continuous", "bursts"), default="continuous",
+                        help="the phones' emission: 'continuous' (the paper's world, the default) or 'bursts' (the "
+                             "field world: probe-request bursts heard above a receiver sensitivity; its own families, "
+                             "benchmarks/localize_bursts.py; --family, --runs, --seed and --mmse apply)")
+    parser.add_argument("--frames-prior", choices=("world", "none"), default="world",
+                        help="--emission bursts: the estimator is told the world's frames-per-burst distribution and "
+                             "uses every listening vehicle's hearing counts ('world', the default), or only the "
+                             "silences with a conservative frame count ('none')")
     parser.add_argument("--switch", choices=sorted(ESTIMATOR_SWITCHES), action="append", default=[],
                         help="run with this estimator switch of `uavloc bench looks --variants` turned on "
                              "(give it again for another)")
@@ -461,6 +469,14 @@ def main(args: argparse.Namespace) -> int:
     for name in args.switch:
         setattr(estimate_module, *ESTIMATOR_SWITCHES[name])
         print(f"estimator switch {name}: estimate.{ESTIMATOR_SWITCHES[name][0]} = {ESTIMATOR_SWITCHES[name][1]!r}")
+    if args.emission == "bursts":
+        from .localize_bursts import BURST_FAMILIES, print_burst_table
+
+        bfams = [f for f in BURST_FAMILIES if not args.family or any(s in f.name for s in args.family)]
+        print(f"uavloc bench localize --emission bursts: {args.runs} runs per family")
+        print_burst_table(bfams, args.runs, args.seed, Progress(args.runs * len(bfams)), args.mmse,
+                          args.frames_prior == "world")
+        return 0
     sc = load_scenario(scenario_path(args.scenario))
     fams = [f for f in FAMILIES if not args.family or any(s in f.name for s in args.family)]
     mfams = [f for f in MANEUVER_FAMILIES if not args.family or any(s in f.name for s in args.family)]

@@ -124,3 +124,106 @@ def mmse_floor(errors_m: np.ndarray) -> float:
     """RMSE of the posterior means over a family's runs."""
     e = np.asarray(errors_m, float)
     return float(math.sqrt(np.mean(e * e))) if len(e) else math.nan
+
+
+# ---------------------------------------------------------------------------------------------
+# The field world (bench localize --emission bursts): the same posterior mean under the receiver
+# threshold, with the truncated likelihood of the frames heard and the censored silences within
+# heard bursts, exactly the estimator's likelihood (uavloc_gcs.estimation.fit), and the family's
+# priors (static: the velocity is zero; walkers: uniform over the disk). A wide component over
+# the whole hearing region joins the proposal: a few bursts leave rings, not ellipses.
+
+
+def burst_log_posterior(x: np.ndarray, data: Prepared, t_ref: float, max_speed_m_s: float, channel,
+                        censored=None) -> np.ndarray:
+    """Unnormalised log posterior of states x (K, 2) (static) or (K, 4) (position at t_ref, velocity)."""
+    from scipy.special import log_ndtr
+
+    s, y_s = channel.log_range_sigma, channel.threshold_log_range
+    b = np.minimum((data.y - y_s) / s, -1e-2)
+    n = data.n_samples
+    tau = data.t_s - t_ref
+    out = np.empty(len(x))
+    for i in range(0, len(x), CHUNK):
+        p = x[i:i + CHUNK, :2]
+        v = x[i:i + CHUNK, 2:4] if x.shape[1] == 4 else np.zeros_like(p)
+        gx = p[:, :1] + v[:, :1] * tau - data.a_xy[:, 0]
+        gy = p[:, 1:2] + v[:, 1:2] * tau - data.a_xy[:, 1]
+        t = (0.5 * np.log(gx * gx + gy * gy + data.h_m**2) - y_s) / s
+        lp = -0.5 * ((b - t) ** 2 + 2.0 * log_ndtr(-t)) @ n
+        if censored is not None and len(censored):
+            cx = p[:, :1] + v[:, :1] * censored.tau_s - censored.a_xy[:, 0]
+            cy = p[:, 1:2] + v[:, 1:2] * censored.tau_s - censored.a_xy[:, 1]
+            tc = (0.5 * np.log(cx * cx + cy * cy + censored.h_m**2) - y_s) / s
+            if censored.log_p is not None:
+                from uavloc_gcs.estimation.evidence import burst_count_loglik
+
+                lp = lp + burst_count_loglik(tc, censored.heard, censored.burst, censored.n_bursts,
+                                             censored.log_p)[0].sum(axis=1)
+            else:
+                lp = lp + log_ndtr(tc) @ censored.frames
+        if x.shape[1] == 4:
+            lp = np.where(np.hypot(v[:, 0], v[:, 1]) <= max_speed_m_s, lp, -np.inf)
+        out[i:i + CHUNK] = lp
+    return out
+
+
+def burst_posterior_mean(data: Prepared, t_ref: float, candidates: list[tuple[np.ndarray, np.ndarray]],
+                         max_speed_m_s: float, channel, censored, rng: np.random.Generator,
+                         samples: int = 20_000, rounds: int = 3) -> tuple[np.ndarray, float]:
+    """Posterior mean of the position at ``t_ref`` under the threshold (``max_speed_m_s`` 0: a
+    static person, the state is the position alone) and the effective sample size of the last round.
+    ``censored``: the estimator's :class:`uavloc_gcs.estimation.fit.CensoredRows` (or None); the
+    rows' ``tau_s`` must be relative to ``data.t_c`` as built, so they are shifted to ``t_ref`` here."""
+    from uavloc_gcs.estimation.fit import principal_line
+
+    dim = 4 if max_speed_m_s > 0 else 2
+    if censored is not None:
+        from dataclasses import replace
+
+        censored = replace(censored, tau_s=censored.t_s - t_ref)
+    floor = np.diag([1.0, 1.0, 0.01, 0.01])[:dim, :dim]
+    widen = np.diag([100.0, 100.0, 0.25, 0.25])[:dim, :dim]
+    lines = [(c, d, t) for c, d, t in leg_lines(data)]
+    center, direction, _ = principal_line(data)
+    lines.append((center, direction, data.t_c))
+    centers = []
+    for state, cov in candidates:
+        st, cv = np.asarray(state, float)[:dim], np.asarray(cov, float)[:dim, :dim]
+        cv = np.where(np.isfinite(cv), cv, 0.0)
+        centers.append((st, cv))
+        for c, d, t_leg in lines:
+            full = np.concatenate([state[:2], state[2:4] if dim == 4 else np.zeros(2)])
+            centers.append((_reflect(full, t_ref, c, d, t_leg)[:dim], cv))
+    wide = [(m, np.minimum(9.0 * (0.5 * (c + c.T) + floor) + widen, 1e6 * np.eye(dim) + 0 * c)) for m, c in centers]
+    broad = np.diag([250.0**2, 250.0**2, max_speed_m_s**2, max_speed_m_s**2])[:dim, :dim]
+    wide.append((np.concatenate([data.center, np.zeros(2)])[:dim], broad))
+    comps, ess, mean = wide, 0.0, np.asarray(candidates[0][0], float)[:2]
+    for _ in range(rounds):
+        chols = []
+        for m, c in comps:
+            try:
+                chols.append((m, np.linalg.cholesky(c)))
+            except np.linalg.LinAlgError:
+                chols.append((m, np.diag(np.sqrt(np.abs(np.diag(c))) + 1e-3)))
+        n = max(samples // len(chols), 1)
+        x = np.vstack([m + rng.standard_normal((n, dim)) @ l.T for m, l in chols])
+        lq = np.logaddexp.reduce(np.stack([_mvn_logpdf(x, m, l) for m, l in chols]), axis=0)
+        lw = burst_log_posterior(x, data, t_ref, max_speed_m_s, channel, censored) - lq
+        if not np.any(np.isfinite(lw)):
+            break
+        w = np.exp(lw - np.max(lw))
+        w /= w.sum()
+        ess = float(1.0 / np.sum(w * w))
+        mean = w @ x[:, :2]
+        near = np.argmin(np.stack([np.linalg.norm(x[:, :2] - m[:2], axis=1) for m, _ in comps]), axis=0)
+        refit = []
+        for j in range(len(comps)):
+            wj = w * (near == j)
+            if wj.sum() < 1e-6:
+                continue
+            mj = wj @ x / wj.sum()
+            dj = x - mj
+            refit.append((mj, 2.0 * (dj * wj[:, None]).T @ dj / wj.sum() + floor))
+        comps = wide[:2] + [wide[-1]] + refit
+    return mean, ess

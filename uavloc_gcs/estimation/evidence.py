@@ -289,7 +289,7 @@ def burst_count_loglik(z: np.ndarray, heard: np.ndarray, burst: np.ndarray, n_bu
     logbin = coef[None] + n[None, :, None] * lq[:, :, None] + np.maximum(kn, 0)[None] * l1q[:, :, None]
     member = np.zeros((len(n), n_bursts))
     member[np.arange(len(n)), burst] = 1.0
-    per = np.einsum("srk,rb->sbk", logbin, member) + log_p[None, None, :]  # (S, B, K)
+    per = np.tensordot(logbin, member, axes=([1], [0])).transpose(0, 2, 1) + log_p[None, None, :]  # (S, B, K)
     top = per.max(axis=2, keepdims=True)
     w = np.exp(per - top)
     total = w.sum(axis=2)

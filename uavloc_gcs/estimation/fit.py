@@ -279,26 +279,48 @@ class Problem:
         if self.threshold_y is None:
             beta = theta[self.beta_index] if self.tx else 0.0
             return np.sqrt(d.w) * (d.y - 0.5 * np.log(d2) + beta)
+        return self._truncated(theta)[0]
+
+    def _counts(self, theta: np.ndarray):
+        """The hearing counts' ln P_b and d ln P_b / dz at theta (the last evaluation cached: MINPACK
+        asks for the residuals and the Jacobian at the same point)."""
+        key = theta.tobytes()
+        cache = self.__dict__.get("_counts_cache")
+        if cache is not None and cache[0] == key:
+            return cache[1]
+        c = self.censored
+        _, d2c = self._censored_geometry(theta)
+        out = burst_count_loglik(self._z(d2c, theta), c.heard, c.burst, c.n_bursts, c.log_p)
+        object.__setattr__(self, "_counts_cache", (key, out))
+        return out
+
+    def _truncated(self, theta: np.ndarray):
+        """The slots' signed roots and their derivatives at theta (the last evaluation cached)."""
+        key = theta.tobytes()
+        cache = self.__dict__.get("_trunc_cache")
+        if cache is not None and cache[0] == key:
+            return cache[1]
+        _, d2 = self._geometry(theta)
         b, t_star = self._truncation()
-        return truncated_slot_residual(self._z(d2, theta), b, t_star, d.n_samples)[0]
+        out = truncated_slot_residual(self._z(d2, theta), b, t_star, self.data.n_samples)
+        object.__setattr__(self, "_trunc_cache", (key, out))
+        return out
 
     def _censored_residuals(self, theta: np.ndarray) -> list:
         c = self.censored
         if c is None:
             return []
-        _, d2c = self._censored_geometry(theta)
         if c.log_p is not None:
-            logp, _ = burst_count_loglik(self._z(d2c, theta), c.heard, c.burst, c.n_bursts, c.log_p)
+            logp, _ = self._counts(theta)
             return [np.sqrt(np.maximum(-2.0 * logp[0], 0.0))]
+        _, d2c = self._censored_geometry(theta)
         return [log_probability_residual(self._z(d2c, theta), c.frames)[0]]
 
     def _slot_jacobian(self, theta: np.ndarray) -> np.ndarray:
         d = self.data
         if self.threshold_y is None:
             return -np.sqrt(d.w)[:, None] * self._data_jacobian(theta)
-        _, d2 = self._geometry(theta)
-        b, t_star = self._truncation()
-        _, dr = truncated_slot_residual(self._z(d2, theta), b, t_star, d.n_samples)
+        _, dr = self._truncated(theta)
         return (dr / self.log_range_sigma)[:, None] * self._data_jacobian(theta)
 
     def _censored_jacobian(self, theta: np.ndarray) -> list:
@@ -307,7 +329,7 @@ class Problem:
         if self.censored is not None and self.censored.log_p is not None:
             c = self.censored
             g, d2c = self._censored_geometry(theta)
-            logp, dz = burst_count_loglik(self._z(d2c, theta), c.heard, c.burst, c.n_bursts, c.log_p)
+            logp, dz = self._counts(theta)
             r = np.sqrt(np.maximum(-2.0 * logp[0], 0.0))
             grad = (dz[0] / s)[:, None] * self._rows_jacobian(g, d2c, c.tau_s, c.t_s, c.pass_index)
             per_burst = np.zeros((c.n_bursts, grad.shape[1]))
