@@ -228,6 +228,7 @@ class FakeVehicle(TelemetryMixin):
                 # ArduCopter ModeAuto::init: armed and landed, AUTO is refused unless the mission
                 # goes on with a take-off (mission.starts_with_takeoff_cmd); MISSION_START -> FAILED
                 self._out.append(self.text(mav.MAV_SEVERITY_CRITICAL, "Auto: Missing Takeoff Cmd"))
+                self._out.append(self.text(mav.MAV_SEVERITY_WARNING, "Mode change to Auto failed: init failed"))
                 return False
             if self.auto_held:  # MISSION_START / AUTO after set-current on a finished mission
                 self.auto_held = False

@@ -148,10 +148,9 @@ class StatusWatch:
         fresh = [text for text, new in explaining if new]
         return fresh[-1] if fresh else (explaining[-1][0] if explaining else None)
 
-    def fresh_reason(self) -> str | None:
-        """The latest explaining text that came since :meth:`mark`, else None."""
-        fresh = [text for text, explains, marks in self._texts if explains and marks == self._marks]
-        return fresh[-1] if fresh else None
+    def fresh(self) -> list[str]:
+        """Every explaining text that came since :meth:`mark`, oldest first."""
+        return [text for text, explains, marks in self._texts if explains and marks == self._marks]
 
     async def reason_soon(self, wait_s: float = STATUSTEXT_GRACE_S) -> str | None:
         """:meth:`reason`, after waiting up to ``wait_s`` for an explaining text when none came
@@ -251,9 +250,12 @@ async def start_when_valid(link: Link, system: int, component: int, first_seq: i
                 final = False
                 if getattr(err, "result", None) in ARM_REFUSALS:
                     await watch.reason_soon()
-                    final = final_start_refusal(watch.fresh_reason())
+                    # (ArduCopter says "Auto: Missing Takeoff Cmd", then "Mode change to Auto failed: init failed")
+                    final = any(final_start_refusal(text) for text in watch.fresh())
                 if final or getattr(err, "result", None) not in ARM_REFUSALS or time.monotonic() >= deadline:
                     reason = await watch.reason_soon()
+                    if final:  # the words that make it final, not the chatter after them
+                        reason = next(text for text in watch.fresh() if final_start_refusal(text))
                     if reason:
                         err.args = (f"{err.args[0]} ({reason})",)
                         err.reason = reason
