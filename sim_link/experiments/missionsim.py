@@ -165,10 +165,12 @@ class _Clairvoyant(SearchPolicy):
 
     def _targets(self, t_s, vehicles, planned_times, previous=None):
         out = []
-        index = {int(e): i for i, e in enumerate(self.world.emitter_ids)}
         pos, vel = self.world.positions(t_s), self.world.velocities(t_s)
         for tgt in super()._targets(t_s, vehicles, planned_times, previous):
-            i = index[int(tgt.id)]
+            i = int(self.world.person_of([int(tgt.id)])[0])  # the person behind the id reported
+            if i < 0:
+                out.append(tgt)
+                continue
             v = vel[i] if self.model_motion else np.zeros(2)
             out.append(replace(tgt, xy_m=(float(pos[i][0]), float(pos[i][1])), velocity_m_s=(float(v[0]), float(v[1]))))
         return out
@@ -224,11 +226,20 @@ def hear(world: World, vehicles: list[Vehicle], t_from_s: float, t_to_s: float, 
 
 
 def person_results(world: World, statuses: list, t_end_s: float) -> tuple[PersonResult, ...]:
-    """Compare what the policy believes (PersonStatus list) with the truth."""
-    by_id = {s.emitter_id: s for s in statuses}
+    """Compare what the policy believes (PersonStatus list) with the truth, one row per true person.
+
+    In the field world the policy reports people under the first address heard of them, and the
+    linking may split one phone into several reported people: a true person is judged by the one
+    of theirs that is located (the first one if several), else the first reported."""
+    owner = world.person_of([s.emitter_id for s in statuses]) if statuses else np.zeros(0, int)
+    by_person: dict[int, object] = {}
+    for s, i in zip(statuses, owner):
+        best = by_person.get(int(i))
+        if best is None or (s.located and not best.located):
+            by_person[int(i)] = s
     out = []
     for i, eid in enumerate(world.emitter_ids):
-        s = by_id.get(int(eid))
+        s = by_person.get(i)
         if s is None or s.xy_m is None:
             out.append(PersonResult(int(eid), s is not None, False, math.nan, math.nan, math.nan,
                                     "" if s is None else s.reason))

@@ -84,6 +84,14 @@ TRACK_STEP_SLOTS = 10  # listening tracks are kept every this many slots (0.25 s
 # must not read as silence, so with these tracks a phone counts as silent only where it was not
 # heard for this long either side.
 SLOT_TRACK_QUIET_S = 0.6
+# With transmit power estimated (phones differ), linking widens every burst's range bound by this
+# much [dB]: two bursts heard at ranges that a phone 6 dB louder or quieter explains may be one phone.
+LINK_TX_MARGIN_DB = 6.0
+
+
+def _polygon_area(xy: np.ndarray) -> float:
+    x, y = xy[:, 0], xy[:, 1]
+    return 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
 
 
 def _sideways(centre: np.ndarray, radius: float, starts: np.ndarray, unresolved: int) -> tuple[np.ndarray, float]:
@@ -221,6 +229,9 @@ class SearchPolicy:
         # (docs/readme/localization.md): more people located, sooner
         self.hearing_evidence = math.isfinite(scenario.fleet.comm_range_m)
         self.tracks_from_slots = False  # see SLOT_TRACK_QUIET_S
+        # slots of a sensor that reports fingerprints, not yet linked into people (see _relink)
+        self._raw: list[SlotBatch] = []
+        self.linking = None  # estimation.identity.Linking of everything heard, once linking is on
 
     # -- data in ---------------------------------------------------------------------------
     def ingest(self, slots: SlotBatch) -> None:
@@ -231,6 +242,19 @@ class SearchPolicy:
         slots = survey_slots(slots, self.scenario.fleet.altitude_m)
         if len(slots) == 0:
             return
+        if self._raw or np.any(slots.fingerprint != 0):
+            # a sensor that reports content fingerprints hears addresses, not people: they are
+            # linked into people (estimation.identity) before the next estimate, in update
+            self._raw.append(slots)
+        else:
+            self._add_person_slots(slots)
+        if self.tracks_from_slots:
+            for v in np.unique(slots.vehicle):
+                mine = slots.vehicle == v
+                t, first = np.unique(slots.t_s[mine], return_index=True)
+                self.ingest_track(int(v), t, slots.xyz_m[mine][first])
+
+    def _add_person_slots(self, slots: SlotBatch) -> None:
         for eid in slots.emitters():
             part = slots.for_emitter(int(eid))
             p = self._people.setdefault(int(eid), _Person(int(eid)))
@@ -238,11 +262,43 @@ class SearchPolicy:
             p.n_slots += len(part)
             p.last_slot_t_s = max(p.last_slot_t_s, float(np.max(part.t_s)))
             p.dirty = True
-        if self.tracks_from_slots:
-            for v in np.unique(slots.vehicle):
-                mine = slots.vehicle == v
-                t, first = np.unique(slots.t_s[mine], return_index=True)
-                self.ingest_track(int(v), t, slots.xyz_m[mine][first])
+
+    def _relink(self) -> None:
+        """Link every address heard so far into people and give each person their slots. Person ids
+        are stable as data grow (the first address heard of them), so a person's bookkeeping (looks,
+        fix) carries over; a person whose bursts now belong to someone else is dropped."""
+        from ..estimation.identity import link
+
+        raw = SlotBatch.concat(self._raw)
+        self._raw = [raw]
+        sc = self.scenario
+        self.linking = link(raw, self.channel, max_speed_m_s=sc.people.max_speed_m_s,
+                            area_m2=float(abs(_polygon_area(self.area_xy_m))),
+                            tx_margin_db=LINK_TX_MARGIN_DB if sc.channel.estimate_tx_power else 0.0,
+                            previous=self.linking)
+        labelled = self.linking.slots
+        order = np.argsort(labelled.emitter_id, kind="stable")
+        ids, starts = np.unique(labelled.emitter_id[order], return_index=True)
+        bounds = list(starts[1:]) + [len(order)]
+        seen = set()
+        for eid, a, b in zip(ids, starts, bounds):
+            eid = int(eid)
+            seen.add(eid)
+            part = labelled.take(np.sort(order[a:b])).sorted_by_time()
+            p = self._people.get(eid)
+            if p is None:
+                p = self._people[eid] = _Person(eid)
+            elif p.n_slots == len(part) and p.batches and np.array_equal(p.batches[0].t_s, part.t_s):
+                continue
+            p.batches, p.n_slots = [part], len(part)
+            p.last_slot_t_s = float(np.max(part.t_s))
+            p.dirty = True
+        for eid in set(self._people) - seen:
+            log.info("person %d: their bursts are now linked to someone else", eid)
+            del self._people[eid]
+            for book in (self._awaiting, self._flown, self._look_vehicle):
+                book.pop(eid, None)
+            self._unplanned.discard(eid)
 
     def ingest_track(self, vehicle: int, t_s, xyz_m) -> None:
         """Record where ``vehicle`` listened: slot times (N,) [s] and positions (N, 3) [m, z = height
@@ -260,7 +316,9 @@ class SearchPolicy:
         if not len(xyz):
             return
         self._tracks.setdefault(int(vehicle), []).append((t[k], xyz))
-        if not self.hearing_evidence:
+        if not self.hearing_evidence or self.channel.sensitivity_dbm is not None:
+            # under a receiver threshold a silence is evidence only during a heard burst (see
+            # _censored): new listening after the bursts changes nothing
             return
         for p in self._people.values():  # a silence near a pending candidate may rule it out
             if p.dirty or p.fix_t_s is not None or p.gave_up or not self._ok(p):
@@ -275,8 +333,8 @@ class SearchPolicy:
         nothing was recorded or the evidence is off."""
         from ..estimation import Silence, silence_from_track
 
-        if not self.hearing_evidence or not self._tracks:
-            return None
+        if not self.hearing_evidence or not self._tracks or self.channel.sensitivity_dbm is not None:
+            return None  # under a receiver threshold there is no range gate: see _censored
         heard = p.batches[0]
         ts, xs = [], []
         for v, parts in self._tracks.items():
@@ -289,12 +347,29 @@ class SearchPolicy:
             xs.append(s.xyz_m)
         return Silence(np.concatenate(ts), np.vstack(xs))
 
+    def _censored(self, p: "_Person"):
+        """The field world's silences (a receiver threshold, phones that send bursts): the vehicles
+        that listened without hearing ``p``'s phone during one of its heard bursts, as censored
+        observations (estimation.evidence.censored_silence); None without a threshold or tracks."""
+        from ..estimation.evidence import censored_silence
+
+        if not self.hearing_evidence or not self._tracks or self.channel.sensitivity_dbm is None:
+            return None
+        tracks = []
+        for v, parts in self._tracks.items():
+            if len(parts) > 1:
+                self._tracks[v] = parts = [(np.concatenate([a for a, _ in parts]), np.vstack([b for _, b in parts]))]
+            tracks.append((v, parts[0][0], parts[0][1]))
+        return censored_silence(tracks, p.batches[0])
+
     def update(self, t_s: float) -> set[int]:
         """Re-estimate emitters with new slots; return the ids whose state changed materially
         (new person, located, ambiguity, estimate moved, a planned look happened or failed)."""
         from ..estimation import estimate_emitter
 
         changed: set[int] = set()
+        if len(self._raw) > 1 or (self._raw and self.linking is None):
+            self._relink()
         for eid, p in sorted(self._people.items()):
             if not p.dirty:
                 continue
@@ -307,7 +382,7 @@ class SearchPolicy:
                 est = estimate_emitter(
                     p.batches[0], self.channel, max_speed_m_s=self.model_speed_m_s,
                     t_ref_s=p.last_slot_t_s, model_motion=self.model_motion, previous=p.estimate,
-                    silence=self._silence(p))
+                    silence=self._silence(p), censored=self._censored(p))
                 p.estimate, p.error = self._unsettled(p, est), ""
             except EstimationError as exc:
                 p.error = str(exc)
@@ -680,7 +755,13 @@ class SearchPolicy:
                 p.misses += 1
                 if self._ambiguous(p):
                     p.flipped = not p.flipped
-            if p.misses >= MAX_MISSES:
+            if p.misses >= MAX_MISSES and self.scenario.emission.model == "probe-bursts":
+                # a phone heard in bursts is silent most of the time: a fly-by missing it says
+                # little about whether it is still there
+                p.gave_up = (f"not heard on {p.misses} fly-by looks where it was predicted; its phone"
+                             " sends probe bursts tens of seconds to minutes apart, so a fly-by of a few"
+                             " seconds usually misses it (it may well still be there)")
+            elif p.misses >= MAX_MISSES:
                 p.gave_up = (f"not heard on {p.misses} looks where it was predicted"
                              " (a phone that is off or has gone cannot be located)")
             elif MAX_LOOKS is not None and p.looks >= MAX_LOOKS:
