@@ -248,7 +248,7 @@ async def start_when_valid(link: Link, system: int, component: int, first_seq: i
                 return
             except CommandError as err:
                 final = False
-                if getattr(err, "result", None) in ARM_REFUSALS:
+                if getattr(err, "result", None) == mavlink.MAV_RESULT_FAILED:  # (what ArduCopter answers)
                     await watch.reason_soon()
                     # (ArduCopter says "Auto: Missing Takeoff Cmd", then "Mode change to Auto failed: init failed")
                     final = any(final_start_refusal(text) for text in watch.fresh())
