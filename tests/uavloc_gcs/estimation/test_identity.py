@@ -104,6 +104,17 @@ def test_same_fingerprint_phones_300_m_apart_at_once_are_two_people():
     assert _people(out) == [sorted([a0, a1]), sorted([b0, b1])]
 
 
+def test_one_burst_under_several_addresses_is_one_person():
+    """A phone that changes address every few frames: addresses back to back at one place are
+    linked, and surely, even with another phone of the model heard 400 m away at the same time."""
+    a, b, c = LOCAL | 0x71, LOCAL | 0x72, LOCAL | 0x73
+    slots = SlotBatch.concat([_burst(0.0, 1, (-12, 0), 0, (0, 0), a, slots=2),
+                              _burst(0.0, 2, (388, 0), 0, (400, 0), c, slots=2),
+                              _burst(1.0, 1, (13, 0), 0, (0, 0), b, slots=2)])
+    out = link(slots, FIELD, max_speed_m_s=1.5)
+    assert _people(out) == [sorted([a, b]), [c]] and out.uncertain(a) is None
+
+
 def test_different_fingerprints_never_merge():
     """The same place, a few seconds apart: different nonzero fingerprints are two phones."""
     a, b = LOCAL | 0x51, LOCAL | 0x52
