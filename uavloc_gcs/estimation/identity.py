@@ -15,10 +15,11 @@ knows, and relabels the slots so that ``emitter_id`` is a person:
 - **where and when**: a slot heard at vehicle position ``a`` [m] with mean RSSI ``r`` over ``n``
   frames puts the phone within the ground annulus about ``a`` whose radii are the ranges at which
   ``r`` would be exceeded (inner) or not reached (outer) with probability :data:`BOUND_PROBABILITY`
-  under the channel model (log-range std ``s / sqrt(n)``, as the estimator weighs a slot; plus a
-  transmit-power margin when phones differ; capped at ``channel.comm_range_m``, a sure bound). Two
-  bursts can be one person only when their annuli, grown by ``max_speed_m_s * dt``, intersect. A
-  person is a candidate for a new burst only when every burst of theirs passes that test.
+  under the channel model (log-range std ``s / sqrt(n)``, n at most MAX_INDEPENDENT_FRAMES; under
+  a receiver sensitivity the outer range of a reading given that it was heard; plus a
+  transmit-power margin when phones differ; capped at ``channel.gate_m``, the paper world's sure
+  range). Two bursts can be one person only when their annuli, grown by ``max_speed_m_s * dt``,
+  intersect. A person is a candidate for a new burst only when every burst of theirs passes it.
 
 Among the candidates (and "a new person") the most likely is chosen: each linkable person carries
 a particle belief of where they are (moved uniformly within ``max_speed_m_s * dt`` between bursts,
@@ -28,14 +29,15 @@ a new person by its likelihood integrated over the plane divided by the area (``
 the prior odds :data:`LOG_NEW_PERSON_ODDS`; a candidate whose last burst ended within
 :data:`CONTINUATION_S` gets :data:`CONTINUATION_LOG_ODDS` (one burst sent under several
 addresses). When the runner-up scores at least :data:`UNCERTAIN_RATIO` of the best, the link is
-kept but marked uncertain with a reason naming the alternative. Fingerprints alone never merge two people: two
-same-fingerprint phones heard 300 m apart at once fail the geometric test.
+kept but marked uncertain with a reason naming the alternative. Fingerprints alone never merge two
+people: two same-fingerprint phones heard 300 m apart at once are two.
 
 Stable ids: bursts are decided in time order from what was heard up to them, and a person's id is
 the first address heard of them, so appending later bursts never relabels earlier ones (the daemon
 re-links on every update and keeps its per-person state). Slots that arrive late with earlier
 times, or the rest of a burst whose first slots were already linked, can change the decision.
-With every address stable, or every fingerprint 0, linking is the identity: person = address.
+``link(..., previous=)`` resumes from the last update's decisions when they still hold. With every
+address stable, or every fingerprint 0, linking is the identity: person = address.
 """
 
 from __future__ import annotations
