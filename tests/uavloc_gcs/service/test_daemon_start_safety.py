@@ -232,3 +232,60 @@ def test_a_vehicle_without_a_position_is_not_armed_in_a_manual_mode_waiting_for_
     assert any("requires position" in e for e in events), events  # the vehicle did refuse for a while
     assert armed_in and armed_in <= {"GUIDED", "AUTO"}, f"armed in {armed_in}"
     assert any(e == "start: vehicle 1 started its scan" for e in events), events
+
+
+class _StuckAgent:
+    """Acknowledges the start (armed, AUTO) and never leaves the ground (PX4 SITL that ignored
+    arming sat at "starting item 0/9" for 2,300 s of mission time)."""
+
+    def __init__(self):
+        from uavloc_gcs.service.vehicle import Telemetry
+
+        self.tel = Telemetry(battery_pct=80.0, mission_seq=1, armed=False, mode="LOITER", rel_alt_m=0.0)
+        self.flavour = SimpleNamespace(first_mission_seq=1, home_at_seq0=True, name="ardupilot")
+        self.texts, self.airborne_wall_s, self.disarms = [], -math.inf, 0
+
+    def on_ground(self):
+        return self.tel.rel_alt_m < 1.5
+
+    @property
+    def in_mission_mode(self):
+        return self.tel.mode == "AUTO"
+
+    async def start(self, *, before_start=None):
+        before_start()
+        self.tel.armed, self.tel.mode = True, "AUTO"
+
+    async def disarm(self):
+        self.disarms += 1
+        self.tel.armed = False
+
+
+def test_a_start_acknowledged_but_never_climbing_is_a_failed_start(tmp_path, monkeypatch):
+    import uavloc_gcs.service.daemon as daemon_mod
+    from uavloc_gcs.mission import to_wire
+    from uavloc_gcs.scan import plan_scan, scan_missions
+
+    monkeypatch.setattr(daemon_mod, "CLIMB_WAIT_S", 0.5)
+    sc = small_scenario("ardupilot").replace(fleet={"vehicles": 1})
+    d = Daemon(sc, [(1, "udpout:127.0.0.1:9")], DaemonOptions(store_path=tmp_path / "s.sqlite"), policy=_NoPolicy())
+    d.store = Store(tmp_path / "s.sqlite")
+    try:
+        v = d.vehicles[1]
+        v.agent = _StuckAgent()
+        v.phase = "uploading scan"
+        d._adopt(v, "scan", to_wire(scan_missions(sc, plan_scan(sc))[0], "ardupilot"))
+
+        async def go():
+            job = d._launch(v, d._start(v))
+            await asyncio.wait([job], timeout=10.0)
+
+        asyncio.run(go())
+        assert v.phase == "unusable" and "did not leave the ground" in v.unusable, v.unusable
+        assert v.start_failed and not v.scan_done and v.agent.disarms == 1
+        assert not any(t.startswith("start: vehicle 1 started") for t in _texts(tmp_path / "s.sqlite", store=d.store))
+        d.policy.people = lambda t: []
+        statement = d._outcome().statement
+        assert "Vehicle 1 did not fly its scan" in statement and "not searched" in statement, statement
+    finally:
+        d.store.close()
