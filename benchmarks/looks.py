@@ -79,7 +79,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--people", type=int, default=20, help="people per world (default 20)")
     parser.add_argument("--seed", type=int, default=0, help="experiment seed (default 0, as `uavloc experiment`)")
     parser.add_argument("--scenario", default="paper",
-                        help="scenario file, or a shipped one by name: paper, small (default paper)")
+                        help="scenario file, or a shipped one by name: paper, field, small (default paper; field: "
+                             "the same area with phones that send probe bursts)")
     parser.add_argument("--variants", default=",".join(VARIANTS), help=f"comma-separated, of {', '.join(VARIANTS)}")
     parser.add_argument("--jobs", type=int, default=2, help="worker processes (default 2)")
 
@@ -140,7 +141,7 @@ def _fly(job):
     inside = [p for p in located if p.error_m <= p.claimed_radius_m]
     why = [_kind(p.reason) for p in heard if not p.located]
     return (variant, run, len(heard), len(located), len(inside), res.completion_time_s, res.oracle_completion_time_s,
-            why)
+            why, len(res.persons))
 
 
 def _kind(reason: str) -> str:
@@ -167,14 +168,14 @@ def main(args: argparse.Namespace) -> int:
             rows.append(row)
             bar.step(f"{row[0]} run {row[1]}")
     print(f"look rules on '{args.scenario}', MLE-EPSO (M), {args.people} people, {args.runs} paired worlds (seed {args.seed})")
-    head = (f"{'variant':14s} {'located/heard':>14s} {'inside r95':>11s} {'completion s':>15s} "
+    head = (f"{'variant':14s} {'heard/present':>14s} {'located/heard':>14s} {'inside r95':>11s} {'completion s':>15s} "
             f"{'/ clairvoyant':>13s} {'vs default s':>14s}")
     print(head)
     print("-" * len(head))
     by = {v: sorted((r for r in rows if r[0] == v), key=lambda r: r[1]) for v in variants}
     for v in variants:
         rs = by[v]
-        heard, located, inside = (sum(r[k] for r in rs) for k in (2, 3, 4))
+        heard, located, inside, present = (sum(r[k] for r in rs) for k in (2, 3, 4, 8))
         m, ci, _ = mean_ci95([r[5] for r in rs])
         oracle = [r[6] for r in rs if math.isfinite(r[6])]
         ratio = m / float(np.mean(oracle)) if oracle else math.nan
@@ -182,7 +183,7 @@ def main(args: argparse.Namespace) -> int:
         if v != "default" and "default" in by:
             d, dci, _ = mean_ci95([a[5] - b[5] for a, b in zip(rs, by["default"])])
             paired = f"{d:+7.1f} ± {dci:4.1f}"
-        print(f"{v:14s} {located:6d}/{heard:<7d} {inside / max(located, 1):11.3f} {m:8.1f} ± {ci:4.1f} "
+        print(f"{v:14s} {heard:6d}/{present:<7d} {located:6d}/{heard:<7d} {inside / max(located, 1):11.3f} {m:8.1f} ± {ci:4.1f} "
               f"{ratio:13.3f} {paired:>14s}")
     for v in variants:
         why = Counter(k for r in by[v] for k in r[7])

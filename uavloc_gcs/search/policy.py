@@ -84,9 +84,6 @@ TRACK_STEP_SLOTS = 10  # listening tracks are kept every this many slots (0.25 s
 # must not read as silence, so with these tracks a phone counts as silent only where it was not
 # heard for this long either side.
 SLOT_TRACK_QUIET_S = 0.6
-# With transmit power estimated (phones differ), linking widens every burst's range bound by this
-# much [dB]: two bursts heard at ranges that a phone 6 dB louder or quieter explains may be one phone.
-LINK_TX_MARGIN_DB = 6.0
 
 
 def _polygon_area(xy: np.ndarray) -> float:
@@ -267,14 +264,14 @@ class SearchPolicy:
         """Link every address heard so far into people and give each person their slots. Person ids
         are stable as data grow (the first address heard of them), so a person's bookkeeping (looks,
         fix) carries over; a person whose bursts now belong to someone else is dropped."""
-        from ..estimation.identity import link
+        from ..estimation.identity import UNKNOWN_TX_MARGIN_DB, link
 
         raw = SlotBatch.concat(self._raw)
         self._raw = [raw]
         sc = self.scenario
         self.linking = link(raw, self.channel, max_speed_m_s=sc.people.max_speed_m_s,
                             area_m2=float(abs(_polygon_area(self.area_xy_m))),
-                            tx_margin_db=LINK_TX_MARGIN_DB if sc.channel.estimate_tx_power else 0.0,
+                            tx_margin_db=UNKNOWN_TX_MARGIN_DB,
                             previous=self.linking)
         labelled = self.linking.slots
         order = np.argsort(labelled.emitter_id, kind="stable")
@@ -327,6 +324,18 @@ class SearchPolicy:
                 if float(np.min(np.linalg.norm(xyz[:, :2] - c.xy_m, axis=1))) < self.range_m:
                     p.dirty = True
                     break
+
+    def ingest_position(self, vehicle: int, t_s: float, xyz_m) -> None:
+        """Record one telemetry position of ``vehicle`` [s; m, z = height above the people], where it
+        listened: under a receiver threshold, the censored silences of the bursts it did not hear
+        (``_censored``) need where every vehicle was when a burst was heard, which the slots heard
+        (sparse: a few bursts a minute) do not say. Kept as they come, none dropped."""
+        from ..estimation.model import MIN_ALTITUDE_FRACTION
+
+        xyz = np.asarray(xyz_m, float).reshape(1, 3)
+        if xyz[0, 2] < MIN_ALTITUDE_FRACTION * self.scenario.fleet.altitude_m:
+            return
+        self._tracks.setdefault(int(vehicle), []).append((np.array([float(t_s)]), xyz))
 
     def _silence(self, p: "_Person"):
         """The recorded listening of every vehicle where ``p``'s phone was not heard; None when

@@ -67,7 +67,7 @@ def person_result(status, frame: LocalFrame, *, epoch_t_s: float = 0.0) -> Perso
                         located, not ambiguous, reason, t_ref)
 
 
-def final_results(statuses, slots, scenario, frame: LocalFrame) -> list[PersonResult]:
+def final_results(statuses, slots, scenario, frame: LocalFrame, linking=None) -> list[PersonResult]:
     """Each person re-estimated at the end from the slots of its last FINAL_WINDOW_S seconds of
     being heard (all of them if that window does not give a usable fit). The policy
     freezes a person's estimate when it first meets the accuracy; later passes usually sharpen it,
@@ -75,10 +75,19 @@ def final_results(statuses, slots, scenario, frame: LocalFrame) -> list[PersonRe
     The reported position is always the one the reported radius is about.
     A person counts as located if the policy located it or the final estimate's 95 % circle (over
     both mirror candidates if ambiguous) is within the required accuracy. A person the policy located keeps its fix unless
-    a refit is also within the required accuracy; otherwise the policy's belief is reported."""
+    a refit is also within the required accuracy; otherwise the policy's belief is reported.
+
+    ``linking`` (the policy's ``estimation.identity.Linking``, when a sensor reported fingerprints):
+    the people are the linked addresses, so their slots are the linked ones, and each result names
+    the addresses it was heard under and why their link is uncertain."""
     from ..estimation import ChannelModel, survey_slots  # noqa: PLC0415
 
     channel = ChannelModel.from_scenario(scenario)
+    if linking is not None:
+        slots = linking.slots  # already the survey slots, relabelled by person
+        out = final_results(statuses, slots, scenario, frame)
+        return [dataclasses.replace(r, addresses=tuple(linking.addresses(r.emitter_id)),
+                                    link_reason=linking.uncertain(r.emitter_id) or "") for r in out]
     slots = survey_slots(slots, scenario.fleet.altitude_m)  # what the policy estimated from
     required = scenario.people.required_accuracy_m
     out = []

@@ -11,8 +11,10 @@ from uavloc_gcs.search import SearchPolicy
 LOCAL = 1 << 41  # the locally administered bit of a 48-bit address
 
 
-def _burst(sc, t0_s, vehicle_xy, person_xy, address, fingerprint, frames=6):
-    """One burst heard along a vehicle leg: one slot per frame, RSSI from the channel's median."""
+def _burst(sc, t0_s, vehicle_xy, person_xy, address, fingerprint, frames=20):
+    """One burst heard along a vehicle leg (20 frames heard by default, a long burst: with the unknown
+    transmit power the ground allows for, a short one bounds the range too loosely to tell a twin
+    1 km away from the same phone): one slot per frame, RSSI from the channel's median."""
     ch = sc.channel
     t = t0_s + 0.04 * np.arange(frames)
     xy = np.asarray(vehicle_xy, float) + np.outer(t - t0_s, [25.0, 0.0])
