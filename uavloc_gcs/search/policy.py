@@ -86,6 +86,29 @@ TRACK_STEP_SLOTS = 10  # listening tracks are kept every this many slots (0.25 s
 SLOT_TRACK_QUIET_S = 0.6
 
 
+# Burst-to-burst spread of one phone's frame count (log std), as fitted to the public captures
+# (sim_link/world/emission.py FRAMES_LOG_SIGMA, docs/readme/world.md).
+FRAMES_LOG_SIGMA = 0.41
+
+
+def frames_prior(scenario: Scenario):
+    """The frames a phone sends per probe burst, as the scenario's emission keys describe them, for the
+    estimator's hearing counts (estimation.evidence.FramesPrior): a phone's median count log-uniform
+    between ``frames_per_burst_median_min`` and ``_max``, each burst log-normal about it
+    (FRAMES_LOG_SIGMA), at most ``frames_per_burst_max``; every frame on a channel the sensor listens
+    to (probe scans sweep 1/6/11, where the sensor has its radios). Deterministic (a fixed sample)."""
+    from ..estimation.evidence import FramesPrior
+
+    em = scenario.emission
+    rng = np.random.default_rng(0)
+    n = 50_000
+    lo, hi = math.log(em.frames_per_burst_median_min), math.log(em.frames_per_burst_median_max)
+    median = np.exp(rng.uniform(lo, hi, n))
+    k = np.clip(np.rint(median * np.exp(FRAMES_LOG_SIGMA * rng.standard_normal(n))), 1, em.frames_per_burst_max)
+    counts = np.bincount(k.astype(int), minlength=int(em.frames_per_burst_max) + 1)[1:].astype(float)
+    return FramesPrior(counts + 0.5)  # no count impossible
+
+
 def _polygon_area(xy: np.ndarray) -> float:
     x, y = xy[:, 0], xy[:, 1]
     return 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
@@ -229,6 +252,7 @@ class SearchPolicy:
         # slots of a sensor that reports fingerprints, not yet linked into people (see _relink)
         self._raw: list[SlotBatch] = []
         self.linking = None  # estimation.identity.Linking of everything heard, once linking is on
+        self._frames_prior = None  # estimation.evidence.FramesPrior of the scenario's bursts (frames_prior)
 
     # -- data in ---------------------------------------------------------------------------
     def ingest(self, slots: SlotBatch) -> None:
@@ -364,12 +388,15 @@ class SearchPolicy:
 
         if not self.hearing_evidence or not self._tracks or self.channel.sensitivity_dbm is None:
             return None
+        if self._frames_prior is None and self.scenario.emission.model == "probe-bursts" \
+                and self.scenario.emission.elicitation_rate_hz == 0:
+            self._frames_prior = frames_prior(self.scenario)
         tracks = []
         for v, parts in self._tracks.items():
             if len(parts) > 1:
                 self._tracks[v] = parts = [(np.concatenate([a for a, _ in parts]), np.vstack([b for _, b in parts]))]
             tracks.append((v, parts[0][0], parts[0][1]))
-        return censored_silence(tracks, p.batches[0])
+        return censored_silence(tracks, p.batches[0], frames_prior=self._frames_prior or None)
 
     def update(self, t_s: float) -> set[int]:
         """Re-estimate emitters with new slots; return the ids whose state changed materially

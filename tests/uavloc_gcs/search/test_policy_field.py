@@ -69,3 +69,17 @@ def test_a_burst_phone_missed_by_fly_by_looks_is_not_said_to_be_gone():
     reason = policy.people(400.0)[0].reason
     assert reason.startswith("given up: not heard on 2 fly-by looks")
     assert "has gone" not in reason and "may well still be there" in reason
+
+
+def test_the_frames_prior_follows_the_scenarios_bursts():
+    from uavloc_gcs.search.policy import frames_prior
+
+    sc = load_scenario(scenario_path("field"))
+    p = np.asarray(frames_prior(sc).p, float)
+    p = p / p.sum()
+    k = np.arange(1, len(p) + 1)
+    median = int(k[np.searchsorted(np.cumsum(p), 0.5)])
+    em = sc.emission
+    assert len(p) == em.frames_per_burst_max
+    assert em.frames_per_burst_median_min < median < em.frames_per_burst_median_max
+    assert p[-1] < p[median - 1]  # the cap is rare
