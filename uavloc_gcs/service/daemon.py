@@ -1011,7 +1011,14 @@ class Daemon:
                 return
         v.targets, v.look_xy_m, v.looks_reported = targets, pts, 0
         v.look_first_seq = next(it.seq for it in items if it.command == NAV_WAYPOINT and it.seq > 0)
-        v.home = False
+        a = v.agent
+        # Read now, not assumed: a start whose ACKs were lost lasts as long as a short look, and the
+        # vehicle may have flown it and landed meanwhile (tests/test_e2e_vehicle_faults.py's store:
+        # vehicle 1 on the ground, disarmed, "not home", and the search waited for a replan).
+        if a.on_ground() and not a.tel.armed:
+            v.home, v.phase = True, "landed"
+        else:
+            v.home = False
 
     async def _send_home(self, v: _Vehicle) -> None:
         v.purpose, v.targets, v.look_xy_m = "home", (), None

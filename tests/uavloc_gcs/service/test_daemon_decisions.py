@@ -408,3 +408,31 @@ def test_a_looks_events_are_logged_once_it_is_on_board_before_its_start(tmp_path
         assert sorted(plans) == ["vehicle 1 looks at 7", "vehicle 2 looks at 8"]
     finally:
         d.store.close()
+
+
+def test_a_look_flown_and_landed_from_while_its_start_was_judged_leaves_the_vehicle_home(tmp_path):
+    """Seen in tests/test_e2e_vehicle_faults.py's store (MISSION_START ACKs dropped, 25x): the
+    vehicle flew its look and landed while the start was resent; the daemon then marked it "not
+    home" after the exchange, so with everyone landed the search waited for the policy instead of
+    planning again. What the vehicle does is read when the exchange ends."""
+    d, policy = _daemon(tmp_path)
+    _all_landed(d)
+
+    class _FliesAndLands(_LandingAgent):
+        async def switch_to(self, seq, *, before_start=None, **_kw):
+            before_start()
+            self.switches.append(seq)
+            self.take_off()
+            self.airborne_wall_s = d.wall()
+            await asyncio.sleep(0.05)  # the look, flown while the ACK was awaited
+            self.ground, self.tel.armed, self.tel.rel_alt_m = True, False, 0.0
+
+    try:
+        for v in d.vehicles.values():
+            v.agent = _FliesAndLands((0.0, 2.0))
+            v.agent.ground, v.agent.tel.armed, v.agent.tel.rel_alt_m = True, False, 0.0
+        asyncio.run(d._step(700.0, set()))
+        assert all(len(v.agent.switches) == 1 for v in d.vehicles.values())
+        assert all(v.home and v.phase == "landed" for v in d.vehicles.values())
+    finally:
+        d.store.close()
