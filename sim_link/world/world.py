@@ -65,6 +65,7 @@ class World:
             tracks = make_tracks(scenario.area_xy_m(), count, self.motion, scenario.people.max_speed_m_s,
                                  self._rng(_PEOPLE), horizon_s=horizon_s)
         self.tracks = tracks
+        self._horizon_s = float(horizon_s)
         n = len(tracks)
         self.emitter_ids = _unique_ids(n, self._rng(_IDS))
         spread = sim.tx_power_spread_db
@@ -115,6 +116,11 @@ class World:
         continuous world, emitter id) heard; -1 for an address no person of this world has used."""
         table = self._id_index if self.emission is None else self.emission.owner
         a = np.asarray(addresses, dtype=np.int64).reshape(-1)
+        if self.emission is not None and any(int(x) not in table for x in a):
+            # the bursts (and their addresses) are drawn as hearing needs them: a world rebuilt
+            # from the seed to judge a search draws them up to the tracks' horizon first (each
+            # phone's bursts come from its own stream in a fixed order, so they are the same)
+            self.emission.frames(0.0, self._horizon_s)
         return np.array([table.get(int(x), -1) for x in a], dtype=int)
 
     @property

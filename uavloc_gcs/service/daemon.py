@@ -158,8 +158,10 @@ class Daemon:
         self.policy = policy
         if hasattr(policy, "look_flown"):
             policy.look_reports = True  # looks are judged from when the vehicle really passed them
-            # where each vehicle listened is known only from the slots it heard (SLOT_TRACK_QUIET_S)
-            policy.tracks_from_slots = True
+            # where each vehicle listened is known only from the slots it heard (SLOT_TRACK_QUIET_S);
+            # under a receiver threshold (the field world) from its telemetry (_on_position): a
+            # silence is evidence there only while some vehicle heard a burst, and bursts are sparse
+            policy.tracks_from_slots = scenario.channel.receiver_sensitivity_dbm is None
         self.store: Store | None = None
         self.epoch_unix_s: float | None = None
         self._slots_in: list[SlotBatch] = []
@@ -732,6 +734,9 @@ class Daemon:
         v = self.vehicles[vehicle]
         self.store.add_telemetry([TelemetryRow(self.now_s(), vehicle, tel.lat_deg, tel.lon_deg, tel.rel_alt_m,
                                                tel.battery_pct, tel.mode, tel.mission_seq, v.lost)])
+        if self.sc.channel.receiver_sensitivity_dbm is not None and hasattr(self.policy, "ingest_position"):
+            e, n = self.frame.to_local(tel.lat_deg, tel.lon_deg)
+            self.policy.ingest_position(vehicle, self.now_s(), (float(e), float(n), float(tel.rel_alt_m)))
 
     def _on_text(self, vehicle: int, text: str) -> None:
         self.store.add_event("statustext", text, t_s=self.now_s(), vehicle=vehicle)
@@ -1060,7 +1065,8 @@ class Daemon:
         self.store.flush()
         with StoreReader(self.opt.store_path) as rd:
             slots = rd.slots()
-        people = tuple(final_results(self.policy.people(t), slots, self.sc, self.frame))
+        people = tuple(final_results(self.policy.people(t), slots, self.sc, self.frame,
+                                     linking=getattr(self.policy, "linking", None)))
         lost = tuple(v.id for v in self.vehicles.values() if v.lost)
         returning = tuple(v.id for v in self.vehicles.values() if not v.home and not v.lost and v.phase == "returning")
         other = tuple(v.id for v in self.vehicles.values() if not v.home and not v.lost and v.phase != "returning")
