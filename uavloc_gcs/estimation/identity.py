@@ -108,6 +108,13 @@ def is_locally_administered(address: int) -> bool:
     return bool((int(address) >> 40) & 0x02)
 
 
+def person_name(person: int) -> str:
+    """How a person is named in logs: the first address heard of them as a MAC when it is one (the
+    field world's ids are 48-bit addresses), else the plain emitter id (the paper's world, old logs)."""
+    p = int(person)
+    return format_address(p) if p >= 1 << 32 else str(p)
+
+
 def format_addresses(addresses, sep: str = ";") -> str:
     """The addresses as MACs joined by ``sep`` (e.g. a CSV cell)."""
     return sep.join(format_address(a) for a in addresses)

@@ -34,6 +34,7 @@ import numpy as np
 from ..errors import ConfigError, LinkError, UavlocError
 from ..mission import NAV_WAYPOINT, flight_mission, to_wire
 from ..observations import SlotBatch
+from ..estimation.identity import person_name
 from ..scenario import Scenario
 from .lifecycle import allowed, persist
 from .liveview import LiveView, StatusSnapshot, VehicleStatus, person_view
@@ -1003,7 +1004,7 @@ class Daemon:
             items = to_wire(plan, f.autopilot)
             try:
                 await self._upload(v, "look", items, first_seq=first,
-                                   plan_text=f"vehicle {v.id} looks at {', '.join(map(str, targets))}")
+                                   plan_text=f"vehicle {v.id} looks at {', '.join(map(person_name, targets))}")
                 break
             except UnsafeStart as exc:
                 if attempt + 1 < LOOK_UPLOAD_TRIES:
