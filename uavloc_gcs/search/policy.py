@@ -50,6 +50,11 @@ log = logging.getLogger(__name__)
 # scenario, 40 worlds: 800/800 located against 794/800, +6.3 +- 8.4 s; SITL sparse scan, 120
 # worlds: 360/360 against 358/360, +0.3 +- 0.4 s.
 MAX_LOOKS: int | None = None
+# With phones that send probe bursts (the field world, no elicitation), a person is given up after
+# this many fly-by looks that did not locate them: each sees a few seconds of a phone that speaks
+# every 20-270 s. Without it the daemon flew the field demo's 10 people look after look until the
+# batteries were at 9-13 % (3,100 s of mission time, 7 replans, nobody located). None: no cap.
+FLYBY_LOOKS_FOR_BURSTS: int | None = 2
 MAX_MISSES = 2  # looks that heard nothing before giving up (with a mirror ambiguity: one at each candidate)
 MATERIAL_SHIFT_FRACTION = 0.5  # estimate moved > this x required accuracy => replan
 LOOK_LATE_S = 180.0  # with look reports: an unreported look counts only this long after its (re-based) time
@@ -252,6 +257,8 @@ class SearchPolicy:
         # slots of a sensor that reports fingerprints, not yet linked into people (see _relink)
         self._raw: list[SlotBatch] = []
         self.linking = None  # estimation.identity.Linking of everything heard, once linking is on
+        # phones heard in bursts, not elicited: a fly-by look rarely hears them (FLYBY_LOOKS_FOR_BURSTS)
+        self._bursts = scenario.emission.model == "probe-bursts" and scenario.emission.elicitation_rate_hz == 0
         self._frames_prior = None  # estimation.evidence.FramesPrior of the scenario's bursts (frames_prior)
 
     # -- data in ---------------------------------------------------------------------------
@@ -791,7 +798,7 @@ class SearchPolicy:
                 p.misses += 1
                 if self._ambiguous(p):
                     p.flipped = not p.flipped
-            if p.misses >= MAX_MISSES and self.scenario.emission.model == "probe-bursts":
+            if p.misses >= MAX_MISSES and self._bursts:
                 # a phone heard in bursts is silent most of the time: a fly-by missing it says
                 # little about whether it is still there
                 p.gave_up = (f"not heard on {p.misses} fly-by looks where it was predicted; its phone"
@@ -800,6 +807,11 @@ class SearchPolicy:
             elif p.misses >= MAX_MISSES:
                 p.gave_up = (f"not heard on {p.misses} looks where it was predicted"
                              " (a phone that is off or has gone cannot be located)")
+            elif self._bursts and FLYBY_LOOKS_FOR_BURSTS is not None and p.looks >= FLYBY_LOOKS_FOR_BURSTS:
+                r95 = self._radius95(p) if p.estimate is not None else math.nan
+                p.gave_up = (f"not located after {p.looks} fly-by looks (95 % radius {r95:.0f} m); a fly-by"
+                             " of a few seconds rarely catches a phone that bursts tens of seconds to minutes"
+                             " apart, so more of them would only spend the batteries")
             elif MAX_LOOKS is not None and p.looks >= MAX_LOOKS:
                 r95 = self._radius95(p) if p.estimate is not None else math.nan  # the believed candidate's
                 p.gave_up = f"not located after {p.looks} looks (95 % radius {r95:.1f} m)"

@@ -83,3 +83,24 @@ def test_the_frames_prior_follows_the_scenarios_bursts():
     assert len(p) == em.frames_per_burst_max
     assert em.frames_per_burst_median_min < median < em.frames_per_burst_median_max
     assert p[-1] < p[median - 1]  # the cap is rare
+
+
+def test_a_burst_phone_is_given_up_after_two_fly_by_looks_even_when_they_heard_it():
+    sc = load_scenario(scenario_path("field"))
+    policy = SearchPolicy(sc, seed=0)
+    person, a = np.array([300.0, 200.0]), LOCAL | 9
+    policy.ingest(_burst(sc, 10.0, (250.0, 150.0), person, a, 0x99))
+    policy.update(20.0)
+    for k, t_look in enumerate((100.0, 300.0)):
+        policy._awaiting[a] = t_look
+        policy.ingest(_burst(sc, t_look, (250.0 + 20 * k, 250.0), person, a, 0x99))  # the look heard it
+        policy.update(t_look + 50.0)
+    status = policy.people(400.0)[0]
+    assert not status.located
+    assert status.reason.startswith("given up: not located after 2 fly-by looks")
+    assert policy.done(400.0)
+
+
+def test_with_elicitation_looks_are_not_capped():
+    sc = load_scenario(scenario_path("field")).replace(emission={"elicitation_rate_hz": 2.0})
+    assert not SearchPolicy(sc, seed=0)._bursts
