@@ -43,9 +43,15 @@ class PersonLabels:
         except sqlite3.Error:
             return self
         try:
-            rows = conn.execute(
-                "SELECT emitter_id, MIN(rowid) AS first, MIN(t_s) FROM slots WHERE rowid > ? "
-                "GROUP BY emitter_id ORDER BY first, emitter_id", (self._rowid,)).fetchall()
+            try:  # a sensor that reports fingerprints hears addresses, not people: those are
+                # labelled as the people they are linked into appear (add), not one per address
+                rows = conn.execute(
+                    "SELECT emitter_id, MIN(rowid) AS first, MIN(t_s) FROM slots WHERE rowid > ? AND fingerprint = 0 "
+                    "GROUP BY emitter_id ORDER BY first, emitter_id", (self._rowid,)).fetchall()
+            except sqlite3.OperationalError:  # a store from before the field world: no fingerprints
+                rows = conn.execute(
+                    "SELECT emitter_id, MIN(rowid) AS first, MIN(t_s) FROM slots WHERE rowid > ? "
+                    "GROUP BY emitter_id ORDER BY first, emitter_id", (self._rowid,)).fetchall()
             last = conn.execute("SELECT MAX(rowid) FROM slots").fetchone()[0]
         except sqlite3.Error:  # the schema is not there yet
             return self

@@ -109,6 +109,9 @@ def render_lines(s: StatusSnapshot, labels=None) -> list[str]:
     lines.append("")
     row = []
     name = labels.name if labels is not None else (lambda eid: f"#{eid}")
+    if labels is not None:  # people linked from addresses are labelled as they appear
+        labels.add(p.emitter_id for p in sorted(s.people, key=lambda p: p.emitter_id))
+
     def order(p):
         lab = labels.get(p.emitter_id) if labels is not None else ""
         return (not lab, len(lab), lab, p.emitter_id)

@@ -77,7 +77,10 @@ class PersonResult:
     @property
     def name(self) -> str:
         """'P01 #17': the short label with the emitter id (just '#17' without a label)."""
-        return f"{self.label} #{self.emitter_id}" if self.label else f"#{self.emitter_id}"
+        from ..estimation.identity import person_name  # noqa: PLC0415
+
+        ident = person_name(self.emitter_id)  # the first address heard, as a MAC, in the field world
+        return f"{self.label} #{ident}" if self.label else f"#{ident}"
 
 
 def person_state(located: bool, reason: str) -> str:

@@ -200,6 +200,7 @@ class MapFeed:
             rows = [(eid, r["east_m"], r["north_m"], r["radius95_m"], r["located"], r["reason"], r["t_s"], r["vel"],
                      r["ambiguous"], (math.nan, math.nan), math.nan) for eid, r in self.estimates.items()]
         area, margin = self.sc.area_xy_m(), self.sc.people.required_accuracy_m
+        self.labels.add(sorted(r[0] for r in rows))  # people linked from addresses, labelled as they appear
         for eid, e, n, r95, located, reason, t_ref, vel, ambiguous, mirror, mirror_r in rows:
             if ambiguous and all(math.isfinite(v) for v in (e, n, *mirror)) and \
                     inside_area(area, (e, n), margin) != inside_area(area, mirror, margin):
