@@ -55,6 +55,9 @@ MAX_LOOKS: int | None = None
 # every 20-270 s. Without it the daemon flew the field demo's 10 people look after look until the
 # batteries were at 9-13 % (3,100 s of mission time, 7 replans, nobody located). None: no cap.
 FLYBY_LOOKS_FOR_BURSTS: int | None = 2
+# Every look point lies inside the search area grown by this fraction of the horizontal hearing
+# range (1: 112 m in the paper scenario), the stated margin of issue 26. None: no limit.
+LOOK_AREA_MARGIN: float | None = 1.0
 MAX_MISSES = 2  # looks that heard nothing before giving up (with a mirror ambiguity: one at each candidate)
 MATERIAL_SHIFT_FRACTION = 0.5  # estimate moved > this x required accuracy => replan
 LOOK_LATE_S = 180.0  # with look reports: an unreported look counts only this long after its (re-based) time
@@ -259,6 +262,7 @@ class SearchPolicy:
         self.linking = None  # estimation.identity.Linking of everything heard, once linking is on
         # phones heard in bursts, not elicited: a fly-by look rarely hears them (FLYBY_LOOKS_FOR_BURSTS)
         self._bursts = scenario.emission.model == "probe-bursts" and scenario.emission.elicitation_rate_hz == 0
+        self._reach_poly = None  # the area grown by LOOK_AREA_MARGIN (_inside_reach)
         self._frames_prior = None  # estimation.evidence.FramesPrior of the scenario's bursts (frames_prior)
 
     # -- data in ---------------------------------------------------------------------------
@@ -680,11 +684,33 @@ class SearchPolicy:
                 dur = float(np.linalg.norm(home[0] - np.asarray(v.start_xy_m, dtype=float))) / self.speed_m_s
                 tasks.append(VehicleTask(v.id, home, (), t_s + dur))
                 continue
-            pts = np.vstack([np.asarray(r.access_points_xy_m, dtype=float).reshape(-1, 2), home])
+            pts = np.vstack([self._inside_reach(np.asarray(r.access_points_xy_m, dtype=float).reshape(-1, 2)),
+                             home])
             tasks.append(VehicleTask(v.id, pts, tuple(int(i) for i in r.target_ids), t_s + float(r.duration_s),
                                      tuple(float(a) for a in r.access_times_s)))
         makespan = max((task.eta_s for task in tasks), default=t_s) - t_s
         return SearchPlan(tuple(tasks), makespan, runtime, None if result is None else result.plan, t_s)
+
+    def _inside_reach(self, pts: np.ndarray) -> np.ndarray:
+        """Look points moved into the search area grown by the hearing range (``LOOK_AREA_MARGIN``
+        of it): people are searched for inside the area, and from that margin a vehicle still
+        hears its edge. A look at an estimate predicted far outside (a wide field-world posterior,
+        a walker extrapolated) flew 1.1 km north of the area in the field demo; it now goes as far
+        as the margin and no further."""
+        import shapely
+        from shapely.geometry import Polygon
+        from shapely.ops import nearest_points
+
+        if not len(pts) or LOOK_AREA_MARGIN is None:
+            return pts
+        if self._reach_poly is None:
+            self._reach_poly = Polygon(self.area_xy_m).buffer(LOOK_AREA_MARGIN * self.range_m)
+        inside = shapely.contains_xy(self._reach_poly, pts[:, 0], pts[:, 1])
+        out = pts.copy()
+        for i in np.flatnonzero(~inside):
+            q = nearest_points(self._reach_poly.exterior, shapely.Point(pts[i]))[0]
+            out[i] = (q.x, q.y)
+        return out
 
     def _candidate(self, p: _Person) -> tg.Candidate | None:
         if p.estimate is None:

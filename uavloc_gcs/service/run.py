@@ -139,7 +139,9 @@ def _results(outcome: SearchOutcome, daemon: Daemon, scenario: Scenario, connect
             people.append(PersonResult(eid, math.nan, math.nan, math.nan, math.nan, math.nan, math.nan, math.nan,
                                        math.nan, math.nan, False, False, "never heard"))
     labels.refresh()
-    labels.add(sorted(p.emitter_id for p in people))  # anyone not in the store (never heard) comes last
+    # anyone not labelled yet: the people heard first (in the field world they are linked from
+    # addresses, not labelled from the store), the never heard last
+    labels.add(p.emitter_id for p in sorted(people, key=lambda p: (p.reason == "never heard", p.emitter_id)))
     people = [dataclasses.replace(p, label=labels.get(p.emitter_id)) for p in people]
     heard = [p for p in people if p.reason != "never heard"]
     others = tuple(v for v, _ in connections if v not in (*outcome.vehicles_home, *outcome.vehicles_lost,

@@ -104,3 +104,19 @@ def test_a_burst_phone_is_given_up_after_two_fly_by_looks_even_when_they_heard_i
 def test_with_elicitation_looks_are_not_capped():
     sc = load_scenario(scenario_path("field")).replace(emission={"elicitation_rate_hz": 2.0})
     assert not SearchPolicy(sc, seed=0)._bursts
+
+
+def test_look_points_stay_inside_the_area_and_its_stated_margin():
+    from uavloc_gcs.search.policy import LOOK_AREA_MARGIN
+
+    sc = load_scenario(scenario_path("field"))
+    policy = SearchPolicy(sc, seed=0)
+    far = np.array([[560.0, 1750.0], [-550.0, 380.0], [500.0, 300.0]])  # two far outside, one inside
+    out = policy._inside_reach(far)
+    margin = LOOK_AREA_MARGIN * sc.horizontal_range_m
+    from uavloc_gcs.search.targets import boundary_distance_m, inside_area
+
+    for p in out:
+        assert inside_area(sc.area_xy_m(), p) or boundary_distance_m(sc.area_xy_m(), p) <= margin + 1e-6
+    assert np.allclose(out[2], far[2])  # a point inside is left alone
+    assert abs(out[0][1] - (640.0 + margin)) < 1.0  # the northern one goes to the margin, no further
