@@ -85,9 +85,18 @@ def rssi_posterior_mean(data: Prepared, t_ref: float, candidates: list[tuple[np.
         for c, d, t_leg in legs:
             centers.append((_reflect(state, t_ref, c, d, t_leg), cov))
     wide = [(m, 9.0 * (0.5 * (c + c.T) + floor) + widen) for m, c in centers]
-    comps = wide
-    ess = 0.0
-    mean = candidates[0][0][:2]
+    return _population_mc(lambda x: log_posterior(x, data, t_ref, max_speed_m_s), wide, wide[:2],
+                          candidates[0][0][:2], floor, samples=samples, rounds=rounds, rng=rng)
+
+
+
+def _population_mc(log_post, wide, keep, start_mean, floor, *, samples: int, rounds: int, rng):
+    """Adaptive importance sampling (population Monte Carlo) of a posterior from the Gaussian
+    components ``wide`` [(mean, cov)]: each round samples the mixture, weighs by ``log_post`` and
+    refits one component per current one to the samples nearest it, beside the components ``keep``
+    (so a mode once found is never dropped). Returns the weighted mean position and the ESS."""
+    comps, ess, mean = wide, 0.0, start_mean
+    dim = len(wide[0][0])
     for _ in range(rounds):
         chols = []
         for m, c in comps:
@@ -96,17 +105,15 @@ def rssi_posterior_mean(data: Prepared, t_ref: float, candidates: list[tuple[np.
             except np.linalg.LinAlgError:
                 chols.append((m, np.diag(np.sqrt(np.abs(np.diag(c))) + 1e-3)))
         n = max(samples // len(chols), 1)
-        x = np.vstack([m + rng.standard_normal((n, 4)) @ l.T for m, l in chols])
+        x = np.vstack([m + rng.standard_normal((n, dim)) @ l.T for m, l in chols])
         lq = np.logaddexp.reduce(np.stack([_mvn_logpdf(x, m, l) for m, l in chols]), axis=0)
-        lw = log_posterior(x, data, t_ref, max_speed_m_s) - lq
+        lw = log_post(x) - lq
         if not np.any(np.isfinite(lw)):
             break
         w = np.exp(lw - np.max(lw))
         w /= w.sum()
         ess = float(1.0 / np.sum(w * w))
         mean = w @ x[:, :2]
-        # refit one component per current one to the samples nearest it (population Monte Carlo),
-        # beside the first two wide starting components, so a mode once found is never dropped
         near = np.argmin(np.stack([np.linalg.norm(x[:, :2] - m[:2], axis=1) for m, _ in comps]), axis=0)
         refit = []
         for j in range(len(comps)):
@@ -116,9 +123,8 @@ def rssi_posterior_mean(data: Prepared, t_ref: float, candidates: list[tuple[np.
             mj = wj @ x / wj.sum()
             dj = x - mj
             refit.append((mj, 2.0 * (dj * wj[:, None]).T @ dj / wj.sum() + floor))
-        comps = wide[:2] + refit
+        comps = keep + refit
     return mean, ess
-
 
 def mmse_floor(errors_m: np.ndarray) -> float:
     """RMSE of the posterior means over a family's runs."""
@@ -198,32 +204,6 @@ def burst_posterior_mean(data: Prepared, t_ref: float, candidates: list[tuple[np
     wide = [(m, np.minimum(9.0 * (0.5 * (c + c.T) + floor) + widen, 1e6 * np.eye(dim) + 0 * c)) for m, c in centers]
     broad = np.diag([250.0**2, 250.0**2, max_speed_m_s**2, max_speed_m_s**2])[:dim, :dim]
     wide.append((np.concatenate([data.center, np.zeros(2)])[:dim], broad))
-    comps, ess, mean = wide, 0.0, np.asarray(candidates[0][0], float)[:2]
-    for _ in range(rounds):
-        chols = []
-        for m, c in comps:
-            try:
-                chols.append((m, np.linalg.cholesky(c)))
-            except np.linalg.LinAlgError:
-                chols.append((m, np.diag(np.sqrt(np.abs(np.diag(c))) + 1e-3)))
-        n = max(samples // len(chols), 1)
-        x = np.vstack([m + rng.standard_normal((n, dim)) @ l.T for m, l in chols])
-        lq = np.logaddexp.reduce(np.stack([_mvn_logpdf(x, m, l) for m, l in chols]), axis=0)
-        lw = burst_log_posterior(x, data, t_ref, max_speed_m_s, channel, censored) - lq
-        if not np.any(np.isfinite(lw)):
-            break
-        w = np.exp(lw - np.max(lw))
-        w /= w.sum()
-        ess = float(1.0 / np.sum(w * w))
-        mean = w @ x[:, :2]
-        near = np.argmin(np.stack([np.linalg.norm(x[:, :2] - m[:2], axis=1) for m, _ in comps]), axis=0)
-        refit = []
-        for j in range(len(comps)):
-            wj = w * (near == j)
-            if wj.sum() < 1e-6:
-                continue
-            mj = wj @ x / wj.sum()
-            dj = x - mj
-            refit.append((mj, 2.0 * (dj * wj[:, None]).T @ dj / wj.sum() + floor))
-        comps = wide[:2] + [wide[-1]] + refit
-    return mean, ess
+    return _population_mc(lambda x: burst_log_posterior(x, data, t_ref, max_speed_m_s, channel, censored), wide,
+                          wide[:2] + [wide[-1]], np.asarray(candidates[0][0], float)[:2], floor, samples=samples,
+                          rounds=rounds, rng=rng)

@@ -223,11 +223,12 @@ def test_burst_world_is_deterministic_and_slot_by_slot_equals_at_once(field, cor
 def test_elicitation_adds_a_stream_while_the_vehicle_is_in_range(field):
     rate = 4.0
     sc = field.replace(emission={"elicitation_rate_hz": rate}, simulation={"tx_power_spread_db": 0.0})
-    world, heard, t = _hover(sc, 0.0, 600.0)
+    # a phone that randomizes its probes' addresses, so that only the elicited frames carry its
+    # network address (a stable phone probes under that address too): the first seed that draws one
+    seed = next(k for k in range(1, 50) if World.with_people(sc, [[500.0, 300.0]], seed=k).emission.randomizes[0])
+    world, heard, t = _hover(sc, 0.0, 600.0, seed=seed)
     net = world.emission.network_address[0]
     el = heard.take(heard.address == net)
-    if not world.emission.randomizes[0]:  # a stable phone probes under the same address
-        pytest.skip("drawn phone does not randomize")
     p_heard = norm.cdf((-40.0 - 23.0 * 2.0 - sc.channel.receiver_sensitivity_dbm) / 4.0)  # 100 m overhead
     assert el.n_samples.sum() == pytest.approx(rate * 600.0 * p_heard, rel=0.1)
     assert np.all(el.channel == 1)
