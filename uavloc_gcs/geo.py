@@ -57,3 +57,10 @@ class LocalFrame:
         a = np.asarray(xy_m, dtype=float).reshape(-1, 2)
         lat, lon = self.to_wgs84(a[:, 0], a[:, 1])
         return np.column_stack([lat, lon])
+
+
+def polygon_area_m2(xy_m) -> float:
+    """Area [m²] of a simple polygon given as (K, 2) vertices in metres (shoelace; either order)."""
+    xy = np.asarray(xy_m, dtype=float).reshape(-1, 2)
+    x, y = xy[:, 0], xy[:, 1]
+    return float(abs(0.5 * np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y)))

@@ -66,6 +66,7 @@ def run(args: argparse.Namespace) -> int:
     from ..estimation.model import MIN_ALTITUDE_FRACTION
     from ..estimation.export import estimates_csv, estimates_geojson, heard_tracks
     from ..estimation.identity import UNKNOWN_TX_MARGIN_DB, format_address, link
+    from ..geo import polygon_area_m2
     from ..render.maps import origin_caption, save_figure
     from ..render.estimates import estimates_figure
     from ..render.terminal import format_table
@@ -82,7 +83,7 @@ def run(args: argparse.Namespace) -> int:
     # the addresses heard, linked into people (the identity when every address is stable or no
     # fingerprint is known, as in old logs and the paper's world); real phones differ in transmit
     # power by several dB (SPEC 1), so the range bounds allow for it
-    linking = link(slots, channel, max_speed_m_s=sc.people.max_speed_m_s, area_m2=_polygon_area_m2(sc.area_xy_m()),
+    linking = link(slots, channel, max_speed_m_s=sc.people.max_speed_m_s, area_m2=polygon_area_m2(sc.area_xy_m()),
                    tx_margin_db=UNKNOWN_TX_MARGIN_DB)
     estimates = estimate_all(linking.slots, channel, max_speed_m_s=sc.people.max_speed_m_s, t_ref_s=args.t_ref,
                              model_motion=not args.static, estimate_tx_power=tx_power)
@@ -122,14 +123,6 @@ def _addresses_cell(addresses: list[int], fmt) -> str:
     if not addresses:
         return ""
     return fmt(addresses[0]) + (f" (+{len(addresses) - 1})" if len(addresses) > 1 else "")
-
-
-def _polygon_area_m2(xy) -> float:
-    """Area [m²] of a polygon given as (K, 2) vertices (shoelace)."""
-    import numpy as np
-
-    x, y = xy[:, 0], xy[:, 1]
-    return float(abs(0.5 * np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y)))
 
 
 def _r(x: float) -> str:

@@ -117,11 +117,6 @@ def frames_prior(scenario: Scenario):
     return FramesPrior(counts + 0.5)  # no count impossible
 
 
-def _polygon_area(xy: np.ndarray) -> float:
-    x, y = xy[:, 0], xy[:, 1]
-    return 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
-
-
 def _sideways(centre: np.ndarray, radius: float, starts: np.ndarray, unresolved: int) -> tuple[np.ndarray, float]:
     """The disk of a repeated look moved beside the person (see SIDEWAYS_LOOK_FRACTION)."""
     start = starts[int(np.argmin(np.linalg.norm(starts - centre, axis=1)))]
@@ -300,12 +295,13 @@ class SearchPolicy:
         are stable as data grow (the first address heard of them), so a person's bookkeeping (looks,
         fix) carries over; a person whose bursts now belong to someone else is dropped."""
         from ..estimation.identity import UNKNOWN_TX_MARGIN_DB, link
+        from ..geo import polygon_area_m2
 
         raw = SlotBatch.concat(self._raw)
         self._raw = [raw]
         sc = self.scenario
         self.linking = link(raw, self.channel, max_speed_m_s=sc.people.max_speed_m_s,
-                            area_m2=float(abs(_polygon_area(self.area_xy_m))),
+                            area_m2=polygon_area_m2(self.area_xy_m),
                             tx_margin_db=UNKNOWN_TX_MARGIN_DB,
                             previous=self.linking)
         labelled = self.linking.slots
