@@ -395,8 +395,7 @@ class SearchPolicy:
 
         if not self.hearing_evidence or not self._tracks or self.channel.sensitivity_dbm is None:
             return None
-        if self._frames_prior is None and self.scenario.emission.model == "probe-bursts" \
-                and self.scenario.emission.elicitation_rate_hz == 0:
+        if self._frames_prior is None and self._bursts:
             self._frames_prior = frames_prior(self.scenario)
         tracks = []
         for v, parts in self._tracks.items():
