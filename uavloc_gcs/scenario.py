@@ -34,6 +34,7 @@ import numpy as np
 from .energy import RotorcraftPower
 from .errors import ConfigError, UavlocError
 from .geo import LocalFrame
+from .terrain import TerrainSpec
 
 import tomllib
 
@@ -230,6 +231,7 @@ class Scenario:
     planner: PlannerSpec = field(default_factory=PlannerSpec)
     simulation: SimulationSpec = field(default_factory=SimulationSpec)
     link: LinkSpec = field(default_factory=LinkSpec)
+    terrain: TerrainSpec = field(default_factory=TerrainSpec)
     name: str = "scenario"
     source: str = "<string>"
     # Resolved geometry (filled by load/validate): polygon vertices as [[lat, lon], ...].
@@ -249,6 +251,15 @@ class Scenario:
 
     def launch_xy_m(self) -> np.ndarray:
         return np.zeros(2)
+
+    @property
+    def dem(self):
+        """The terrain (uavloc_gcs.terrain.Terrain) from ``terrain.dem``, or None: flat ground."""
+        if not self.terrain.dem:
+            return None
+        from .terrain import load_dem
+
+        return load_dem(self.terrain.dem, self.frame, source=self.source)
 
     @property
     def horizontal_range_m(self) -> float:
@@ -307,6 +318,7 @@ _SECTIONS = {
     "planner": PlannerSpec,
     "simulation": SimulationSpec,
     "link": LinkSpec,
+    "terrain": TerrainSpec,
 }
 
 
@@ -482,6 +494,19 @@ def _resolve(sc: Scenario, base_dir: Path | None = None) -> Scenario:
     )
     xy = sc.area_xy_m()
     _check_polygon_simple(sc, xy)
+    return _resolve_terrain(sc, xy, base_dir)
+
+
+def _resolve_terrain(sc: Scenario, area_xy: np.ndarray, base_dir: Path | None) -> Scenario:
+    """[terrain]: the keys checked, the DEM's path made absolute, and the DEM read and checked to
+    cover the area and the launch point (uavloc_gcs/terrain.py)."""
+    from .terrain import check_covers, check_spec
+
+    path = check_spec(sc, base_dir)
+    if not path:
+        return sc
+    sc = dataclasses.replace(sc, terrain=dataclasses.replace(sc.terrain, dem=path))
+    check_covers(sc.dem, np.vstack([area_xy, np.zeros((1, 2))]), "the area or the launch point", source=sc.source)
     return sc
 
 
