@@ -29,6 +29,7 @@ COMMANDS = [
     "download",
     "daemon",
     "experiment",
+    "sense",
     "bench",
 ]
 

@@ -1,0 +1,146 @@
+"""``uavloc sense``: the companion computer's sensor. Wi-Fi probe requests -> RSSI slots.
+
+Input: a capture file (``.pcap``/``.pcapng``, radiotap or PPI) or live monitor-mode interfaces
+(``--interface``, libpcap through pcapy-ng). Output: ``--out DIR`` gets ``frames.csv`` (one row
+per frame used) and, with ``--tlog FLIGHT.tlog``, ``slots.csv`` that ``uavloc localize`` reads;
+``--mavlink URL`` sends UAVLOC_RSSI_BATCH2 to the autopilot (or beside it), time-tagged in the
+autopilot's clock; ``--learn-team FILE`` writes the exclusion list of what is heard (on the ground,
+before take-off). Broken frames are counted, never fatal; a file that is not a capture exits 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+from pathlib import Path
+
+log = logging.getLogger(__name__)
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "sense",
+        help="the on-board Wi-Fi sensor: probe requests from a capture or a monitor-mode interface -> RSSI",
+        description="Read 802.11 probe requests (radiotap or PPI) from CAPTURE or live --interface(s), "
+                    "aggregate them into RSSI slots and write frames.csv / slots.csv (--out) or send "
+                    "UAVLOC_RSSI_BATCH2 over MAVLink (--mavlink).",
+    )
+    p.add_argument("capture", nargs="?", metavar="CAPTURE", help=".pcap or .pcapng file to replay")
+    p.add_argument("--interface", "-i", action="append", default=[], metavar="IFACE",
+                   help="monitor-mode interface to capture from (repeat for several; needs pcapy-ng and "
+                        "capture permission)")
+    p.add_argument("--channels", default=None, metavar="LIST",
+                   help="hop the (single) interface over these channels, e.g. 1,6,11 (uses 'iw'; default: "
+                        "stay on the channel it is set to)")
+    p.add_argument("--dwell-ms", type=float, default=250.0, help="time on each hopped channel [ms] (default 250)")
+    p.add_argument("--duration-s", type=float, default=None, help="stop a live capture after this long")
+    p.add_argument("--out", default=None, metavar="DIR", help="write frames.csv (and slots.csv with --tlog) here")
+    p.add_argument("--tlog", default=None, metavar="FLIGHT.tlog",
+                   help="flight log whose positions place the slots: writes DIR/slots.csv for uavloc localize")
+    p.add_argument("--vehicle", type=int, default=None, help="system id of the vehicle in --tlog (default: its only one)")
+    p.add_argument("--clock-offset-s", type=float, default=0.0,
+                   help="add this to capture times to put them on the flight log's UNIX clock (default 0)")
+    p.add_argument("--slot-ms", type=float, default=25.0, help="slot length [ms] (default 25, as the scenarios)")
+    p.add_argument("--exclude", default=None, metavar="FILE",
+                   help="exclusion list of the team's devices (mac/oui/fp lines; see --learn-team)")
+    p.add_argument("--learn-team", default=None, metavar="FILE",
+                   help="write what is heard as the team's exclusion list (run on the ground before take-off)")
+    p.add_argument("--learn-min-frames", type=int, default=3,
+                   help="--learn-team keeps addresses heard at least this often (default 3)")
+    p.add_argument("--learn-fingerprints", action="store_true",
+                   help="--learn-team also lists fingerprints of non-random addresses (excludes the whole model)")
+    p.add_argument("--mavlink", default=None, metavar="URL",
+                   help="send UAVLOC_RSSI_BATCH2 here (the autopilot's companion port, e.g. serial:/dev/ttyAMA0:921600 "
+                        "or udpout:127.0.0.1:14550); positions and time come from the autopilot on this link")
+    p.add_argument("--autopilot", default=None, metavar="URL",
+                   help="read the autopilot's position and clock here and send the RSSI to --mavlink beside it "
+                        "(default: the --mavlink link itself)")
+    p.add_argument("--sysid", type=int, default=None, help="autopilot system id to follow (default: the first heard)")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from ..errors import ConfigError
+    from ..sense import parse_capture
+    from ..sense.exclusion import read_exclusion
+
+    if bool(args.capture) == bool(args.interface):
+        raise ConfigError("give either a CAPTURE file or --interface (not both, not neither)", key="capture")
+    if args.slot_ms <= 0 or args.slot_ms > 255:
+        raise ConfigError(f"--slot-ms must be in (0, 255], got {args.slot_ms}", key="--slot-ms")
+    if args.tlog and not args.out:
+        raise ConfigError("--tlog writes DIR/slots.csv: give --out DIR too", key="--tlog")
+    if args.channels and len(args.interface) != 1:
+        raise ConfigError("--channels hops one interface; give exactly one --interface (several interfaces stay "
+                          "on their own fixed channels)", key="--channels")
+    if not (args.out or args.learn_team or args.mavlink):
+        raise ConfigError("nothing to do: give --out DIR, --mavlink URL or --learn-team FILE", key="--out")
+    exclusion = read_exclusion(args.exclude) if args.exclude else None
+    if args.capture and not args.mavlink:
+        frames, skips = parse_capture(args.capture)
+        if args.clock_offset_s:
+            from dataclasses import replace
+            frames = replace(frames, t_s=frames.t_s + args.clock_offset_s)
+        return _offline(args, frames, skips, exclusion)
+    from ..sense.run import run_stream
+
+    return run_stream(args, exclusion)
+
+
+def _offline(args, frames, skips, exclusion) -> int:
+    from ..sense.aggregate import emitter_ids, frames_csv, slot_entries
+    from ..sense.exclusion import learn_team
+    from ._output import atomic_output_dir
+
+    print(f"{args.capture}: {skips.read.records} records, {len(frames)} probe requests used; "
+          f"skipped: {skips.summary()}")
+    if args.learn_team:
+        _write_text(args.learn_team, learn_team(frames, min_frames=args.learn_min_frames,
+                                                fingerprints=args.learn_fingerprints))
+        print(f"wrote {args.learn_team} (the team's devices; pass it to --exclude in flight)")
+    if exclusion is not None:
+        team = exclusion.mask(frames)
+        frames = frames.take(~team)
+        print(f"excluded {int(team.sum())} frames of the team's devices ({len(exclusion)} list entries)")
+    if not args.out:
+        return 0
+    import numpy as np
+
+    ids = emitter_ids(frames)
+    entries = slot_entries(frames, args.slot_ms / 1000.0)
+    slots_text = None
+    if args.tlog:
+        slots_text, dropped = _slots_for_flight(args, entries)
+    with atomic_output_dir(args.out) as tmp:
+        (tmp / "frames.csv").write_text(frames_csv(frames, ids), encoding="utf-8")
+        if slots_text is not None:
+            (tmp / "slots.csv").write_text(slots_text, encoding="utf-8")
+    print(f"{len(np.unique(frames.address))} addresses, {len(np.unique(ids))} emitter ids, "
+          f"{len(entries)} slot entries of {args.slot_ms:g} ms")
+    if slots_text is not None:
+        print(f"slots.csv: {len(entries) - dropped} slots placed on the flight"
+              + (f" ({dropped} outside the flown time, dropped)" if dropped else ""))
+    print(f"wrote {Path(args.out) / 'frames.csv'}" + (", slots.csv" if slots_text is not None else ""))
+    return 0
+
+
+def _slots_for_flight(args, entries):
+    from ..errors import ConfigError
+    from ..sense.flight import read_tracks, slots_csv
+
+    tracks = read_tracks(args.tlog)
+    if args.vehicle is None:
+        if len(tracks) > 1:
+            raise ConfigError(f"{args.tlog} holds vehicles {sorted(tracks)}: choose one with --vehicle", key="--vehicle")
+        track = next(iter(tracks.values()))
+    elif args.vehicle in tracks:
+        track = tracks[args.vehicle]
+    else:
+        raise ConfigError(f"{args.tlog} has no vehicle {args.vehicle} (it has {sorted(tracks)})", key="--vehicle")
+    return slots_csv(entries, track)
+
+
+def _write_text(path: str, text: str) -> None:
+    from ..atomicfile import atomic_write_text
+
+    atomic_write_text(Path(path), text)
