@@ -151,6 +151,9 @@ class EmissionSpec:
 class PeopleSpec:
     max_speed_m_s: float = 1.5
     required_accuracy_m: float = 15.0
+    # People expected per km² of the area (optional): the results then state how many are expected
+    # to have been missed where the achieved POD fell short (search/coverage.py).
+    density_per_km2: float | None = None
 
 
 @dataclass(frozen=True)
@@ -466,6 +469,8 @@ def _resolve(sc: Scenario, base_dir: Path | None = None) -> Scenario:
         "people.max_speed_m_s",
     )
     _check(pe.required_accuracy_m > 0, "must be positive", sc, "people.required_accuracy_m")
+    _check(pe.density_per_km2 is None or (math.isfinite(pe.density_per_km2) and pe.density_per_km2 >= 0),
+           "must be a number of people per km², 0 or more", sc, "people.density_per_km2")
     if scan.lane_spacing_m is not None:
         _check(scan.lane_spacing_m > 0, "must be positive", sc, "scan.lane_spacing_m")
     _check(pl.particles >= 2, "must be at least 2", sc, "planner.particles")
