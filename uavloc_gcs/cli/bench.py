@@ -18,6 +18,7 @@ BENCHMARKS = {
     "scan_coverage": "full adaptive mission with double vs single lane coverage (time, accuracy)",
     "looks": "look-planning rules on and off on paired worlds (located, inside radius, time vs clairvoyant)",
     "identity": "linking addresses into people vs truth (people reported, bursts on the wrong person, splits, merges)",
+    "sense": "Wi-Fi capture parser vs dpkt and scapy dissectors (frames/s on one core, fields agreeing)",
 }
 
 
