@@ -66,6 +66,8 @@ _ALT_MODE_CALC_ABOVE_TERRAIN = 3  # frame 0 with the AMSL altitude QGC computed 
 def dumps(plan: MissionPlan) -> str:
     """The ``.plan`` JSON text of ``plan`` (deterministic; ends with a newline)."""
     items = [_item_json(it, k + 1) for k, it in enumerate(plan.items)]
+    if len(plan.terrain_alt_m) == len(plan.items) and plan.items:
+        _terrain_fields(items, plan)
     mission: dict[str, Any] = {
         "firmwareType": _FIRMWARE[plan.autopilot],
         "globalPlanAltitudeMode": _plan_alt_mode(plan),
@@ -99,6 +101,17 @@ def dumps(plan: MissionPlan) -> str:
         "version": 1,
     }
     return json.dumps(doc, indent=4, sort_keys=True, allow_nan=False) + "\n"
+
+
+def _terrain_fields(items: list, plan: MissionPlan) -> None:
+    """QGroundControl's terrain fields on items whose ground height uavloc knows (a terrain-safe
+    plan): an absolute altitude is "calculated above terrain" (AltitudeMode 3): ``Altitude`` the
+    height above the ground, ``AMSLAltAboveTerrain`` and params[6] the AMSL altitude QGC sends."""
+    for raw, it, ground in zip(items, plan.items, plan.terrain_alt_m):
+        if it.frame in (FRAME_GLOBAL, FRAME_GLOBAL_INT) and "AltitudeMode" in raw and math.isfinite(ground):
+            raw["AltitudeMode"] = _ALT_MODE_CALC_ABOVE_TERRAIN
+            raw["Altitude"] = json_number(round(it.alt_m - ground, 2))
+            raw["AMSLAltAboveTerrain"] = json_number(it.alt_m)
 
 
 def _plan_alt_mode(plan: MissionPlan) -> int:
@@ -193,6 +206,10 @@ def loads(text: str, *, path: str = "<string>") -> MissionPlan:
     )
 
 
+# MISSION_ITEM_INT.command is a uint16, .frame a uint8
+_WIRE_MAX = {"command": 65535, "frame": 255}
+
+
 def _expect(cond: bool, message: str, path: str, field: str, *, item: int | None = None) -> None:
     if not cond:
         raise FileFormatError(message, path=path, item=item, field=field)
@@ -252,6 +269,8 @@ def _simple_item(raw: dict, path: str, k: int) -> MissionItem:
         v = raw.get(key)
         _expect(isinstance(v, int) and not isinstance(v, bool) and v >= 0, f"must be a whole number, got {v!r}",
                 path, key, item=k)
+        top = _WIRE_MAX[key]
+        _expect(v <= top, f"{v} does not fit MAVLink's {key} field (0..{top})", path, key, item=k)
     ac = raw.get("autoContinue")
     _expect(isinstance(ac, bool), f"must be true or false, got {ac!r}", path, "autoContinue", item=k)
     params = _item_params(raw, path, k)

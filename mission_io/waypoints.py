@@ -169,6 +169,10 @@ def _parse_row(cols: list[str], path: str, lineno: int) -> list:
                                       field=name) from None
             if v < 0 or (k in (1, 11) and v > 1):
                 raise FileFormatError(f"{v} is out of range", path=path, line=lineno, field=name)
+            top = {2: 255, 3: 65535}.get(k)  # MISSION_ITEM_INT.frame is a uint8, .command a uint16
+            if top is not None and v > top:
+                raise FileFormatError(f"{v} does not fit MAVLink's {name} field (0..{top})", path=path, line=lineno,
+                                      field=name)
         else:
             try:
                 v = float(text)

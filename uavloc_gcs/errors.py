@@ -20,6 +20,7 @@ class ConfigError(UavlocError):
     def __init__(self, message: str, *, source: str | None = None, key: str | None = None):
         self.source = source
         self.key = key
+        self.message = message  # without the file and key (a command re-blames it on its flag)
         where = []
         if source:
             where.append(source)

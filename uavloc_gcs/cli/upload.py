@@ -12,6 +12,8 @@ import argparse
 import sys
 import time
 
+from ._inputs import number
+
 HEARTBEAT_TIMEOUT_S = 10.0
 
 
@@ -20,8 +22,10 @@ def add_link_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--autopilot", choices=("auto", "ardupilot", "px4"), default="auto",
                    help="mission encoding (home at seq 0 for ArduPilot); default: from the vehicle's HEARTBEAT")
     p.add_argument("--signing-key", metavar="HEX", help="MAVLink 2 signing key, 64 hex digits")
-    p.add_argument("--system", type=int, metavar="ID", help="vehicle system id (default: the first heard)")
-    p.add_argument("--timeout", type=float, default=HEARTBEAT_TIMEOUT_S, metavar="S",
+    p.add_argument("--system", type=number(int, min=1, max=255), metavar="ID",
+                   help="vehicle system id, 1-255 (default: the first heard)")
+    p.add_argument("--timeout", type=number(float, above=0, max=3600, unit="s"), default=HEARTBEAT_TIMEOUT_S,
+                   metavar="S",
                    help=f"seconds to wait for the vehicle's heartbeat (default {HEARTBEAT_TIMEOUT_S:g})")
     p.add_argument("--tlog", metavar="PATH", help="record everything received to this .tlog")
 
@@ -74,6 +78,14 @@ async def connect(args: argparse.Namespace):
         raise
     seen = flavour_for(hb.autopilot)
     flavour = seen if args.autopilot == "auto" else flavour_named(args.autopilot)
+    if seen.name in ("ardupilot", "px4") and flavour.name != seen.name:
+        # an ArduPilot vehicle takes seq 0 of a PX4-encoded mission as its home (the take-off is
+        # lost); refuse before a byte of the mission is sent
+        await link.close()
+        from ..errors import ConfigError
+
+        raise ConfigError(f"--autopilot {args.autopilot}: vehicle {hb.get_srcSystem()} on {args.connection} says "
+                          f"in its HEARTBEAT that it is {seen.label}; drop --autopilot or give --autopilot {seen.name}")
     return link, hb.get_srcSystem(), hb.get_srcComponent(), flavour
 
 
@@ -89,6 +101,19 @@ def read_mission(path: str, autopilot: str | None):
     return mission_file.read(path, autopilot=autopilot)[0]
 
 
+def check_commands(plan, path: str) -> None:
+    """Refuse an item whose command MAVLink does not define (MAV_CMD): the vehicle would refuse
+    it mid-transfer or stop the mission there."""
+    from ..dialect import mavlink
+    from ..errors import FileFormatError
+
+    known = mavlink.enums["MAV_CMD"]
+    for n, it in enumerate(plan.items, start=1):
+        if it.command not in known:
+            raise FileFormatError(f"command {it.command} is not a MAVLink command (MAV_CMD); no autopilot would "
+                                  "accept it", path=path, item=n, field="command")
+
+
 def run(args: argparse.Namespace) -> int:
     import asyncio
 
@@ -100,7 +125,8 @@ async def _upload(args: argparse.Namespace) -> int:
     from ..link import upload_mission
     from ..mission import MissionEncodingError, to_wire
 
-    read_mission(args.file, None if args.autopilot == "auto" else args.autopilot)  # bad file: fail before connecting
+    # a bad file fails before connecting
+    check_commands(read_mission(args.file, None if args.autopilot == "auto" else args.autopilot), args.file)
     link, system, component, flavour = await connect(args)
     async with link:
         plan = read_mission(args.file, encoding_for(flavour))

@@ -225,10 +225,25 @@ class TcpClientTransport(Transport):
             return await asyncio.open_connection(self.endpoint.host, self.endpoint.port)
 
     async def _run(self, reader: asyncio.StreamReader) -> None:
+        heard = False
+        told = None
+
+        def on_bytes(data: bytes, peer: Hashable) -> None:
+            nonlocal heard
+            heard = heard or b"\xfd" in data or b"\xfe" in data  # a MAVLink 2 / 1 start byte
+            self._on_bytes(data, peer)
+
         while True:
             with contextlib.suppress(ConnectionError):
-                await _pump(reader, "tcp", self._on_bytes)
-            log.warning("%s: connection lost; reconnecting every %.0f s", self.endpoint, TCP_RECONNECT_INTERVAL_S)
+                await _pump(reader, "tcp", on_bytes)
+            # say what happened once per kind, not every second of a retry loop
+            what = ("connection lost; reconnecting every %.0f s" if heard else
+                    "the connection closed without a MAVLink byte received (is a MAVLink vehicle listening there?); "
+                    "retrying every %.0f s")
+            if what != told:
+                log.warning("%s: " + what, self.endpoint, TCP_RECONNECT_INTERVAL_S)
+                told = what
+            heard = False
             self._writer = None
             while self._writer is None:
                 await asyncio.sleep(TCP_RECONNECT_INTERVAL_S)

@@ -1,0 +1,84 @@
+"""Issue 29 item 3: every bad input a newcomer tried is answered in one sentence naming the flag or
+key, exit 2 (3 only for the link), nothing left behind and nothing uploaded that the target
+autopilot would not take."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from mission_io import plan as plan_file
+from sim_link.vehicles.fleet import FakeFleet
+from uavloc_gcs.mission import flight_mission
+from uavloc_gcs.scenario import load_scenario
+
+ROOT = Path(__file__).resolve().parents[1]
+EXAMPLES = ROOT / "examples"
+
+
+def uavloc(*args, cwd=ROOT, timeout=120):
+    return subprocess.run([sys.executable, "-m", "uavloc_gcs", *map(str, args)], capture_output=True, text=True,
+                          timeout=timeout, cwd=cwd)
+
+
+def one_sentence(r, *needles, code=2):
+    """The run ended with ``code`` and one stderr line (argparse's usage aside) holding ``needles``."""
+    assert r.returncode == code, (r.returncode, r.stdout[-2000:], r.stderr[-2000:])
+    assert "Traceback" not in r.stderr, r.stderr
+    lines = [ln for ln in r.stderr.strip().splitlines() if ln.startswith("uavloc ")]
+    assert len(lines) == 1, r.stderr
+    for n in needles:
+        assert n in lines[0], (n, lines[0])
+    return lines[0]
+
+
+# ---------------------------------------------------------------------------------------------
+# upload: nothing reaches the vehicle that it would not take
+
+@pytest.fixture
+def ardupilot_vehicle():
+    sc = load_scenario(EXAMPLES / "small.toml").replace(fleet={"autopilot": "ardupilot", "vehicles": 1})
+    f = FakeFleet(sc, speedup=1, seed=1, base_port=0).start_in_thread()
+    yield f
+    f.stop()
+
+
+def _plan(tmp_path, command=None):
+    pts = [(47.3977 + 0.0002 * i, 8.5456) for i in range(4)]
+    plan = flight_mission(pts, alt_m=40.0, speed_m_s=8.0, autopilot="ardupilot",
+                          home_latlon_deg=(47.3977, 8.5456), home_alt_amsl_m=488.0)
+    path = tmp_path / "m.plan"
+    plan_file.write(path, plan)
+    if command is not None:
+        d = json.loads(path.read_text())
+        d["mission"]["items"][2]["command"] = command
+        path.write_text(json.dumps(d))
+    return path
+
+
+@pytest.mark.parametrize("command, needle", [(99999, "does not fit MAVLink's command field"),
+                                             (12345, "is not a MAVLink command")])
+def test_a_command_no_autopilot_knows_is_refused_before_connecting(ardupilot_vehicle, tmp_path, command, needle):
+    (_, conn), = ardupilot_vehicle.endpoints
+    r = uavloc("upload", _plan(tmp_path, command), "--to", conn)
+    one_sentence(r, "item 3", "command", needle)
+    assert ardupilot_vehicle.vehicle(1).mission_items == []  # nothing sent
+
+
+def test_autopilot_flag_that_contradicts_the_heartbeat_uploads_nothing(ardupilot_vehicle, tmp_path):
+    (_, conn), = ardupilot_vehicle.endpoints
+    r = uavloc("upload", _plan(tmp_path), "--to", conn, "--autopilot", "px4")
+    one_sentence(r, "--autopilot px4", "ArduPilot")
+    assert ardupilot_vehicle.vehicle(1).mission_items == []
+    r = uavloc("download", "--from", conn, "--autopilot", "px4", "--out", tmp_path / "back.plan")
+    one_sentence(r, "--autopilot px4")
+    assert not (tmp_path / "back.plan").exists()
+
+
+@pytest.mark.parametrize("args, flag", [(["--timeout", "-1"], "--timeout"), (["--timeout", "nan"], "--timeout"),
+                                        (["--system", "300"], "--system"), (["--system", "0"], "--system")])
+def test_link_flags_out_of_range_are_bad_input_not_link_failures(tmp_path, args, flag):
+    r = uavloc("upload", _plan(tmp_path), "--to", "udpout:127.0.0.1:9", *args)
+    one_sentence(r, f"argument {flag}")
