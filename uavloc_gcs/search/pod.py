@@ -1,0 +1,595 @@
+"""Probability of detection (POD): how likely a search was to hear a phone, cell by cell.
+
+Search-and-rescue practice grades a search by its POD per area (Koopman's search theory). Here a
+phone counts as *detected k times* when at least k of its probe bursts are heard. Three pieces:
+
+- :class:`BurstTiming`: when phones send, as the scenario's ``[emission]`` keys describe them
+  (the model of ``sim_link/world/emission.py``, SPEC 1.1): a stationary renewal process per phone
+  whose gaps are log-normal with a median and 90th percentile drawn log-linearly by a phone
+  quantile u ~ U(0, 1), at least the longest burst plus a quiet second, with a long silence
+  (log-uniform in ``long_silence_min_s``..``max_s``) replacing a gap with probability
+  ``long_silence_per_gap``. A search starts at a random moment of every phone's life, so the
+  process is taken in steady state (the phone is in a long silence with the probability the
+  silences' share of time gives).
+- :func:`p_burst_heard`: whether one burst sent at a given geometry is heard: each of its K frames
+  (the scenario's frames-per-burst law, the estimator's :func:`~uavloc_gcs.search.policy.frames_prior`
+  per phone) reaches a radio the receiver listens on with the channel share and is heard when its
+  RSSI exceeds ``channel.receiver_sensitivity_dbm`` under i.i.d. shadowing (fully shared within a
+  burst with ``simulation.correlated_shadowing``), with a per-phone transmit offset
+  N(0, ``simulation.tx_power_spread_db``^2). Without a sensitivity (the paper) a burst is heard
+  exactly within ``fleet.comm_range_m``.
+- :func:`pod_from_tracks`: the POD of every cell of a grid from tracks as flown. For each cell
+  centre and each phone type (transmit offset, frames per burst: a small quadrature) the tracks
+  give *looks*: runs of track samples where the burst could be heard, each with an effective
+  window w = integral of p_burst_heard dt (a window in which every burst is heard, the thinning of
+  the burst process). Looks closer in time than ``MERGE_GAPS`` mean gaps of the phone add up into
+  one window; farther apart they are independent given the phone's silence state. The long
+  silences are the strongest dependence between looks (a phone silent for an hour is missed by
+  every pass in that hour), so they are not averaged away: for every phone quantile u a fixed set of
+  steady-state silence timelines (:data:`SILENCE_DRAWS`) removes the silent part of every window,
+  and the counts of the remaining windows combine as independent. The POD is the average over
+  phone quantiles, types and silence timelines.
+
+Continuous emission (the paper): a phone sends every slot, so any window longer than a slot hears
+it; each look (a run of samples within range, separated by more than ``CONTINUOUS_LOOK_GAP_S``)
+counts once.
+
+Cells and positions are local metres of ``scenario.frame`` (launch point = (0, 0)), as elsewhere.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from functools import lru_cache
+
+import numpy as np
+
+from ..errors import ConfigError
+
+# Share of a probe burst's frames on 2.4 GHz channels 1 / 6 / 11 (the public captures' sniffers; the
+# same numbers as sim_link/world/emission.py CHANNEL_WEIGHTS, a test keeps them equal).
+PROBE_CHANNEL_SHARES = {1: 0.349, 6: 0.254, 11: 0.398}
+MIN_QUIET_S = 1.0  # shortest quiet time after a burst (sim_link/world/emission.py MIN_QUIET_S)
+FRAMES_LOG_SIGMA = 0.41  # burst-to-burst spread of a phone's frame count (policy.FRAMES_LOG_SIGMA)
+
+N_QUANTILES = 16  # phone quantiles u (midpoints) of the gap law
+N_TX = 5  # Gauss-Hermite nodes of the per-phone transmit offset
+N_FRAMES = 4  # per-phone median frames per burst (log-uniform midpoints)
+SILENCE_DRAWS = 48  # steady-state long-silence timelines per phone quantile
+ACTIVE_DT_S = 0.5  # grid of the active (no long silence) renewal process
+ACTIVE_CAP_S = 3600.0  # its tables reach this window; every active phone has sent k <= 4 bursts by then
+WINDOW_CAP_S = 6 * 3600.0  # window_for gives up beyond this (long silences last up to 90 min)
+MERGE_GAPS = 2.0  # looks closer than this many mean gaps (of the phone) are one window
+P_EPS = 1e-3  # a look is a run of samples where the best phone's burst is heard with more than this
+TRACK_STEP_M = 15.0  # tracks are resampled to at most this many metres ...
+TRACK_STEP_S = 1.0  # ... and seconds between samples
+CONTINUOUS_LOOK_GAP_S = 10.0  # continuous world: in-range runs farther apart are separate looks
+DEFAULT_CELLS = 1200  # grid_for's default cell size gives about this many cells over the area
+
+
+def _ndtr(x):
+    from scipy.special import ndtr
+
+    return ndtr(x)
+
+
+# ---------------------------------------------------------------------------------------------
+# When phones send
+
+
+@dataclass(frozen=True)
+class BurstTiming:
+    """The phones' burst timing (see the module docstring). ``continuous``: the paper's emitter."""
+
+    continuous: bool
+    slot_s: float = 0.025
+    gap_median_min_s: float = 20.0
+    gap_median_max_s: float = 135.0
+    gap_p90_min_s: float = 60.0
+    gap_p90_max_s: float = 270.0
+    long_silence_per_gap: float = 0.0094
+    long_silence_min_s: float = 1800.0
+    long_silence_max_s: float = 5400.0
+    min_gap_s: float = 4.2
+
+    @classmethod
+    def from_scenario(cls, sc) -> "BurstTiming":
+        em = sc.emission
+        if em.model == "continuous":
+            return cls(True, slot_s=sc.channel.slot_s)
+        return cls(False, sc.channel.slot_s, em.burst_gap_median_min_s, em.burst_gap_median_max_s,
+                   em.burst_gap_p90_min_s, em.burst_gap_p90_max_s, em.long_silence_per_gap,
+                   em.long_silence_min_s, em.long_silence_max_s,
+                   em.frames_per_burst_max * em.frame_spacing_s + MIN_QUIET_S)
+
+    # -- per phone quantile ---------------------------------------------------------------
+    @property
+    def quantiles(self) -> np.ndarray:
+        return (np.arange(N_QUANTILES) + 0.5) / N_QUANTILES
+
+    def gap_median_s(self) -> np.ndarray:
+        u = self.quantiles
+        return self.gap_median_min_s * (self.gap_median_max_s / self.gap_median_min_s) ** u
+
+    def gap_log_sigma(self) -> np.ndarray:
+        u = self.quantiles
+        p90 = self.gap_p90_min_s * (self.gap_p90_max_s / self.gap_p90_min_s) ** u
+        return np.log(p90 / self.gap_median_s()) / 1.2815515655446004
+
+    def mean_active_gap_s(self) -> np.ndarray:
+        """Mean gap between bursts outside long silences, per phone quantile [s]."""
+        return _active_tables(self)[2]
+
+    def silence_share(self) -> np.ndarray:
+        """Steady-state share of time a phone spends in long silences, per quantile."""
+        q = self.long_silence_per_gap
+        mean_l = _loguniform_mean(self.long_silence_min_s, self.long_silence_max_s)
+        g = self.mean_active_gap_s()
+        return q * mean_l / ((1.0 - q) * g + q * mean_l)
+
+    def p_active(self, k: int, alive_s, iu: int) -> np.ndarray:
+        """P(>= k bursts within ``alive_s`` seconds of a phone of quantile index ``iu`` outside a
+        long silence), the steady state of the gaps alone."""
+        grid, cdf, _ = _active_tables(self, k)
+        return np.interp(alive_s, grid, cdf[k - 1][iu], right=cdf[k - 1][iu][-1])
+
+    def silences(self, horizon_s: float) -> list[np.ndarray]:
+        """Per phone quantile: (SILENCE_DRAWS, M, 2) silent intervals [s] from t = 0 (steady state),
+        padded with empty intervals; deterministic."""
+        return _silences(self, round(float(horizon_s), 1))
+
+    # -- the population ---------------------------------------------------------------------
+    def p_at_least(self, k: int, window_s):
+        """Population-average P(>= k bursts sent during a window of ``window_s`` seconds) (scalar or
+        array), steady state, long silences included."""
+        w = np.asarray(window_s, float)
+        if self.continuous:
+            out = (w >= max(int(k), 1) * self.slot_s).astype(float)
+            return float(out) if out.ndim == 0 else out
+        k = int(k)
+        if k <= 0:
+            return 1.0 if w.ndim == 0 else np.ones_like(w)
+        flat = w.reshape(-1)
+        horizon = float(max(np.max(flat, initial=0.0), 1.0))
+        total = np.zeros(len(flat))
+        for iu, sil in enumerate(self.silences(horizon)):
+            alive = flat[None, :] - _overlap(np.zeros(len(flat)), flat, sil)  # (D, n)
+            total += self.p_active(k, alive, iu).mean(axis=0)
+        out = total / N_QUANTILES
+        return float(out[0]) if w.ndim == 0 else out.reshape(w.shape)
+
+    def window_for(self, k: int, p: float) -> float:
+        """Smallest window [s] with ``p_at_least(k, w) >= p``; math.inf if none below
+        :data:`WINDOW_CAP_S`."""
+        if self.continuous:
+            return max(int(k), 1) * self.slot_s
+        if self.p_at_least(k, WINDOW_CAP_S) < p:
+            return math.inf
+        lo, hi = 0.0, WINDOW_CAP_S
+        for _ in range(40):
+            mid = 0.5 * (lo + hi)
+            lo, hi = (lo, mid) if self.p_at_least(k, mid) >= p else (mid, hi)
+            if hi - lo < 0.5:
+                break
+        return hi
+
+
+def _loguniform_mean(a: float, b: float) -> float:
+    return (b - a) / math.log(b / a) if b > a else a
+
+
+@lru_cache(maxsize=16)
+def _active_tables(bt: BurstTiming, k_max: int = 3):
+    """Grid of windows [s], CDF tables cdf[k-1][iu] = P(>= k bursts in a window) for the active
+    renewal process (log-normal gaps, at least ``min_gap_s``) in steady state, mean gaps per quantile."""
+    from scipy.signal import fftconvolve
+    from scipy.stats import lognorm
+
+    k_max = max(3, int(k_max))
+    dt = ACTIVE_DT_S
+    edges = np.arange(0.0, ACTIVE_CAP_S + dt, dt)
+    cdf = [np.zeros((N_QUANTILES, len(edges))) for _ in range(k_max)]
+    means = np.zeros(N_QUANTILES)
+    for iu, (med, sig) in enumerate(zip(bt.gap_median_s(), bt.gap_log_sigma())):
+        dist = lognorm(s=sig, scale=med)
+        c = dist.cdf(edges)
+        c[edges < bt.min_gap_s] = 0.0  # the gap is at least min_gap_s: its mass sits at min_gap_s
+        pmf = np.diff(np.concatenate([[0.0], c]))  # pmf[i] = P(G in (edges[i-1], edges[i]])
+        pmf[-1] += 1.0 - pmf.sum()
+        # mean of max(G, min_gap): E[G 1{G > m}] + m P(G <= m)
+        m = bt.min_gap_s
+        tail = med * math.exp(sig * sig / 2) * _ndtr((math.log(med / m) + sig * sig) / sig)
+        mean = tail + m * float(dist.cdf(m))
+        means[iu] = mean
+        # forward recurrence time: density S(a) / mean
+        surv = 1.0 - c
+        fa = np.concatenate([[0.0], 0.5 * (surv[1:] + surv[:-1]) * dt / mean])
+        acc = fa
+        for k in range(k_max):
+            if k > 0:
+                acc = fftconvolve(acc, pmf)[: len(edges)].clip(min=0.0)
+            cdf[k][iu] = np.minimum(np.cumsum(acc), 1.0)
+    return edges, cdf, means
+
+
+@lru_cache(maxsize=16)
+def _silences(bt: BurstTiming, horizon_s: float) -> list[np.ndarray]:
+    rng = np.random.default_rng(20261125)
+    q, a, b = bt.long_silence_per_gap, bt.long_silence_min_s, bt.long_silence_max_s
+    out = []
+    share = bt.silence_share()
+    gaps = bt.mean_active_gap_s()
+    for iu in range(N_QUANTILES):
+        rows = []
+        active_mean = gaps[iu] * (1.0 - q) / q if q > 0 else math.inf
+        for d in range(SILENCE_DRAWS):
+            u = (d + rng.uniform()) / SILENCE_DRAWS  # stratified: the silent share is drawn exactly
+            iv = []
+            if u < share[iu]:  # silent now: a length-biased log-uniform silence is uniform on [a, b]
+                length = rng.uniform(a, b)
+                t = rng.uniform() * length
+                iv.append((0.0, t))
+            else:
+                t = 0.0
+            while math.isfinite(active_mean):
+                t += rng.exponential(active_mean)
+                if t >= horizon_s:
+                    break
+                length = math.exp(rng.uniform(math.log(a), math.log(b)))
+                iv.append((t, t + length))
+                t += length
+                if t >= horizon_s:
+                    break
+            rows.append(iv)
+        m = max(1, max(len(r) for r in rows))
+        arr = np.zeros((SILENCE_DRAWS, m, 2))
+        for d, r in enumerate(rows):
+            if r:
+                arr[d, : len(r)] = r
+        out.append(arr)
+    return out
+
+
+def _overlap(t0: np.ndarray, t1: np.ndarray, sil: np.ndarray) -> np.ndarray:
+    """Seconds of [t0, t1] (any shape S) inside the silent intervals (D, M, 2): shape (D,) + S."""
+    s0 = sil[:, :, 0].reshape(sil.shape[:2] + (1,) * t0.ndim)
+    s1 = sil[:, :, 1].reshape(sil.shape[:2] + (1,) * t0.ndim)
+    ov = np.clip(np.minimum(t1[None, None], s1) - np.maximum(t0[None, None], s0), 0.0, None)
+    return ov.sum(axis=1)
+
+
+# ---------------------------------------------------------------------------------------------
+# Whether a burst is heard
+
+
+@dataclass(frozen=True)
+class _Hearing:
+    """Phone types (transmit offset x frames median) with weights, and the per-type probability of
+    hearing one burst tabulated over 3-D distance."""
+
+    d_grid: np.ndarray  # (G,) 3-D distance [m]
+    table: np.ndarray  # (G, T)
+    weights: np.ndarray  # (T,)
+    max_range_m: float  # beyond this no type's burst is heard with more than P_EPS
+
+    def p(self, d3_m) -> np.ndarray:
+        """(..., T) per type."""
+        d = np.asarray(d3_m, float)
+        i = np.clip(d / (self.d_grid[1] - self.d_grid[0]), 0, len(self.d_grid) - 1)
+        lo = np.floor(i).astype(int)
+        hi = np.minimum(lo + 1, len(self.d_grid) - 1)
+        f = (i - lo)[..., None]
+        return self.table[lo] * (1 - f) + self.table[hi] * f
+
+
+def _channel_share(sc) -> float:
+    chans = sc.channel.listen_channel_list
+    total = sum(PROBE_CHANNEL_SHARES.values())
+    return sum(PROBE_CHANNEL_SHARES.get(c, 0.0) for c in chans) / total
+
+
+def _frames_nodes(sc, frames_median):
+    """Frame counts K (n,) and weights for one phone of median ``frames_median`` (None: the
+    population, the estimator's frames prior)."""
+    em = sc.emission
+    if frames_median is None:
+        from .policy import frames_prior
+
+        p = np.asarray(frames_prior(sc).p, float)
+        return np.arange(1, len(p) + 1, dtype=float), p / p.sum()
+    z, w = np.polynomial.hermite_e.hermegauss(15)
+    k = np.clip(np.rint(frames_median * np.exp(FRAMES_LOG_SIGMA * z)), 1, em.frames_per_burst_max)
+    return k, w / w.sum()
+
+
+def p_burst_heard(sc, horizontal_m, altitude_m, *, tx_offset_db=0.0, frames_median=None):
+    """P(a burst sent with the vehicle ``horizontal_m`` away on the ground and ``altitude_m`` above
+    the phone is heard), vectorised over the broadcast of both. ``tx_offset_db`` is the phone's
+    transmit offset (None: averaged over the scenario's spread); ``frames_median`` its median frames
+    per burst (None: the population's frames prior). Continuous emission: the probability a slot's
+    frames are heard (1 within the paper's gate)."""
+    h = np.asarray(horizontal_m, float)
+    z = np.asarray(altitude_m, float)
+    d3 = np.sqrt(h * h + z * z)
+    ch = sc.channel
+    sens = ch.receiver_sensitivity_dbm
+    if sens is None:  # the paper's exact gate
+        share = 1.0 if sc.emission.model == "continuous" else float(_channel_share(sc) > 0)
+        out = (d3 <= sc.fleet.comm_range_m) * share
+        return out.astype(float)
+    if tx_offset_db is None:
+        spread = sc.simulation.tx_power_spread_db
+        x, w = np.polynomial.hermite_e.hermegauss(N_TX if spread > 0 else 1)
+        w = w / w.sum()
+        return sum(wi * p_burst_heard(sc, h, z, tx_offset_db=spread * xi, frames_median=frames_median)
+                   for xi, wi in zip(x, w))
+    mu = ch.reference_power_dbm - 10.0 * ch.path_loss_exponent * np.log10(
+        np.maximum(d3, 1e-3) / ch.reference_distance_m) + tx_offset_db
+    q = _ndtr((mu - sens) / ch.shadowing_sigma_db)  # one frame above the sensitivity
+    if sc.emission.model == "continuous":  # a slot of samples_per_slot samples
+        return 1.0 - (1.0 - q) ** ch.samples_per_slot
+    c = _channel_share(sc)
+    ks, wk = _frames_nodes(sc, frames_median)
+    if sc.simulation.correlated_shadowing:  # the frames of a burst share their shadowing
+        return q * sum(wi * (1.0 - (1.0 - c) ** k) for k, wi in zip(ks, wk))
+    miss = 1.0 - c * q
+    return sum(wi * (1.0 - miss**k) for k, wi in zip(ks, wk))
+
+
+_HEARING_CACHE: dict = {}
+
+
+def _hearing(sc) -> _Hearing:
+    key = (repr(sc.channel), repr(sc.emission), repr(sc.simulation), sc.fleet.comm_range_m)
+    if key not in _HEARING_CACHE:
+        if len(_HEARING_CACHE) > 8:
+            _HEARING_CACHE.clear()
+        _HEARING_CACHE[key] = _hearing_table(sc)
+    return _HEARING_CACHE[key]
+
+
+def _hearing_table(sc) -> _Hearing:
+    em, channel, simulation = sc.emission, sc.channel, sc.simulation
+    spread = simulation.tx_power_spread_db
+    if channel.receiver_sensitivity_dbm is None:
+        tx, wtx = np.zeros(1), np.ones(1)
+    else:
+        tx, wtx = np.polynomial.hermite_e.hermegauss(N_TX if spread > 0 else 1)
+        tx, wtx = spread * tx, wtx / wtx.sum()
+    if em.model == "continuous" or channel.receiver_sensitivity_dbm is None:
+        med, wm = [None], np.ones(1)
+    else:
+        lo, hi = math.log(em.frames_per_burst_median_min), math.log(em.frames_per_burst_median_max)
+        med = list(np.exp(lo + (hi - lo) * (np.arange(N_FRAMES) + 0.5) / N_FRAMES))
+        wm = np.full(N_FRAMES, 1.0 / N_FRAMES)
+    step = 2.0
+    d = np.arange(0.0, 5000.0 + step, step)
+    cols, weights = [], []
+    for t, wt in zip(tx, wtx):
+        for m, wmm in zip(med, wm):
+            cols.append(p_burst_heard(sc, d, 0.0, tx_offset_db=float(t), frames_median=m))
+            weights.append(wt * wmm)
+    table = np.column_stack(cols)
+    reach = d[np.max(table, axis=1) > P_EPS]
+    max_range = float(reach.max()) + step if len(reach) else 0.0
+    keep = d <= max_range + step
+    return _Hearing(d[keep], table[keep], np.asarray(weights), max_range)
+
+
+# ---------------------------------------------------------------------------------------------
+# The grid
+
+
+@dataclass
+class PodGrid:
+    """Square cells over the search area (centres in local metres) and their POD: ``pod1`` = P(at
+    least one burst heard), ``pod2`` = P(at least two), 0 outside the area."""
+
+    x_m: np.ndarray  # (C,) cell centres
+    y_m: np.ndarray
+    cell_m: float
+    inside: np.ndarray  # (C,) bool
+    pod1: np.ndarray = field(default=None)
+    pod2: np.ndarray = field(default=None)
+    shape: tuple = ()  # (rows, cols) of the regular grid (x varies along cols)
+
+    def __post_init__(self):
+        n = len(self.x_m)
+        self.pod1 = np.zeros(n) if self.pod1 is None else np.asarray(self.pod1, float)
+        self.pod2 = np.zeros(n) if self.pod2 is None else np.asarray(self.pod2, float)
+
+    def overall(self, k: int = 1) -> float:
+        """Area-weighted POD over the cells inside the area (all cells have the same size)."""
+        pod = self.pod1 if k == 1 else self.pod2
+        return float(np.mean(pod[self.inside])) if np.any(self.inside) else 0.0
+
+    def with_pod(self, pod1, pod2) -> "PodGrid":
+        return PodGrid(self.x_m, self.y_m, self.cell_m, self.inside, pod1, pod2, self.shape)
+
+    def to_geojson(self, origin) -> dict:
+        """A FeatureCollection of the cells inside the area: square polygons (lon/lat) with
+        ``pod1``/``pod2`` properties. ``origin``: the scenario or its LocalFrame."""
+        frame = getattr(origin, "frame", origin)
+        h = self.cell_m / 2.0
+        feats = []
+        for i in np.flatnonzero(self.inside):
+            x, y = self.x_m[i], self.y_m[i]
+            ring = np.array([[x - h, y - h], [x + h, y - h], [x + h, y + h], [x - h, y + h], [x - h, y - h]])
+            ll = frame.to_wgs84_latlon(ring)
+            feats.append({
+                "type": "Feature",
+                "geometry": {"type": "Polygon", "coordinates": [[[round(float(lon), 7), round(float(lat), 7)]
+                                                                  for lat, lon in ll]]},
+                "properties": {"pod1": round(float(self.pod1[i]), 4), "pod2": round(float(self.pod2[i]), 4),
+                               "x_m": round(float(x), 1), "y_m": round(float(y), 1)},
+            })
+        return {"type": "FeatureCollection", "features": feats,
+                "properties": {"cell_m": self.cell_m, "pod1_overall": round(self.overall(1), 4),
+                               "pod2_overall": round(self.overall(2), 4)}}
+
+
+def grid_for(sc, cell_m: float | None = None) -> PodGrid:
+    """An empty (POD 0) grid of square cells over the scenario's area; the default cell size gives
+    about :data:`DEFAULT_CELLS` cells."""
+    import shapely
+
+    xy = sc.area_xy_m()
+    poly = shapely.Polygon(xy)
+    if cell_m is None:
+        cell_m = max(5.0, round(math.sqrt(poly.area / DEFAULT_CELLS)))
+    if not cell_m > 0:
+        raise ConfigError(f"a POD cell must be larger than 0 m, got {cell_m}", source=sc.source)
+    x0, y0, x1, y1 = poly.bounds
+    nx, ny = max(1, math.ceil((x1 - x0) / cell_m)), max(1, math.ceil((y1 - y0) / cell_m))
+    cx = x0 + cell_m * (np.arange(nx) + 0.5) + ((x1 - x0) - nx * cell_m) / 2
+    cy = y0 + cell_m * (np.arange(ny) + 0.5) + ((y1 - y0) - ny * cell_m) / 2
+    gx, gy = np.meshgrid(cx, cy)
+    x, y = gx.reshape(-1), gy.reshape(-1)
+    inside = shapely.contains_xy(poly, x, y)
+    return PodGrid(x, y, float(cell_m), inside, shape=(ny, nx))
+
+
+# ---------------------------------------------------------------------------------------------
+# POD from tracks
+
+
+def _resample(t_s, xyz_m) -> tuple[np.ndarray, np.ndarray]:
+    t = np.asarray(t_s, float).reshape(-1)
+    xyz = np.asarray(xyz_m, float).reshape(-1, 3)
+    if len(t) < 2:
+        return t, xyz
+    order = np.argsort(t, kind="stable")
+    t, xyz = t[order], xyz[order]
+    out_t = [t[:1]]
+    for a in range(len(t) - 1):
+        dt = t[a + 1] - t[a]
+        dist = float(np.linalg.norm(xyz[a + 1] - xyz[a]))
+        n = max(1, math.ceil(max(dist / TRACK_STEP_M, dt / TRACK_STEP_S)))
+        if dt <= 0:
+            continue
+        out_t.append(t[a] + dt * np.arange(1, n + 1) / n)
+    tt = np.concatenate(out_t)
+    return tt, np.column_stack([np.interp(tt, t, xyz[:, c]) for c in range(3)])
+
+
+def _looks(cx, cy, tracks, hearing: _Hearing):
+    """Per cell: looks (t0, t1, w[T]) over all tracks. Returns padded arrays t0, t1 (C, L), w (C, L, T)
+    and a validity mask (C, L)."""
+    C, T = len(cx), hearing.table.shape[1]
+    per_cell = [[] for _ in range(C)]
+    for t_s, xyz_m in tracks:
+        t, xyz = _resample(t_s, xyz_m)
+        if len(t) < 2:
+            continue
+        # each sample stands for the time to the midpoints of its neighbours
+        dt = np.diff(np.concatenate([[t[0]], 0.5 * (t[1:] + t[:-1]), [t[-1]]]))
+        for a in range(0, C, 64):
+            sl = slice(a, min(C, a + 64))
+            dx = xyz[None, :, 0] - cx[sl, None]
+            dy = xyz[None, :, 1] - cy[sl, None]
+            d3 = np.sqrt(dx * dx + dy * dy + xyz[None, :, 2] ** 2)
+            near = d3 <= hearing.max_range_m
+            for j, row in enumerate(near):
+                idx = np.flatnonzero(row)
+                if len(idx) == 0:
+                    continue
+                cut = np.flatnonzero(np.diff(idx) > 1) + 1
+                for run in np.split(idx, cut):
+                    w = hearing.p(d3[j, run]).T @ dt[run]  # (T,)
+                    per_cell[a + j].append((t[run[0]], t[run[-1]], w))
+    L = max(1, max((len(c) for c in per_cell), default=1))
+    t0 = np.zeros((C, L))
+    t1 = np.zeros((C, L))
+    w = np.zeros((C, L, T))
+    valid = np.zeros((C, L), bool)
+    for i, looks in enumerate(per_cell):
+        looks.sort(key=lambda r: r[0])
+        for j, (a, b, ww) in enumerate(looks):
+            t0[i, j], t1[i, j], w[i, j], valid[i, j] = a, b, ww, True
+    return t0, t1, w, valid
+
+
+def _merge(t0, t1, w, valid, gap_s: float):
+    """Looks closer in time than ``gap_s`` add up into one window (per cell, looks sorted by t0)."""
+    C, L = t0.shape
+    if L == 1:
+        return t0, t1, w, valid
+    end = np.where(valid, t1, -np.inf)
+    run_end = np.maximum.accumulate(end, axis=1)
+    new = np.ones((C, L), bool)
+    new[:, 1:] = t0[:, 1:] - run_end[:, :-1] > gap_s
+    new &= valid
+    gid = np.cumsum(new, axis=1) - 1  # cluster index per look
+    gid = np.where(valid, gid, L)  # invalid looks go to a dump slot
+    m0 = np.full((C, L + 1), np.inf)
+    m1 = np.full((C, L + 1), -np.inf)
+    mw = np.zeros((C, L + 1, w.shape[2]))
+    rows = np.repeat(np.arange(C), L)
+    g = gid.reshape(-1)
+    np.minimum.at(m0, (rows, g), t0.reshape(-1))
+    np.maximum.at(m1, (rows, g), t1.reshape(-1))
+    np.add.at(mw, (rows, g), w.reshape(C * L, -1))
+    mv = np.isfinite(m0[:, :L])
+    return np.where(mv, m0[:, :L], 0.0), np.where(mv, m1[:, :L], 0.0), mw[:, :L], mv
+
+
+def pod_from_tracks(sc, tracks, grid: PodGrid | None = None) -> PodGrid:
+    """POD of every cell of ``grid`` (default :func:`grid_for`) from ``tracks`` as flown: a list of
+    (times (N,) [s], positions (N, 3) [m, local, z = height above the people]). See the module
+    docstring for the model."""
+    grid = grid_for(sc) if grid is None else grid
+    idx = np.flatnonzero(grid.inside)
+    pod1 = np.zeros(len(grid.x_m))
+    pod2 = np.zeros(len(grid.x_m))
+    tracks = [(np.asarray(t, float), np.asarray(x, float)) for t, x in tracks if len(t)]
+    if len(idx) == 0 or not tracks:
+        return grid.with_pod(pod1, pod2)
+    hearing = _hearing(sc)
+    t0, t1, w, valid = _looks(grid.x_m[idx], grid.y_m[idx], tracks, hearing)
+    bt = BurstTiming.from_scenario(sc)
+    if bt.continuous:
+        p1, p2 = _continuous_pod(t0, t1, w, valid, hearing, sc.channel.slot_s)
+    else:
+        start = min(float(t[0]) for t, _ in tracks)
+        horizon = max(float(t[-1]) for t, _ in tracks) - start + 1.0
+        p1, p2 = _burst_pod(bt, t0 - start, t1 - start, w, valid, hearing.weights, horizon)
+    pod1[idx], pod2[idx] = p1, p2
+    return grid.with_pod(pod1, pod2)
+
+
+def _continuous_pod(t0, t1, w, valid, hearing, slot_s):
+    """The paper's emitter sends every slot: a look (in-range runs closer than
+    CONTINUOUS_LOOK_GAP_S merged) with w seconds of hearing probability holds w / slot_s heard slots
+    on average, so it is heard with 1 - exp(-w / slot_s) (1 for any look that passes the gate)."""
+    t0, t1, w, valid = _merge(t0, t1, w, valid, CONTINUOUS_LOOK_GAP_S)
+    p = (1.0 - np.exp(-w[..., 0] / slot_s)) * valid
+    q0, q1 = np.ones(len(t0)), np.zeros(len(t0))
+    for j in range(t0.shape[1]):
+        q0, q1 = q0 * (1 - p[:, j]), q1 * (1 - p[:, j]) + q0 * p[:, j]
+    return 1 - q0, 1 - q0 - q1
+
+
+def _burst_pod(bt: BurstTiming, t0, t1, w, valid, type_w, horizon):
+    C = len(t0)
+    sil_all = bt.silences(horizon)
+    gaps = bt.mean_active_gap_s()
+    p1 = np.zeros(C)
+    p2 = np.zeros(C)
+    for iu in range(N_QUANTILES):
+        m0, m1, mw, mv = _merge(t0, t1, w, valid, MERGE_GAPS * gaps[iu])
+        sil = sil_all[iu]  # (D, M, 2)
+        span = np.maximum(m1 - m0, 1e-9)
+        alive = 1.0 - _overlap(m0, np.maximum(m1, m0 + 1e-9), sil) / span  # (D, C, L)
+        alive = np.where(mv[None], alive, 0.0)
+        weff = alive[..., None] * mw[None]  # (D, C, L, T)
+        a1 = bt.p_active(1, weff, iu)
+        a2 = bt.p_active(2, weff, iu)
+        q0 = np.ones(weff.shape[:2] + weff.shape[3:])  # (D, C, T)
+        q1 = np.zeros_like(q0)
+        for j in range(weff.shape[2]):
+            e0, e1 = 1.0 - a1[:, :, j], a1[:, :, j] - a2[:, :, j]
+            q0, q1 = q0 * e0, q1 * e0 + q0 * e1
+        p1 += ((1.0 - q0) @ type_w).mean(axis=0)
+        p2 += ((1.0 - q0 - q1) @ type_w).mean(axis=0)
+    return p1 / N_QUANTILES, p2 / N_QUANTILES
