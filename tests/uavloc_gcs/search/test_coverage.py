@@ -1,0 +1,88 @@
+"""The achieved-POD accumulator: coverage from flown positions, not from the plan."""
+
+import numpy as np
+import pytest
+
+from tests.e2e_helpers import small_scenario
+from uavloc_gcs.search.coverage import Coverage, final_summary, summarize, window_probs
+
+FIELD = """
+[channel]
+path_loss_exponent = 2.3
+reference_power_dbm = -40.0
+receiver_sensitivity_dbm = -90.0
+[emission]
+model = "probe-bursts"
+"""
+
+
+def _lane(cov, vehicle, y, x0, x1, t0=0.0, speed=15.0, alt=60.0, dt=0.5):
+    n = int(abs(x1 - x0) / (speed * dt)) + 1
+    xs = np.linspace(x0, x1, n)
+    t = t0 + np.abs(xs - x0) / speed
+    cov.add_track(vehicle, t, np.column_stack([xs, np.full(n, y), np.full(n, alt)]))
+    return float(t[-1])
+
+
+def test_paper_world_lane_covers_its_band_only_at_survey_altitude():
+    sc = small_scenario()
+    r = sc.horizontal_range_m
+    cov = Coverage(sc)
+    xy = cov.grid.xy_m
+    assert cov.overall() == 0.0 and cov.summary().nothing_flown
+    # a lane at y = 60 m flown at survey altitude: every cell within R of it is searched
+    _lane(cov, 1, 60.0, xy[:, 0].min() - 20, xy[:, 0].max() + 20)
+    pod = cov.pod(1)
+    near = np.abs(xy[:, 1] - 60.0) < r - 1.0
+    far = np.abs(xy[:, 1] - 60.0) > r + 1.0
+    assert near.any() and far.any()
+    assert np.all(pod[near] == 1.0) and np.all(pod[far] == 0.0)
+    # the same lane flown low (taking off, landing) by another vehicle adds nothing
+    cov2 = Coverage(sc)
+    _lane(cov2, 2, 180.0, xy[:, 0].min(), xy[:, 0].max(), alt=10.0)
+    assert cov2.overall() == 0.0
+    s = cov.summary(target=0.9, density_per_km2=100.0)
+    assert s.unsearched_m2 == pytest.approx(np.sum(pod == 0) * cov.grid.cell_area_m2)
+    assert s.expected_missed == pytest.approx(100.0 * s.unsearched_m2 / 1e6)
+    assert "Unsearched" in s.sentence() and "east" in s.unsearched_where()
+
+
+def test_a_gap_in_the_telemetry_is_not_flown():
+    sc = small_scenario()
+    cov = Coverage(sc)
+    xy = cov.grid.xy_m
+    # two positions 60 s apart at the two ends of the area: the ground does not know the path between
+    cov.add_position(1, 0.0, (xy[:, 0].min(), 60.0, 60.0))
+    cov.add_position(1, 60.0, (xy[:, 0].max(), 60.0, 60.0))
+    mid = np.abs(xy[:, 0] - xy[:, 0].mean()) < 50
+    assert np.all(cov.pod(1)[mid] == 0.0)
+
+
+def test_burst_world_pod_grows_with_passes_and_is_below_one():
+    sc = small_scenario(extra=FIELD)
+    cov = Coverage(sc)
+    xy = cov.grid.xy_m
+    cell = int(np.argmin(np.linalg.norm(xy - xy.mean(axis=0), axis=1)))
+    y = float(xy[cell, 1])
+    t = _lane(cov, 1, y, xy[:, 0].min(), xy[:, 0].max())
+    one = float(cov.pod(1)[cell])
+    assert 0.0 < one < 0.9, "a fly-by at 15 m/s catches a phone bursting every 20-135 s only sometimes"
+    _lane(cov, 1, y, xy[:, 0].max(), xy[:, 0].min(), t0=t + 30.0)  # a second, separate pass
+    two = float(cov.pod(1)[cell])
+    # the same phones stay rare probers, or silent, from pass to pass: less than two independent passes
+    assert one < two < 1 - (1 - one) ** 2
+    assert cov.pod(2)[cell] < two
+    # the live figure stays near search.pod's model of the same flown tracks (the final claims')
+    final = final_summary(cov)
+    assert abs(final.pod1[cell] - two) < 0.1, (final.pod1[cell], two)
+    assert abs(final.overall1 - cov.overall()) < 0.1
+    p1, p2 = window_probs(sc, np.array([0.0, 10.0, 1000.0]))
+    assert p1[0] == 0.0 and p1[1] < p1[2] and np.all(p2 <= p1)
+
+
+def test_summary_of_nothing_flown_says_so():
+    sc = small_scenario()
+    cov = Coverage(sc)
+    s = summarize(cov.grid, cov.pod(1), cov.pod(2), 0.9, None)
+    assert s.nothing_flown and s.sentence().startswith("Nothing flew")
+    assert s.expected_missed is None
