@@ -133,6 +133,9 @@ class MissionPlan:
     geofence_polygons: tuple = ()  # tuple of (inclusion: bool, ((lat, lon), ...))
     rally_points: tuple = ()  # tuple of (lat, lon, alt_rel_m)
     geofence_circles: tuple = ()  # tuple of (inclusion: bool, (lat, lon), radius_m)
+    # The DEM's ground height [m] under each item (NaN where none), set by terrain.terrain_safe; a
+    # .plan export writes QGroundControl's terrain fields from it. Ignored unless one per item.
+    terrain_alt_m: tuple = ()
 
     def waypoints(self) -> list[MissionItem]:
         return [it for it in self.items if it.command == NAV_WAYPOINT]

@@ -44,6 +44,8 @@ def run(args: argparse.Namespace) -> int:
         sc = sc.replace(scan=scan_changes)
     plan = plan_scan(sc)
     missions = scan_missions(sc, plan)
+    from ..terrain_missions import terrain_safe  # over the DEM's ground when terrain.dem is given
+    missions = [terrain_safe(m, sc, name=f"uav{v.index + 1}") for m, v in zip(missions, plan.vehicles)]
     fc = geojson.scan_feature_collection(sc, plan)
     written = []
     with atomic_output_dir(args.out) as tmp:
@@ -86,6 +88,8 @@ def summary(sc, plan, missions) -> str:
         f"{plan.coverage} coverage (every point within R = {plan.range_m:.1f} m of "
         f"{'two lanes' if plan.coverage == 'double' else 'a lane'}).",
     ]
+    from ..terrain import describe as describe_terrain
+    head.append(describe_terrain(sc))
     if idle:
         head.append(f"{idle} vehicle(s) have nothing to scan (more vehicles than lanes) and get no mission.")
     rows = []

@@ -1,0 +1,278 @@
+"""Terrain-safe missions: a post-processing step from any uavloc mission plan to one that keeps
+clear of the ground (issue 28 item 2).
+
+:func:`terrain_safe` takes a :class:`~uavloc_gcs.mission.MissionPlan` as the scan, look or any other
+mission builder made it (altitudes above the launch point over flat ground) and the scenario's DEM,
+and returns the plan flown over the real ground:
+
+* The whole route -- launch, every waypoint and the way back home -- is sampled at half the DEM's
+  cell size (so every cell a leg crosses is seen, not only the waypoints).
+* Along it the vehicle aims at ``fleet.altitude_m`` above the ground (the height the hearing
+  geometry is planned for), never less than ``terrain.min_clearance_m``, and never above
+  ``terrain.max_height_above_launch_m`` over the launch point when that is set.
+* The profile is the lowest one above that aim whose slope stays within ``terrain.max_climb_m_s``
+  and ``terrain.max_descent_m_s`` at the planned ground speed: it starts climbing before a rise and
+  comes down after it (an upper envelope, two passes).
+* The profile is then cut into straight 3D legs -- the autopilots fly a straight line between two
+  waypoints -- with a waypoint added wherever the straight leg would come nearer the ground than
+  the clearance, or more than ``TRACK_TOLERANCE_M`` off the profile.
+* The closing RTL is preceded by waypoints back to the launch point, as ArduPilot's and PX4's
+  RTL fly home at one altitude, straight through any hill on the way.
+
+Altitudes are written absolute (MAV_FRAME_GLOBAL, what PX4 and ArduPilot both accept) or, with
+``terrain.altitude_frame = "relative"``, above the launch point from the DEM's height differences.
+Every positional item carries the ground height under it (``MissionPlan.terrain_alt_m``) so that a
+``.plan`` export can carry QGroundControl's terrain fields.
+
+A mission that cannot keep the clearance (the ground is above the ceiling, or outside the DEM) is
+refused with one sentence naming the vehicle, the leg and the ground's height.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from pathlib import Path
+
+import numpy as np
+
+from .errors import InfeasibleError
+from .mission import (
+    DO_CHANGE_SPEED,
+    FRAME_GLOBAL,
+    FRAME_GLOBAL_RELATIVE_ALT,
+    NAV_RETURN_TO_LAUNCH,
+    NAV_WAYPOINT,
+    ROUTE_COMMANDS,
+    TAKEOFF_COMMANDS,
+    MissionItem,
+    MissionPlan,
+)
+
+__all__ = ["terrain_safe", "TRACK_TOLERANCE_M", "route_profile", "Profile"]
+
+TRACK_TOLERANCE_M = 10.0  # how far the flown straight legs may stray from the planned profile
+
+
+class TerrainRefused(InfeasibleError):
+    """A mission that cannot keep its clearance over the terrain."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Profile:
+    """The planned altitude along a route: ``s`` [m along it], ``xy`` (N, 2) local metres, ground
+    height ``ground`` and altitude ``z`` [m, the DEM's datum]; ``vertex`` marks the route's own points."""
+
+    s: np.ndarray
+    xy: np.ndarray
+    ground: np.ndarray
+    z: np.ndarray
+    vertex: np.ndarray  # index into s of each route point
+
+
+def _leg_name(k: int, n_points: int, returns_home: bool, starts_home: bool) -> str:
+    """Leg ``k`` (0-based, from route point k to k+1) as the operator knows it."""
+    a = "launch" if (k == 0 and starts_home) else f"waypoint {k + (0 if starts_home else 1)}"
+    last = n_points - 1
+    if returns_home and k + 1 == last:
+        return f"return leg ({a} to launch)"
+    b = f"waypoint {k + 1 + (0 if starts_home else 1)}"
+    return f"leg {k + 1} ({a} to {b})"
+
+
+def route_profile(scenario, route_xy: np.ndarray, *, speed_m_s: float, name: str = "vehicle",
+                  starts_home: bool = True, returns_home: bool = True) -> Profile:
+    """The terrain-following altitude profile along ``route_xy`` (local metres, launch first when
+    ``starts_home``). Raises :class:`TerrainRefused` when the clearance cannot be kept."""
+    dem = scenario.dem
+    t = scenario.terrain
+    alt = scenario.fleet.altitude_m
+    step = max(1.0, 0.5 * dem.resolution_m)
+    pts = [route_xy[0]]
+    vertex = [0]
+    for a, b in zip(route_xy[:-1], route_xy[1:]):
+        n = max(1, int(math.ceil(np.linalg.norm(b - a) / step)))
+        f = np.arange(1, n + 1)[:, None] / n
+        pts.extend(a + f * (b - a))
+        vertex.append(len(pts) - 1)
+    xy = np.asarray(pts, dtype=float)
+    vertex = np.asarray(vertex)
+    ds = np.linalg.norm(np.diff(xy, axis=0), axis=1)
+    s = np.concatenate([[0.0], np.cumsum(ds)])
+    g = dem.height_xy(xy)
+    leg_of = np.searchsorted(vertex, np.arange(len(xy)), side="left") - 1
+    leg_of = np.clip(leg_of, 0, len(route_xy) - 2)
+    bad = np.flatnonzero(~np.isfinite(g))
+    if bad.size:
+        i = bad[0]
+        lat, lon = dem.frame.to_wgs84_latlon(xy[i])[0]
+        why = "leaves" if not dem.inside(xy[i])[0] else "crosses a void of"
+        raise TerrainRefused(
+            f"{name}: the {_leg_name(int(leg_of[i]), len(route_xy), returns_home, starts_home)} {why} the DEM "
+            f"{Path(dem.source).name} at {lat:.5f}, {lon:.5f} ({dem.coverage_text()}), so its clearance "
+            "cannot be checked; give a DEM that covers every leg")
+    home_g = dem.height_at(0.0, 0.0)
+    aim = g + alt
+    floor = g + t.min_clearance_m
+    if t.max_height_above_launch_m is not None:
+        ceiling = home_g + t.max_height_above_launch_m
+        aim = np.maximum(floor, np.minimum(aim, ceiling))
+    z = aim.copy()
+    up = t.max_climb_m_s / speed_m_s
+    down = t.max_descent_m_s / speed_m_s
+    for i in range(1, len(z)):  # descending no faster than allowed
+        z[i] = max(z[i], z[i - 1] - down * ds[i - 1])
+    for i in range(len(z) - 2, -1, -1):  # climbing no faster than allowed, starting early enough
+        z[i] = max(z[i], z[i + 1] - up * ds[i])
+    if t.max_height_above_launch_m is not None:
+        over = np.flatnonzero(z > ceiling + 1e-6)
+        if over.size:
+            k = int(leg_of[over[0]])
+            on_leg = np.flatnonzero(leg_of == k)
+            j = on_leg[np.argmax(g[on_leg])]
+            lat, lon = dem.frame.to_wgs84_latlon(xy[j])[0]
+            raise TerrainRefused(
+                f"{name}: the {_leg_name(k, len(route_xy), returns_home, starts_home)} crosses ground "
+                f"{g[j]:.0f} m above sea level at {lat:.5f}, {lon:.5f}, {g[j] - home_g:.0f} m above the launch point, "
+                f"and keeping terrain.min_clearance_m = {t.min_clearance_m:g} m there (within the climb and descent "
+                f"rates) needs {float(np.max(z[on_leg])) - home_g:.0f} m above the launch point, more than "
+                f"terrain.max_height_above_launch_m = {t.max_height_above_launch_m:g} m")
+    return Profile(s, xy, g, z, vertex)
+
+
+def _breakpoints(p: Profile, clearance: float, tol: float) -> list[int]:
+    """Indices of the profile to make waypoints of: the route's points plus every point where a
+    straight 3D leg would come nearer the ground than ``clearance`` or stray more than ``tol``."""
+    keep = set(int(v) for v in p.vertex)
+
+    def split(a: int, b: int) -> None:
+        if b - a < 2:
+            return
+        idx = np.arange(a + 1, b)
+        chord = p.z[a] + (p.z[b] - p.z[a]) * (p.s[idx] - p.s[a]) / max(p.s[b] - p.s[a], 1e-9)
+        viol = np.maximum.reduce([p.ground[idx] + clearance - chord, chord - p.z[idx] - tol,
+                                  p.z[idx] - tol - chord, np.full(len(idx), -np.inf)])
+        # a leg below the clearance is always split; otherwise only beyond the tolerance
+        worst = int(np.argmax(viol))
+        if viol[worst] > 1e-6:
+            m = int(idx[worst])
+            keep.add(m)
+            split(a, m)
+            split(m, b)
+
+    for a, b in zip(p.vertex[:-1], p.vertex[1:]):
+        split(int(a), int(b))
+    return sorted(keep)
+
+
+def terrain_safe(plan: MissionPlan, scenario, *, name: str = "vehicle",
+                 start_xy_m: np.ndarray | None = None) -> MissionPlan:
+    """``plan`` flown over the scenario's terrain (see the module's doc); unchanged without a DEM.
+
+    The route starts at the launch point when the plan takes off (or at ``start_xy_m``, where an
+    airborne vehicle is, for a mission without a take-off) and ends at the launch point when it
+    closes with an RTL. ``name`` is the vehicle, for messages.
+    """
+    dem = scenario.dem
+    if dem is None:
+        return plan
+    frame = scenario.frame
+    t = scenario.terrain
+    items = list(plan.items)
+    has_takeoff = any(it.command in TAKEOFF_COMMANDS for it in items)
+    returns_home = bool(items) and items[-1].command == NAV_RETURN_TO_LAUNCH
+    route_idx = [k for k, it in enumerate(items) if it.command in ROUTE_COMMANDS and it.has_position]
+    if not route_idx:
+        return plan
+    route_ll = np.array([[items[k].lat_deg, items[k].lon_deg] for k in route_idx])
+    route_xy = frame.to_local_xy(route_ll)
+    starts_home = has_takeoff or start_xy_m is None
+    start = np.zeros((1, 2)) if starts_home else np.asarray(start_xy_m, dtype=float).reshape(1, 2)
+    pts = [start, route_xy] + ([np.zeros((1, 2))] if returns_home else [])
+    full = np.vstack(pts)
+    speed = _speed(plan, scenario)
+    prof = route_profile(scenario, full, speed_m_s=speed, name=name, starts_home=starts_home,
+                         returns_home=returns_home)
+    cuts = _breakpoints(prof, t.min_clearance_m, TRACK_TOLERANCE_M)
+    home_g = dem.height_at(0.0, 0.0)
+    relative = t.altitude_frame == "relative"
+    fr = FRAME_GLOBAL_RELATIVE_ALT if relative else FRAME_GLOBAL
+
+    def alt_of(z: float) -> float:
+        return round(float(z - home_g) if relative else float(z), 2)
+
+    def wp_at(i: int) -> MissionItem:
+        lat, lon = frame.to_wgs84_latlon(prof.xy[i])[0]
+        return MissionItem(NAV_WAYPOINT, fr, (0.0, 0.0, 0.0, math.nan), float(lat), float(lon), alt_of(prof.z[i]))
+
+    # Which profile breakpoints fall inside each route leg (exclusive of its ends).
+    vertex = list(prof.vertex)
+    inner = {k: [c for c in cuts if vertex[k] < c < vertex[k + 1]] for k in range(len(vertex) - 1)}
+    out: list[MissionItem] = []
+    ground: list[float] = []
+    route_pos = {k: j + 1 for j, k in enumerate(route_idx)}  # item index -> route point index in ``full``
+    first_route = route_idx[0]
+    for k, it in enumerate(items):
+        if it.command in TAKEOFF_COMMANDS:
+            out.append(dataclasses.replace(it, alt_m=round(float(prof.z[0] - home_g), 2)))
+            ground.append(float(prof.ground[0]))
+            continue
+        if k in route_pos:
+            v = route_pos[k]
+            if k == first_route or v - 1 >= 0:
+                for c in inner.get(v - 1, []):
+                    out.append(wp_at(c))
+                    ground.append(float(prof.ground[c]))
+            i = vertex[v]
+            out.append(dataclasses.replace(it, frame=fr, alt_m=alt_of(prof.z[i])))
+            ground.append(float(prof.ground[i]))
+            continue
+        if it.command == NAV_RETURN_TO_LAUNCH and returns_home and k == len(items) - 1:
+            last = len(vertex) - 2
+            for c in inner.get(last, []):
+                out.append(wp_at(c))
+                ground.append(float(prof.ground[c]))
+            # above the launch point at the profile's end, then the RTL lands there
+            out.append(wp_at(vertex[-1]))
+            ground.append(float(prof.ground[vertex[-1]]))
+        out.append(it)
+        ground.append(math.nan)
+    return dataclasses.replace(plan, items=tuple(out), home_alt_m=round(float(home_g), 2),
+                               terrain_alt_m=tuple(round(g, 2) if math.isfinite(g) else math.nan for g in ground))
+
+
+def _speed(plan: MissionPlan, scenario) -> float:
+    """The ground speed the climb gradients are planned at: the mission's DO_CHANGE_SPEED, else
+    the plan's cruise speed, else the fleet's."""
+    for it in plan.items:
+        if it.command == DO_CHANGE_SPEED and it.params[1] > 0:
+            return float(it.params[1])
+    return float(plan.cruise_speed_m_s or scenario.fleet.speed_m_s)
+
+
+def clearance_along(plan: MissionPlan, scenario, *, step_m: float | None = None) -> np.ndarray:
+    """Height above the DEM [m] along the straight 3D legs of ``plan`` as the autopilot flies them
+    (the take-off at the launch point, the route items, the RTL home at its altitude), sampled every ``step_m`` (default half a
+    DEM cell): what a test or an operator checks the plan against."""
+    dem = scenario.dem
+    frame = scenario.frame
+    home_g = dem.height_at(0.0, 0.0)
+    rel = scenario.terrain.altitude_frame == "relative"
+    pts = []
+    for it in plan.items:
+        if it.command in TAKEOFF_COMMANDS and not pts:  # climbs at the launch point
+            pts.append((0.0, 0.0, home_g + it.alt_m))
+        if it.command in ROUTE_COMMANDS and it.has_position:
+            x, y = frame.to_local_xy(np.array([[it.lat_deg, it.lon_deg]]))[0]
+            pts.append((x, y, it.alt_m + (home_g if rel or it.frame == FRAME_GLOBAL_RELATIVE_ALT else 0.0)))
+    if plan.items and plan.items[-1].command == NAV_RETURN_TO_LAUNCH and pts:
+        pts.append((0.0, 0.0, pts[-1][2]))  # RTL flies home at the altitude it has (above RTL_ALT here)
+    p = np.array(pts)
+    step = step_m or 0.5 * dem.resolution_m
+    out = []
+    for a, b in zip(p[:-1], p[1:]):
+        n = max(1, int(math.ceil(np.linalg.norm(b[:2] - a[:2]) / step)))
+        f = np.linspace(0.0, 1.0, n + 1)[:, None]
+        q = a + f * (b - a)
+        out.append(q[:, 2] - dem.height_xy(q[:, :2]))
+    return np.concatenate(out) if out else np.zeros(0)
