@@ -326,12 +326,16 @@ _SECTIONS = {
 
 
 def load_scenario(path: str | Path) -> Scenario:
-    """Read and validate a scenario TOML file. Raises ConfigError naming the file and key."""
-    p = Path(path)
+    """Read and validate a scenario TOML file, or a shipped one by name (``paper``, ``small``: see
+    :mod:`uavloc_gcs.examples`). Raises ConfigError naming the file and key."""
+    from .examples import scenario_names, scenario_path
+
+    p = scenario_path(path)
     try:
         text = p.read_text(encoding="utf-8")
     except FileNotFoundError:
-        raise ConfigError("file not found", source=str(p)) from None
+        raise ConfigError(f"file not found (shipped scenarios, usable by name: {', '.join(scenario_names())})",
+                          source=str(p)) from None
     except (OSError, UnicodeDecodeError) as exc:
         raise ConfigError(f"cannot read file ({exc})", source=str(p)) from None
     return loads_scenario(text, source=str(p), base_dir=p.parent)

@@ -21,13 +21,23 @@ def names() -> list[str]:
     return sorted(p.name for p in files(__name__).iterdir() if not p.name.startswith(("_", ".")))
 
 
-def scenario_path(arg: str | Path) -> Path:
-    """``arg`` itself when it names an existing file; else the shipped scenario of that name
-    (``paper`` or ``paper.toml``); else ``arg`` (whose loading then says the file is missing)."""
+def shipped_path(arg: str | Path, suffix: str) -> Path:
+    """``arg`` itself when it names an existing file; else the shipped file of that name with or
+    without ``suffix`` (``paper`` or ``paper.toml``, ``route_paper.json``); else ``arg`` (whose
+    reading then says the file is missing). The one resolver every command uses."""
     p = Path(arg)
     if p.exists() or p.parent != Path("."):
         return p
-    for name in (p.name, p.name + ".toml"):
-        if name.endswith(".toml") and name in names():
+    for name in (p.name, p.name + suffix):
+        if name.endswith(suffix) and name in names():
             return example_path(name)
     return p
+
+
+def scenario_path(arg: str | Path) -> Path:
+    """A scenario file or a shipped scenario's name (:func:`shipped_path` with ``.toml``)."""
+    return shipped_path(arg, ".toml")
+
+
+def scenario_names() -> list[str]:
+    return [n[:-len(".toml")] for n in names() if n.endswith(".toml")]
