@@ -165,6 +165,15 @@ class ScanSpec:
 
 
 @dataclass(frozen=True)
+class SearchSpec:
+    """What the search must achieve. ``pod_target``: the probability of detection (0-1) the scan is
+    planned for, for one and for two heard bursts (``uavloc plan --pod``; search/pod_plan.py).
+    None: the scan as ``[scan]`` lays it out."""
+
+    pod_target: float | None = None
+
+
+@dataclass(frozen=True)
 class PlannerSpec:
     optimizer: Literal["epso", "pso", "ga"] = "epso"
     particles: int = 40
@@ -232,6 +241,7 @@ class Scenario:
     people: PeopleSpec = field(default_factory=PeopleSpec)
     scan: ScanSpec = field(default_factory=ScanSpec)
     planner: PlannerSpec = field(default_factory=PlannerSpec)
+    search: SearchSpec = field(default_factory=SearchSpec)
     simulation: SimulationSpec = field(default_factory=SimulationSpec)
     link: LinkSpec = field(default_factory=LinkSpec)
     terrain: TerrainSpec = field(default_factory=TerrainSpec)
@@ -319,6 +329,7 @@ _SECTIONS = {
     "people": PeopleSpec,
     "scan": ScanSpec,
     "planner": PlannerSpec,
+    "search": SearchSpec,
     "simulation": SimulationSpec,
     "link": LinkSpec,
     "terrain": TerrainSpec,
@@ -477,6 +488,9 @@ def _resolve(sc: Scenario, base_dir: Path | None = None) -> Scenario:
            "must be a number of people per km², 0 or more", sc, "people.density_per_km2")
     if scan.lane_spacing_m is not None:
         _check(scan.lane_spacing_m > 0, "must be positive", sc, "scan.lane_spacing_m")
+    if sc.search.pod_target is not None:
+        _check(0.0 < sc.search.pod_target < 1.0, f"must be a probability between 0 and 1 (exclusive), got "
+               f"{sc.search.pod_target}", sc, "search.pod_target")
     _check(pl.particles >= 2, "must be at least 2", sc, "planner.particles")
     _check(pl.iterations >= 1, "must be at least 1", sc, "planner.iterations")
     _check(pl.time_limit_s > 0, "must be positive", sc, "planner.time_limit_s")
