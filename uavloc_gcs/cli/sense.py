@@ -70,6 +70,9 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError(f"--slot-ms must be in (0, 255], got {args.slot_ms}", key="--slot-ms")
     if args.tlog and not args.out:
         raise ConfigError("--tlog writes DIR/slots.csv: give --out DIR too", key="--tlog")
+    if args.tlog and (args.interface or args.mavlink):
+        raise ConfigError("--tlog places a capture file's slots on a recorded flight: not with --interface or "
+                          "--mavlink", key="--tlog")
     if args.channels and len(args.interface) != 1:
         raise ConfigError("--channels hops one interface; give exactly one --interface (several interfaces stay "
                           "on their own fixed channels)", key="--channels")
