@@ -82,3 +82,31 @@ def test_autopilot_flag_that_contradicts_the_heartbeat_uploads_nothing(ardupilot
 def test_link_flags_out_of_range_are_bad_input_not_link_failures(tmp_path, args, flag):
     r = uavloc("upload", _plan(tmp_path), "--to", "udpout:127.0.0.1:9", *args)
     one_sentence(r, f"argument {flag}")
+
+
+# ---------------------------------------------------------------------------------------------
+# route
+
+def test_route_refuses_binary_files_and_picture_suffixes_before_writing(tmp_path):
+    (tmp_path / "garbage.plan").write_bytes(bytes(range(256)) * 2)
+    one_sentence(uavloc("route", "garbage.plan", cwd=tmp_path), "garbage.plan", "JSON")
+    r = uavloc("route", "route_paper.json", "--png", "r.jpg", "--out", "r.json", cwd=tmp_path)
+    one_sentence(r, "--png r.jpg", ".png or .svg")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["garbage.plan"]
+
+
+def test_ctrl_c_during_an_ortools_route_is_not_success_and_writes_nothing(tmp_path):
+    pytest.importorskip("ortools")
+    import signal
+    import time
+
+    p = subprocess.Popen([sys.executable, "-m", "uavloc_gcs", "route", "route_paper", "--solver", "ortools",
+                          "--time-limit", "60", "--out", "o.json"], cwd=tmp_path, stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE, text=True)
+    time.sleep(4)  # whether the solver has started or Python is still importing, Ctrl-C must not be success
+    p.send_signal(signal.SIGINT)
+    _, err = p.communicate(timeout=120)
+    assert p.returncode == 130, err
+    assert "Traceback" not in err
+    assert "interrupted" in err or "stopped by Ctrl-C" in err
+    assert not (tmp_path / "o.json").exists()

@@ -3,7 +3,11 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
+import signal
 import sys
+
+from ._inputs import number
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -14,10 +18,13 @@ def register(sub: argparse._SubParsersAction) -> None:
                     "is home, passing within each person's access disk, within each vehicle's energy. "
                     "Writes the plan as JSON to stdout or --out and a summary to stderr.",
     )
-    p.add_argument("instance", help="instance JSON (speed_m_s, t0_s, vehicles, targets)")
+    p.add_argument("instance", help="instance JSON (speed_m_s, t0_s, vehicles, targets), or a shipped one by name: "
+                                    "route_paper")
     p.add_argument("--solver", default="epso", choices=["epso", "pso", "ga", "ortools", "pyvrp"])
-    p.add_argument("--time-limit", type=float, default=1.0, metavar="S", help="search time [s] (default 1)")
-    p.add_argument("--seed", type=int, default=0, metavar="N", help="random seed (default 0)")
+    p.add_argument("--time-limit", type=number(float, above=0, max=86400, unit="s"), default=1.0, metavar="S",
+                   help="search time [s] (default 1)")
+    p.add_argument("--seed", type=number(int, min=0, max=2**32 - 1), default=0, metavar="N",
+                   help="random seed (default 0)")
     p.add_argument("--no-local-search", action="store_true",
                    help="plain optimizer as in the paper (EPSO/PSO/GA only)")
     p.add_argument("--out", metavar="FILE", help="write the plan JSON here instead of stdout")
@@ -28,7 +35,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from ..errors import FileFormatError
+    from ..errors import ConfigError, FileFormatError, Interrupted
+    from ..examples import shipped_path
     from ..planning import solve
     from ..planning.jsonio import dumps_result, loads_problem
     from ..atomicfile import atomic_write_text
@@ -38,22 +46,32 @@ def run(args: argparse.Namespace) -> int:
     for option, path in (("--out", args.out), ("--png", args.png)):
         if path:
             check_output_file(path, option)
+    if args.png and Path(args.png).suffix.lower() not in (".png", ".svg"):
+        raise ConfigError(f"--png {args.png}: the picture must end in .png or .svg")
+    instance = shipped_path(args.instance, ".json")
     try:
-        text = Path(args.instance).read_text(encoding="utf-8")
+        text = instance.read_text(encoding="utf-8")
     except OSError as err:
         raise FileFormatError(f"cannot read: {err.strerror}", path=args.instance) from None
+    except UnicodeDecodeError:
+        raise FileFormatError("is not a text file; a routing instance is JSON (see examples/route_paper.json)",
+                              path=args.instance) from None
     problem = loads_problem(text, path=args.instance)
-    result = solve(problem, method=args.solver, rng=args.seed, time_limit_s=args.time_limit,
-                   local_search=not args.no_local_search)
+    with _interrupt_noted() as stopped:
+        result = solve(problem, method=args.solver, rng=args.seed, time_limit_s=args.time_limit,
+                       local_search=not args.no_local_search)
+    if stopped:
+        # OR-Tools swallows the KeyboardInterrupt in its distance callback and returns what it had
+        raise Interrupted(f"stopped by Ctrl-C during the {args.solver} search; no plan written")
     out = dumps_result(result, args.solver)
+    if args.png:  # before the JSON: a picture that fails leaves nothing half-written
+        from ..render.routes import save_plan_picture
+
+        save_plan_picture(problem, result.plan, args.png, title=f"Route plan ({args.solver})")
     if args.out:
         atomic_write_text(args.out, out)
     else:
         sys.stdout.write(out)
-    if args.png:
-        from ..render.routes import save_plan_picture
-
-        save_plan_picture(problem, result.plan, args.png, title=f"Route plan ({args.solver})")
     plan = result.plan
     gap = plan.makespan_s / plan.lower_bound_s - 1 if plan.lower_bound_s > 0 else 0.0
     print(f"{args.solver}: makespan {plan.makespan_s:.2f} s (lower bound {plan.lower_bound_s:.2f} s, "
@@ -66,3 +84,24 @@ def run(args: argparse.Namespace) -> int:
         print(f"warning: {result.message}", file=sys.stderr)
         return 1
     return 0
+
+
+@contextlib.contextmanager
+def _interrupt_noted():
+    """Yield a list that holds the signal number once Ctrl-C was pressed; Python's own handling
+    (KeyboardInterrupt) goes on as usual."""
+    stopped: list[int] = []
+
+    def on_int(signum, frame):
+        stopped.append(signum)
+        signal.default_int_handler(signum, frame)
+
+    try:
+        previous = signal.signal(signal.SIGINT, on_int)
+    except ValueError:  # not the main thread: nothing to note
+        yield stopped
+        return
+    try:
+        yield stopped
+    finally:
+        signal.signal(signal.SIGINT, previous)
