@@ -25,6 +25,7 @@ COMMANDS = [
     "localize",
     "route",
     "sim",
+    "sitl",
     "upload",
     "download",
     "daemon",
