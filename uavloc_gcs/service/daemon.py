@@ -25,7 +25,7 @@ import functools
 import logging
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Sequence
 
@@ -36,7 +36,7 @@ from ..mission import NAV_WAYPOINT, flight_mission, to_wire
 from ..observations import SlotBatch
 from ..estimation.identity import person_name
 from ..scenario import Scenario
-from .lifecycle import allowed, persist
+from .lifecycle import persist
 from .liveview import LiveView, StatusSnapshot, VehicleStatus, person_view
 from .missionstate import ClockRate, final_seq, hold_seq, same_stored_mission, with_hold_before_rtl
 from .outcome import SearchOutcome, estimate_row, final_results, statement_for
@@ -44,10 +44,12 @@ from .starting import (CLIMB_WAIT_S, StartFailed, UnsafeStart, read_facts, refus
                        takeoff_seen)
 from .store import Store, StoreReader, TelemetryRow
 from .vehicle import VehicleAgent
+from .vehiclelife import HOMING_MODES, MISSION_STATE_COMPLETE  # noqa: F401 (re-exported)
+from .vehiclelife import VehicleLife as _Vehicle
+from .vehiclelife import read_facts as read_life_facts
 
 log = logging.getLogger(__name__)
 
-MISSION_STATE_COMPLETE = 5
 WAYPOINT_TOLERANCE_M = 10.0  # a replanned look this close to the uploaded one is "unchanged"
 REPLAN_BACKOFF_S = 10.0  # mission seconds before planning again after the planner failed
 LAND_WAIT_S = 300.0  # mission seconds to wait at most for the fleet to land after sending it home
@@ -58,7 +60,6 @@ JOB_WAIT_S = 3.0  # wall seconds the brain waits for a vehicle's exchanges befor
 START_WAIT_S = 10.0  # the same for the scan starts
 IDLE_END_S = 10.0  # mission seconds with every vehicle home and no look planned before the search ends
 STOP_WAIT_S = 15.0  # wall seconds to send everyone home when stopped
-HOMING_MODES = ("RTL", "SMART_RTL", "LAND", "AUTO.RTL", "AUTO.LAND")  # ArduPilot, PX4
 LOOK_UPLOAD_TRIES = 2  # uploads of one look: the second with a take-off, for a vehicle that landed meanwhile
 
 
@@ -80,57 +81,6 @@ class DaemonOptions:
     on_stop: str = "rtl"  # when the daemon is stopped (Ctrl-C, SIGTERM): "rtl" sends the airborne home
     scan_hold_s: float = 120.0  # mission seconds a finished scan holds before its RTL (the next mission
     # is normally uploaded well before; without a daemon the vehicle then comes home by itself)
-
-
-@dataclass
-class _Vehicle:
-    """One vehicle's state machine (phases and moves: :mod:`.lifecycle`)."""
-
-    id: int
-    connection: str
-    link: object = None
-    agent: VehicleAgent | None = None
-    _phase: str = "connecting"
-    purpose: str = ""  # "scan" | "look" | "home"
-    mission: list = field(default_factory=list)  # acknowledged wire items
-    end_seq: int = 0  # seq of the final RTL item of the current mission
-    targets: tuple = ()
-    look_xy_m: np.ndarray | None = None
-    look_first_seq: int = 0  # wire seq of the first look waypoint
-    looks_reported: int = 0  # looks of the current mission reported flown to the policy
-    lost: bool = False
-    scan_done: bool = False
-    home: bool = False
-    ignore_seq_until_wall: float = 0.0
-    home_by_s: float = math.inf  # mission time by which a returning vehicle should have landed
-    plans: int = 0  # replans that changed what this vehicle should do
-    uploads: int = 0  # missions uploaded to it (scan included)
-    skipped: int = 0  # new plans not uploaded: not worth a restarted leg (search/uploads.py)
-    uploads_since_look: int = 0  # look missions uploaded in flight since it last passed a look
-    deferred: bool = False  # a newer plan was not uploaded (at most one upload between two looks)
-    hold_seq: int = 0  # seq of the scan's closing hold (scan done once the vehicle is there)
-    unusable: str = ""  # why the vehicle cannot be commanded ("" = usable)
-    job: asyncio.Task | None = None  # the exchange under way with this vehicle (its own task)
-    job_late: bool = False  # the brain stopped waiting for it: replan when it ends
-    flew: bool = False  # seen airborne (armed, off the ground) since it was last on the ground
-    odd_moves: list = field(default_factory=list)  # moves outside lifecycle.NEXT (logged, kept)
-    start_failed: str = ""  # why its scan could not be started ("": it was, or was never tried)
-
-    @property
-    def phase(self) -> str:
-        return self._phase
-
-    @phase.setter
-    def phase(self, new: str) -> None:
-        old = self._phase
-        if new != old and not allowed(old, new):
-            self.odd_moves.append((old, new))
-            log.warning("vehicle %d: unexpected move %s -> %s", self.id, old, new)
-        self._phase = new
-
-    @property
-    def airborne(self) -> bool:
-        return self.agent is not None and not self.agent.on_ground() and math.isfinite(self.agent.tel.rel_alt_m)
 
 
 def _idle(vehicles) -> bool:
@@ -752,67 +702,20 @@ class Daemon:
             await asyncio.sleep(self.opt.tick_s)
 
     def _update_phase(self, v: _Vehicle) -> None:
-        a = v.agent
-        if a is None:
+        """One step of ``v``'s state machine on the facts read now (service/vehiclelife.py)."""
+        if v.agent is None:
             return
-        silent = a.silent_for_s() > self.opt.lost_timeout_s
-        if silent and not v.lost:
-            v.lost = True
-            self._event("lost", f"vehicle {v.id} silent for {self.opt.lost_timeout_s:g} s: marked lost; "
-                        "its people go to the others", v.id)
-        elif v.lost and not silent:
-            v.lost = False
-            if v.phase == "not connected":
-                v.phase = "idle"
-            self._event("found", f"vehicle {v.id} is back", v.id)
-        if v.lost:
-            return
-        seq = a.tel.mission_seq
-        if v.phase == "waiting for operator" and a.tel.armed and a.in_mission_mode:
-            v.phase = "scanning"
-            self._event("start", f"vehicle {v.id} started by the operator", v.id)
-        elif v.phase == "starting" and a.tel.armed and a.in_mission_mode and not a.on_ground():
-            v.phase = "scanning"  # flying its scan, while the start exchange may still be judged
-        fresh = self.wall() >= v.ignore_seq_until_wall and a.tel.mission_ours
-        past_end = seq is not None and v.end_seq and seq >= v.end_seq and fresh
-        if v.hold_seq:  # the scan ends with a hold, then RTL: done once it holds
-            complete = fresh and seq is not None and seq >= v.hold_seq
-        else:  # a scan stored by an older daemon: done once it hovers at its end
-            complete = fresh and (a.tel.mission_state == MISSION_STATE_COMPLETE or (
-                past_end and a.tel.ground_speed_m_s < 1.0 and not a.on_ground()))
-        if v.phase == "scanning" and complete and v.flew:  # (a stale item of a vehicle never airborne: not flown)
-            v.scan_done = True
-            v.phase = "hovering (scan done)"
-            self._event("scan", f"vehicle {v.id} finished its scan", v.id)
-        if v.phase == "hovering (scan done)" and v.hold_seq and past_end:
-            self._returning(v)  # the hold ran out before a new mission came: it flies home by itself
-        elif v.phase == "localizing" and past_end:
-            self._returning(v)
-        if not a.on_ground() and a.tel.armed:
-            v.flew = True
-        elif v.flew and not a.tel.armed and v.phase in ("scanning", "hovering (scan done)", "localizing"):
-            # It landed by itself (its mission's RTL, a failsafe) before we saw its mission end:
-            # whatever it flew is done; it is home and can be sent out again.
-            v.scan_done = True
-            self._returning(v)
-        if v.phase.startswith("returning") and a.on_ground() and not v.home:
-            v.home, v.flew = True, False
-            v.phase = "landed"
-            self._event("landed", f"vehicle {v.id} landed", v.id)
-        if v.home and not a.on_ground() and a.tel.armed:
-            v.home = False  # sent out again
-            if v.phase == "landed" and a.tel.mode in HOMING_MODES:
-                # Judged landed while still armed, low and slow, it is flying its return again
-                # (a return restarted by the pilot, a landing aborted): it is returning, not home.
-                self._returning(v)
-                self._event("home", f"vehicle {v.id} is airborne again in {a.tel.mode}: returning home", v.id)
+        for kind, text in v.observe(read_life_facts(v.agent), self.wall(), self.opt.lost_timeout_s, self._home_by):
+            self._event(kind, text, v.id)
 
-    def _returning(self, v: _Vehicle) -> None:
-        v.phase = "returning"
+    def _home_by(self, v: _Vehicle) -> float:
+        """Mission time by which ``v``, flying home from where it is now, should have landed."""
         xy = v.agent.position_xy_m() or (0.0, 0.0)
         alt = v.agent.tel.rel_alt_m if math.isfinite(v.agent.tel.rel_alt_m) else self.sc.fleet.altitude_m
-        v.home_by_s = (self.now_s() + math.hypot(*xy) / self._return_speed_m_s + alt / LANDING_RATE_M_S
-                       + LANDING_MARGIN_S)
+        return self.now_s() + math.hypot(*xy) / self._return_speed_m_s + alt / LANDING_RATE_M_S + LANDING_MARGIN_S
+
+    def _returning(self, v: _Vehicle) -> None:
+        v.returning(self._home_by(v))
 
     def snapshot(self) -> StatusSnapshot:
         t = self.now_s()

@@ -1,19 +1,4 @@
-"""One vehicle's life in the search as an explicit state machine, and how its exchanges are judged.
-
-Phases and the moves between them (``NEXT``)::
-
-    connecting -> connected | not connected
-    connected -> uploading scan | scanning | localizing | returning | landed | waiting for operator | idle
-    uploading scan -> starting | waiting for operator
-    starting -> scanning
-    scanning -> hovering (scan done) | returning
-    hovering (scan done) | idle | landed -> localizing | returning
-    localizing -> localizing | returning
-    returning -> landed | localizing
-    any -> unusable   (the vehicle talks but cannot be commanded: its people go to the others)
-
-Lost/found is orthogonal (``_Vehicle.lost``): a silent vehicle keeps its phase and is left out of
-planning until it is heard again.
+"""How an exchange with a vehicle is judged. (The vehicle's states and moves: :mod:`.vehiclelife`.)
 
 An exchange with a vehicle (upload, start, switch mission, return home) is not judged from its
 acknowledgement alone: on a radio that loses packets the ACK of a command the vehicle carried out
@@ -33,34 +18,13 @@ import time
 from typing import Awaitable, Callable
 
 from ..errors import LinkError
+from .vehiclelife import ANY_TO, NEXT, allowed  # noqa: F401 (the one state table, re-exported)
 
 log = logging.getLogger(__name__)
-
-NEXT: dict[str, frozenset[str]] = {
-    "connecting": frozenset({"connected", "not connected"}),
-    "not connected": frozenset({"idle"}),
-    "connected": frozenset({"uploading scan", "scanning", "localizing", "returning", "landed",
-                            "waiting for operator", "idle", "hovering (scan done)"}),
-    "uploading scan": frozenset({"starting", "waiting for operator", "scanning"}),
-    "waiting for operator": frozenset({"scanning"}),
-    "starting": frozenset({"scanning"}),
-    "scanning": frozenset({"hovering (scan done)", "returning", "scanning", "localizing"}),
-    "hovering (scan done)": frozenset({"localizing", "returning", "landed"}),
-    "idle": frozenset({"localizing", "returning", "landed"}),
-    "localizing": frozenset({"localizing", "returning", "landed"}),
-    "returning": frozenset({"landed", "localizing", "returning"}),
-    "landed": frozenset({"localizing", "returning", "landed"}),
-    "unusable": frozenset(),
-}
-ANY_TO = frozenset({"unusable"})
 
 TRIES = 3
 BACKOFF_S = (0.5, 1.0, 2.0)  # wall seconds before the 2nd, 3rd, ... try
 SETTLE_S = 2.0  # wall seconds to wait for telemetry that shows the exchange's effect
-
-
-def allowed(old: str, new: str) -> bool:
-    return new in ANY_TO or new in NEXT.get(old, frozenset())
 
 
 class ExchangeFailed(LinkError):
