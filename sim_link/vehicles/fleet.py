@@ -243,7 +243,10 @@ class FakeFleet:
                 max_accel_m_s2=f.max_acceleration_m_s2, energy_budget_j=f.energy_budget_j,
                 power=scenario.power_model, slot_s=scenario.channel.slot_s,
                 epoch_unix_s=self.clock.epoch_unix_s, rssi=onboard_rssi,
-                companion_heartbeat=companion_heartbeat, **(vehicle_options or {})), world)
+                companion_heartbeat=companion_heartbeat,
+                # over terrain the launch point's AMSL altitude is the DEM's, as absolute missions assume
+                **{**({"home_alt_amsl_m": scenario.dem.height_at(0.0, 0.0)} if scenario.dem is not None else {}),
+                   **(vehicle_options or {})}), world)
             for i in range(1, f.vehicles + 1)
         ]
         seeds = np.random.SeedSequence(self.seed, spawn_key=(7,)).spawn(len(self.vehicles))

@@ -82,6 +82,17 @@ class World:
             self.emission = ProbeBursts(BurstParams.from_scenario(scenario), n, self._rng(_TRAITS),
                                         lambda i: self._rng(_BURSTS, i))
         self._id_index = {int(e): i for i, e in enumerate(self.emitter_ids)}
+        # People stand on the ground (terrain.dem): their height above the launch point, which the
+        # vehicles' z is measured from. None: flat ground at the launch point's height (z = h).
+        self.dem = scenario.dem
+        self._home_ground_m = self.dem.height_at(0.0, 0.0) if self.dem is not None else 0.0
+
+    def ground_above_launch_m(self, xy_m) -> np.ndarray:
+        """The ground's height above the launch point [m] at local points (..., 2); 0 without a DEM."""
+        a = np.asarray(xy_m, dtype=float)
+        if self.dem is None:
+            return np.zeros(a.shape[:-1])
+        return self.dem.height_xy(a.reshape(-1, 2), clamp=True).reshape(a.shape[:-1]) - self._home_ground_m
 
     @classmethod
     def with_people(cls, scenario: Scenario, start_xy_m, velocity_m_s=None, *, seed: int | None = None) -> "World":
@@ -175,7 +186,10 @@ class World:
             return self._hear_frames(int(vehicle), state, t, xyz)
         people = self.tracks.positions(t)  # (N, S, 2)
         dxy = people - xyz[:, None, :2]
-        d3 = np.sqrt(np.sum(dxy**2, axis=2) + xyz[:, 2:3] ** 2)  # (N, S)
+        if self.dem is None:
+            d3 = np.sqrt(np.sum(dxy**2, axis=2) + xyz[:, 2:3] ** 2)  # (N, S)
+        else:  # the vehicle's height above each person on the ground
+            d3 = np.sqrt(np.sum(dxy**2, axis=2) + (xyz[:, 2:3] - self.ground_above_launch_m(people)) ** 2)
 
         prev_xyz = xyz[0] if state.last_xyz_m is None else state.last_xyz_m
         prev_people = people[0] if state.last_people_xy_m is None else state.last_people_xy_m
@@ -220,7 +234,8 @@ class World:
 
         # each sender at its frame's slot only: hearing costs what the frames cost
         pxy = self.tracks.positions_of(frames.person, t[slot])  # (F, 2)
-        d3 = np.sqrt(np.sum((pxy - xyz[slot, :2]) ** 2, axis=1) + xyz[slot, 2] ** 2)
+        dz = xyz[slot, 2] if self.dem is None else xyz[slot, 2] - self.ground_above_launch_m(pxy)
+        d3 = np.sqrt(np.sum((pxy - xyz[slot, :2]) ** 2, axis=1) + dz ** 2)
         psi = draw_frame_shadowing_db(self.channel, state, frames.person, odometer[slot], pxy, len(self))
         rssi = self.channel.median_rssi_dbm(d3) + self.tx_offset_db[frames.person] + psi
         heard = d3 <= self.comm_range_m if self.sensitivity_dbm is None else rssi > self.sensitivity_dbm
@@ -258,7 +273,8 @@ class World:
             rng = self._elicit_rngs[vehicle] = self._rng(_ELICIT, vehicle)
         slot_s = self.scenario.channel.slot_s
         people = self.tracks.positions(t)  # (N, S, 2)
-        d3 = np.sqrt(np.sum((people - xyz[:, None, :2]) ** 2, axis=2) + xyz[:, 2:3] ** 2)
+        dz = xyz[:, 2:3] if self.dem is None else xyz[:, 2:3] - self.ground_above_launch_m(people)
+        d3 = np.sqrt(np.sum((people - xyz[:, None, :2]) ** 2, axis=2) + dz ** 2)
         count = rng.poisson(self.elicitation_rate_hz * slot_s, size=d3.shape) * (d3 <= self.elicitation_range_m())
         k, person = np.nonzero(count)
         reps = count[k, person]

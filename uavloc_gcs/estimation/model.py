@@ -6,7 +6,8 @@ A slot of n samples with mean RSSI ``rssi`` [dBm] becomes one log-range observat
 ``beta = tx_offset_db ln10 / (10 eta)`` the phone's unknown transmit offset (0 unless estimated).
 
 The state is ``theta = (x, y, vx, vy[, beta])`` at a reference time t_c (metres, m/s) for the
-moving model, ``(x, y[, beta])`` for the static one. The person is at ``p + v (t - t_c)``, z = 0.
+moving model, ``(x, y[, beta])`` for the static one. The person is at ``p + v (t - t_c)``, z = 0:
+the slots' z is the vehicle's height above the person (over terrain, see :mod:`.terrain_fit`).
 """
 
 from __future__ import annotations
@@ -82,12 +83,18 @@ class ChannelModel:
 MIN_ALTITUDE_FRACTION = 0.5
 
 
-def survey_slots(slots, altitude_m: float):
+def survey_slots(slots, altitude_m: float, dem=None):
     """The slots heard at or above ``MIN_ALTITUDE_FRACTION`` of the survey altitude ``altitude_m``
-    (height above the people, the slots' z)."""
+    (height above the people, the slots' z). Over terrain (``dem``, a uavloc_gcs.terrain.Terrain)
+    the height is above the ground under the vehicle, z being above the launch point."""
     if len(slots) == 0:
         return slots
-    keep = np.asarray(slots.xyz_m)[:, 2] >= MIN_ALTITUDE_FRACTION * altitude_m
+    xyz = np.asarray(slots.xyz_m)
+    if dem is None:
+        keep = xyz[:, 2] >= MIN_ALTITUDE_FRACTION * altitude_m
+    else:
+        ground = dem.height_xy(xyz[:, :2], clamp=True) - dem.height_at(0.0, 0.0, clamp=True)
+        keep = xyz[:, 2] - ground >= MIN_ALTITUDE_FRACTION * altitude_m
     return slots if bool(np.all(keep)) else slots.take(keep)
 
 

@@ -31,6 +31,7 @@ daemon does) -- R/V after the vehicle really passed it.
 
 from __future__ import annotations
 
+import functools
 import logging
 import math
 import time
@@ -266,7 +267,7 @@ class SearchPolicy:
         the ground) are left out (``estimation.model.survey_slots``)."""
         from ..estimation import survey_slots
 
-        slots = survey_slots(slots, self.scenario.fleet.altitude_m)
+        slots = survey_slots(slots, self.scenario.fleet.altitude_m, self.scenario.dem)
         if len(slots) == 0:
             return
         if self._raw or np.any(slots.fingerprint != 0):
@@ -338,8 +339,10 @@ class SearchPolicy:
         if len(t) == 0:
             return
         xyz = np.asarray(xyz_m, float).reshape(-1, 3)
+        dem = self.scenario.dem  # over terrain: the height above the ground under the vehicle
+        agl = xyz[:, 2] if dem is None else xyz[:, 2] - dem.height_xy(xyz[:, :2], clamp=True) + dem.height_at(0, 0)
         k = (np.round(t / self.scenario.channel.slot_s).astype(np.int64) % TRACK_STEP_SLOTS == 0) & (
-            xyz[:, 2] >= MIN_ALTITUDE_FRACTION * self.scenario.fleet.altitude_m)  # as in ingest
+            agl >= MIN_ALTITUDE_FRACTION * self.scenario.fleet.altitude_m)  # as in ingest
         xyz = xyz[k]
         if not len(xyz):
             return
@@ -408,6 +411,7 @@ class SearchPolicy:
         """Re-estimate emitters with new slots; return the ids whose state changed materially
         (new person, located, ambiguity, estimate moved, a planned look happened or failed)."""
         from ..estimation import estimate_emitter
+        from ..estimation.terrain_fit import estimate_on_terrain
 
         changed: set[int] = set()
         if len(self._raw) > 1 or (self._raw and self.linking is None):
@@ -421,7 +425,9 @@ class SearchPolicy:
             before = self._signature(p)
             t0 = time.perf_counter()
             try:
-                est = estimate_emitter(
+                fit = estimate_emitter if self.scenario.dem is None else functools.partial(
+                    estimate_on_terrain, dem=self.scenario.dem, estimate=estimate_emitter)  # people on the ground
+                est = fit(
                     p.batches[0], self.channel, max_speed_m_s=self.model_speed_m_s,
                     t_ref_s=p.last_slot_t_s, model_motion=self.model_motion, previous=p.estimate,
                     silence=self._silence(p), censored=self._censored(p))

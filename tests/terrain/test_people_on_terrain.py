@@ -1,0 +1,84 @@
+"""People on the ground's surface: the simulated world and the estimator's slant range over terrain."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from sim_link.world import World
+from uavloc_gcs.estimation import estimate_emitter
+from uavloc_gcs.estimation.model import ChannelModel, survey_slots
+from uavloc_gcs.estimation.terrain_fit import estimate_on_terrain
+from uavloc_gcs.observations import SlotBatch
+from uavloc_gcs.scenario import load_scenario
+
+from .dems import EXAMPLES
+
+
+@pytest.fixture(scope="module")
+def mountains():
+    return load_scenario(EXAMPLES / "mountains.toml")
+
+
+def two_passes(sc, person):
+    """Two terrain-following passes 80 m and 70 m either side of ``person``, 100 m above the ground
+    under the vehicle (z above the launch point, as telemetry gives it)."""
+    dem, home = sc.dem, sc.dem.height_at(0.0, 0.0)
+    t, xyz, tt = [], [], 0.0
+    for dy in (-80.0, 70.0):
+        for x in np.arange(person[0] - 300.0, person[0] + 300.0, 1.5):
+            p = np.array([x, person[1] + dy])
+            t.append(tt)
+            xyz.append([p[0], p[1], dem.height_at(*p) - home + sc.fleet.altitude_m])
+            tt += 0.1
+        tt += 20.0
+    return np.array(t), np.array(xyz)
+
+
+def test_the_world_puts_people_on_the_ground_and_hears_them_at_the_true_slant_range(mountains):
+    sc = mountains
+    person = np.array([800.0, 400.0])
+    w = World.with_people(sc, person[None], seed=3)
+    ground = float(w.ground_above_launch_m(person))
+    assert ground == pytest.approx(sc.dem.height_at(*person) - sc.dem.height_at(0, 0))
+    assert ground > 150.0  # up the mountain from the launch point
+    # straight above the person, 100 m over the ground: heard (the comm range is 150 m); flat ground
+    # would put the vehicle 100 + ground > 250 m above them and hear nothing
+    over = np.array([[person[0], person[1], ground + 100.0]])
+    heard = w.hear_track(1, np.array([0.0]), over)
+    assert len(heard) == 1
+    # the same place at 100 m above the launch point is under the ground's level there: 3-D
+    # distance |100 - ground| > 50 m, yet within range; at 100 m + 2 x ground it is out of range
+    far = np.array([[person[0], person[1], 2 * ground + 100.0]])
+    assert len(w.hear_track(1, np.array([1.0]), far)) == 0
+
+
+def test_the_estimator_takes_the_person_s_height_from_the_dem(mountains):
+    sc = mountains
+    ch = ChannelModel.from_scenario(sc)
+    flat_err, ter_err = [], []
+    for seed in range(4):
+        rng = np.random.default_rng(seed)
+        person = np.array([rng.uniform(200, 1000), rng.uniform(150, 500)])
+        w = World.with_people(sc, person[None], seed=seed)
+        slots = w.hear_track(1, *two_passes(sc, person))
+        flat = estimate_emitter(slots, ch, max_speed_m_s=0.0, model_motion=False)
+        ter = estimate_on_terrain(slots, ch, sc.dem, estimate=estimate_emitter, max_speed_m_s=0.0,
+                                  model_motion=False)
+        flat_err.append(np.linalg.norm(flat.position_xy_m - person))
+        ter_err.append(np.linalg.norm(ter.position_xy_m - person))
+        assert np.linalg.norm(ter.position_xy_m - person) <= ter.radius95_m * 2.5
+    # the launch point's height for everyone misreads slant ranges by 100-300 m of height
+    rmse_flat, rmse_ter = np.sqrt(np.mean(np.square(flat_err))), np.sqrt(np.mean(np.square(ter_err)))
+    assert rmse_ter < 10.0 and rmse_ter < rmse_flat / 3.0, (rmse_flat, rmse_ter)
+
+
+def test_slots_low_over_the_launch_point_but_high_over_the_ground_below_are_kept(mountains):
+    sc = mountains
+    # 100 m above the valley 1.5 km west, whose ground is some 280 m below the launch point: z < 0
+    xy = np.array([[-1500.0, 900.0]])
+    g = sc.dem.height_at(*xy[0]) - sc.dem.height_at(0, 0)
+    assert g < -200.0
+    slots = SlotBatch.from_columns([0.0], [1], [[xy[0, 0], xy[0, 1], g + 100.0]], [7], [-70.0], [10])
+    assert len(survey_slots(slots, 100.0, sc.dem)) == 1
+    assert len(survey_slots(slots, 100.0)) == 0  # the flat rule would drop it as a vehicle on the ground
