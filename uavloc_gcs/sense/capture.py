@@ -104,7 +104,7 @@ def _pcapng(buf: bytes, stats: ReadStats, path: str) -> Iterator[Record]:
     n = len(buf)
     pos = 0
     order = "<"
-    links: list[tuple[int, float]] = []  # per interface of the current section: linktype, tick
+    links: list[tuple[int, int, float]] = []  # per interface of the section: linktype, ticks per s, tick
     while pos + 12 <= n:
         if buf[pos:pos + 4] == PCAPNG_SHB:  # a section header fixes the byte order of what follows
             if pos + 12 > n:
@@ -129,22 +129,24 @@ def _pcapng(buf: bytes, stats: ReadStats, path: str) -> Iterator[Record]:
         if btype == 6 and bend - body >= 20:  # enhanced packet block
             iface, hi, lo, cap, orig = struct.unpack_from(order + "IIIII", buf, body)
             if iface < len(links) and body + 20 + cap <= bend:
-                lt, tick = links[iface]
+                lt, per_s, tick = links[iface]
                 stats.records += 1
-                yield lt, ((hi << 32) | lo) * tick, buf[body + 20:body + 20 + cap], cap < orig
+                sec, rem = divmod((hi << 32) | lo, per_s)
+                yield lt, sec + rem * tick, buf[body + 20:body + 20 + cap], cap < orig
             else:
                 stats.bad_records += 1
         elif btype == 1 and bend - body >= 8:  # interface description block
             lt = struct.unpack_from(order + "H", buf, body)[0]
-            links.append((lt, _if_tick(buf, body + 8, bend, order)))
+            links.append((lt, *_if_tick(buf, body + 8, bend, order)))
         elif btype == 3 and bend - body >= 4:  # simple packet block: no timestamp
             stats.bad_records += 1
         elif btype == 2 and bend - body >= 20:  # obsolete packet block
             iface, _, hi, lo, cap, orig = struct.unpack_from(order + "HHIIII", buf, body)
             if iface < len(links) and body + 20 + cap <= bend:
-                lt, tick = links[iface]
+                lt, per_s, tick = links[iface]
                 stats.records += 1
-                yield lt, ((hi << 32) | lo) * tick, buf[body + 20:body + 20 + cap], cap < orig
+                sec, rem = divmod((hi << 32) | lo, per_s)
+                yield lt, sec + rem * tick, buf[body + 20:body + 20 + cap], cap < orig
             else:
                 stats.bad_records += 1
         elif btype != PCAPNG_SHB_TYPE:
@@ -156,14 +158,17 @@ def _pcapng(buf: bytes, stats: ReadStats, path: str) -> Iterator[Record]:
 PCAPNG_SHB_TYPE = 0x0A0D0D0A
 
 
-def _if_tick(buf: bytes, pos: int, end: int, order: str) -> float:
-    """An interface's timestamp unit from its if_tsresol option (default microseconds)."""
+def _if_tick(buf: bytes, pos: int, end: int, order: str) -> tuple[int, float]:
+    """An interface's timestamp unit from its if_tsresol option (default microseconds), as
+    (ticks per second, tick in seconds): times are computed as whole seconds plus the remainder, so
+    a microsecond pcapng gives the same floats as a microsecond pcap."""
     while pos + 4 <= end:
         code, olen = struct.unpack_from(order + "HH", buf, pos)
         if code == 0:
             break
         if code == 9 and olen >= 1 and pos + 5 <= end:
             v = buf[pos + 4]
-            return 2.0 ** -(v & 0x7F) if v & 0x80 else 10.0 ** -v
+            per_s = 2 ** min(v & 0x7F, 63) if v & 0x80 else 10 ** min(v, 18)
+            return per_s, 1.0 / per_s if v & 0x80 else 10.0 ** -min(v, 18)
         pos += 4 + olen + (-olen % 4)
-    return 1e-6
+    return 1_000_000, 1e-6
