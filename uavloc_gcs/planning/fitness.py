@@ -62,6 +62,13 @@ class Evaluator:
         self.node_vel = np.concatenate([problem.velocities_m_s, np.zeros((2 * self.m, 2))])
         self.moving = bool(np.any(self.node_vel != 0))
         self.max_len = problem.max_length_m
+        # services (orbit looks): seconds, and as metres of makespan (s * V) and of energy (J / J-per-m)
+        zeros = np.zeros(2 * self.m)
+        self.node_svc_s = np.concatenate([problem.service_s, zeros]) if self.n else zeros
+        self.node_svc_m = self.node_svc_s * self.speed
+        self.node_svc_e_m = (np.concatenate([problem.service_energy_j, zeros]) if self.n else zeros) \
+            / problem.energy_per_m_j
+        self.has_service = bool(np.any(self.node_svc_s > 0) or np.any(self.node_svc_e_m > 0))
         self.nfev = 0
 
     # --- encodings ------------------------------------------------------------------------------
@@ -87,6 +94,8 @@ class Evaluator:
         step = _norm(np.diff(pos, axis=1))  # (P, n-1)
         D = np.concatenate([np.zeros((P, 1)), np.cumsum(step, axis=1)], axis=1)  # (P, n)
         R = np.concatenate([np.zeros((P, 1)), np.cumsum(rad, axis=1)], axis=1)  # (P, n+1)
+        # services count as metres of makespan (a chunk's is SC_j - SC_i)
+        R = R - np.concatenate([np.zeros((P, 1)), np.cumsum(self.node_svc_m[order], axis=1)], axis=1)
         i = np.arange(n + 1)
         empty = i[:, None] == i[None, :]  # chunk [i, j) with i == j
         invalid = i[:, None] > i[None, :]
@@ -197,10 +206,21 @@ class Evaluator:
         return C
 
     def _times_s(self, lay: Layout, Q: np.ndarray) -> np.ndarray:
-        """Flight time [s] from the route start to each slot."""
+        """Time [s] from the route start to the arrival at each slot (flight plus the services of
+        the earlier targets of the route)."""
         seg = _norm(np.diff(Q, axis=1))
         cum = np.concatenate([np.zeros((Q.shape[0], 1)), np.cumsum(seg, axis=1)], axis=1)
-        return (cum - np.take_along_axis(cum, lay.route_start, axis=1)) / self.speed
+        t = (cum - np.take_along_axis(cum, lay.route_start, axis=1)) / self.speed
+        if self.has_service:
+            svc = self.node_svc_s[lay.seq]
+            cs = np.cumsum(svc, axis=1) - svc  # services before each slot
+            t = t + cs - np.take_along_axis(cs, lay.route_start, axis=1)
+        return t
+
+    def _route_services(self, lay: Layout, per_node: np.ndarray) -> np.ndarray:
+        """Sum over each route's targets of ``per_node`` (P, m)."""
+        cs = np.concatenate([np.zeros((lay.seq.shape[0], 1)), np.cumsum(per_node[lay.seq], axis=1)], axis=1)
+        return np.take_along_axis(cs, lay.home_slot, 1) - np.take_along_axis(cs, lay.start_slot, 1)
 
     def access_points(self, lay: Layout, sweeps: int, newton: int, Q: np.ndarray | None = None,
                       tol_m: float = 0.0, eps_m: float = 0.0,
@@ -247,8 +267,12 @@ class Evaluator:
         seg = _norm(np.diff(Q, axis=1))
         cum = np.concatenate([np.zeros((Q.shape[0], 1)), np.cumsum(seg, axis=1)], axis=1)
         lengths = np.take_along_axis(cum, lay.home_slot, 1) - np.take_along_axis(cum, lay.start_slot, 1)
+        energy_len = lengths
+        if self.has_service:  # lengths become metres of makespan; the energy gets its own metres
+            energy_len = lengths + self._route_services(lay, self.node_svc_e_m)
+            lengths = lengths + self._route_services(lay, self.node_svc_m)
         makespan = lengths.max(axis=1) / self.speed
-        excess = np.maximum(lengths - self.max_len[None, :], 0.0).sum(axis=1) / self.speed
+        excess = np.maximum(energy_len - self.max_len[None, :], 0.0).sum(axis=1) / self.speed
         fitness = makespan + ENERGY_PENALTY * excess
         if not np.all(np.isfinite(fitness)):  # never let a numerical accident look good
             fitness = np.where(np.isfinite(fitness), fitness, np.inf)
@@ -383,13 +407,15 @@ class Evaluator:
         for v, veh in enumerate(pb.vehicles):
             s0, h0 = lay.start_slot[0, v], lay.home_slot[0, v]
             idx = lay.seq[0, s0 + 1:h0]
-            length = float(ev.lengths_m[0, v])
+            length = float(ev.lengths_m[0, v])  # metres of makespan: flight + services x V
+            svc_s = float(self.node_svc_s[idx].sum()) if len(idx) else 0.0
+            svc_e = float(self.node_svc_e_m[idx].sum()) * e_per_m if len(idx) else 0.0
             routes.append(Route(
                 vehicle_id=veh.id,
                 target_ids=tuple(pb.targets[i].id for i in idx),
                 access_points_xy_m=Q[s0 + 1:h0].copy(),
                 access_times_s=t[s0 + 1:h0].copy(),
                 duration_s=length / self.speed,
-                energy_j=length * e_per_m,
+                energy_j=(length - svc_s * self.speed) * e_per_m + svc_e,
             ))
         return Plan(tuple(routes), float(ev.makespan_s[0]), float(lower_bound_s))

@@ -160,9 +160,10 @@ class LocalSearch:
         tgt = np.array(rc)
         _, ins = best_point_between(U[None], W[None], cen[tgt][:, None], rad[tgt][:, None],
                                     newton_steps=4)
-        ins = ins - _norm(W - U)[None]
+        svc = ev.node_svc_m  # an orbit look's service moves with its target
+        ins = ins - _norm(W - U)[None] + svc[tgt][:, None]
         new_v = lengths[R][None] + ins
-        new_c = (Lc - rem_gain)[:, None]
+        new_c = (Lc - rem_gain - svc[tgt])[:, None]
         ok = new_v <= self.max_len[R][None] * (1 - 1e-12)
         score = np.where(ok, np.maximum(new_v, new_c), np.inf)
         b = np.unravel_index(int(np.argmin(score)), score.shape)
@@ -185,8 +186,8 @@ class LocalSearch:
             _, into_c = best_point_between(xc[idx - 1][:, None], xc[idx + 1][:, None],
                                            cen[ot][None], rad[ot][None], newton_steps=4)
             base_c = (_norm(xc[idx] - xc[idx - 1]) + _norm(xc[idx + 1] - xc[idx]))[:, None]
-            new_c2 = Lc - base_c + into_c
-            new_o2 = lengths[ov][None] - base_o[None] + into_o
+            new_c2 = Lc - base_c + into_c + (svc[ot][None] - svc[tgt][:, None])
+            new_o2 = lengths[ov][None] - base_o[None] + into_o + (svc[tgt][:, None] - svc[ot][None])
             ok2 = new_o2 <= self.max_len[ov][None] * (1 - 1e-12)
             sc2 = np.where(ok2, np.maximum(new_c2, new_o2), np.inf)
             b2 = np.unravel_index(int(np.argmin(sc2)), sc2.shape)

@@ -5,6 +5,11 @@ Vehicles start where they are now (``start_xy_m``) at ``t0_s``, fly at ``speed_m
 objective is the makespan: the largest route duration [s] from ``t0_s`` to the last vehicle home.
 Every route's propulsion energy (``power.leg_energy_j`` at ``speed_m_s``) must fit the vehicle's
 remaining ``energy_j``.
+
+A target may have a *service*: an orbit look (search/orbit.py) keeps the vehicle ``service_s``
+seconds on a circle through its access point and spends ``service_energy_j`` there. The makespan,
+the access times of the later targets and the energy check count both; ``service_s = 0`` (every
+fly-by, the paper) changes nothing.
 """
 
 from __future__ import annotations
@@ -38,6 +43,8 @@ class Target:
     xy_m: tuple[float, float]
     velocity_m_s: tuple[float, float] = (0.0, 0.0)
     radius_m: float = 0.0
+    service_s: float = 0.0  # time spent at the access point (an orbit look's dwell) [s]
+    service_energy_j: float = 0.0  # energy spent in that time [J]
 
 
 @dataclass(frozen=True)
@@ -76,6 +83,14 @@ class RoutingProblem:
     @property
     def radii_m(self) -> np.ndarray:
         return np.array([t.radius_m for t in self.targets], dtype=float)
+
+    @property
+    def service_s(self) -> np.ndarray:
+        return np.array([t.service_s for t in self.targets], dtype=float)
+
+    @property
+    def service_energy_j(self) -> np.ndarray:
+        return np.array([t.service_energy_j for t in self.targets], dtype=float)
 
     @property
     def energy_per_m_j(self) -> float:
@@ -167,6 +182,10 @@ def validate(problem: RoutingProblem) -> None:
                 f"{t.velocity_m_s} or radius {t.radius_m}")
         if t.radius_m < 0:
             raise ConfigError(f"target {t.id}: negative radius {t.radius_m} m")
+        if not (math.isfinite(t.service_s) and math.isfinite(t.service_energy_j)
+                and t.service_s >= 0 and t.service_energy_j >= 0):
+            raise ConfigError(f"target {t.id}: service time {t.service_s} s and energy {t.service_energy_j} J "
+                              "must be finite and not negative")
         speed = math.hypot(*t.velocity_m_s)
         if speed >= 0.5 * problem.speed_m_s:
             raise ConfigError(
@@ -190,7 +209,7 @@ def check_reachable(problem: RoutingProblem) -> None:
                 f"it has {v.energy_j:.0f} J")
     if not problem.targets:
         return
-    need = single_visit_length_m(problem)  # (n, m)
+    need = single_visit_length_m(problem) + (problem.service_energy_j / e_per_m)[:, None]  # (n, m)
     for i, t in enumerate(problem.targets):
         ok = need[i] <= max_len * (1 + 1e-9)
         if not ok.any():
@@ -198,6 +217,7 @@ def check_reachable(problem: RoutingProblem) -> None:
             raise InfeasibleError(
                 f"target {t.id} at ({t.xy_m[0]:.1f}, {t.xy_m[1]:.1f}) m, radius {t.radius_m:.1f} m "
                 f"is out of reach: the best vehicle {problem.vehicles[best].id} needs "
-                f"{need[i, best]:.1f} m = {need[i, best] * e_per_m:.0f} J there and home, "
+                f"{need[i, best]:.1f} m = {need[i, best] * e_per_m:.0f} J there and home"
+                f"{f' with its {t.service_s:.0f} s look' if t.service_s > 0 else ''}, "
                 f"it has {problem.vehicles[best].energy_j:.0f} J")
 

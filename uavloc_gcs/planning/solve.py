@@ -156,8 +156,8 @@ def solve(problem: RoutingProblem, *, method: str = "epso", rng=None, time_limit
 
 def _result(ev: Evaluator, order, counts, plan: Plan, nit: int, message: str, t_start: float,
             x: np.ndarray) -> PlanResult:
-    lengths = np.array([r.duration_s for r in plan.routes]) * ev.speed
-    feasible = bool(np.all(lengths <= ev.max_len * (1 + 1e-9) + 1e-6))
+    energy_m = np.array([r.energy_j for r in plan.routes]) / ev.problem.energy_per_m_j  # flight + services' energy, in metres
+    feasible = bool(np.all(energy_m <= ev.max_len * (1 + 1e-9) + 1e-6))
     if not feasible:
         over = [(r.vehicle_id, r.energy_j, v.energy_j) for r, v in zip(plan.routes, ev.problem.vehicles)
                 if r.energy_j > v.energy_j * (1 + 1e-9)]

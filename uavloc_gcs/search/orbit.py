@@ -1,0 +1,292 @@
+"""Orbit looks: a vehicle circles a person heard in bursts long enough to catch their next bursts.
+
+A fly-by crosses a phone's hearing disk in seconds; a phone that probes every 20-270 s is then
+usually silent (issue 25). An *orbit look* is a non-hovering circle of radius ``radius_m`` around
+the person's predicted position, flown for ``dwell_s`` seconds: long enough that the phone sends
+``k`` bursts with probability ``p`` (search.pod.BurstTiming) and, divided by the mean probability
+that a burst sent while the vehicle is on the circle is heard (search.pod.p_burst_heard), that
+they are heard. What each autopilot flies was measured on SITL (docs/readme/orbits.md,
+``python -m tests.sitl.orbit_measure``):
+
+* ArduCopter flies NAV_LOITER_TURNS as a true circle (radius held to about 1 m at 60 m), clockwise
+  for a positive radius, at the speed its circle controller allows (7.9 m/s at 60 m with the stock
+  parameters), entering at the circle's point nearest to where it comes from and leaving there
+  after the whole turns;
+* PX4 (multicopter) refuses NAV_LOITER_TURNS in a mission (MAV_MISSION_UNSUPPORTED), so it flies a
+  ring of pass-through waypoints; it slows at every corner (4.9 m/s mean on a 12-point, 60 m ring
+  asked for 10 m/s).
+
+The form per autopilot is :data:`ORBIT_FORM`; both forms start and end at the entry point (whole
+turns), so the router may treat an orbit as an access point on the circle plus a service time.
+
+Radius: the horizontal distance that gives the most position information per burst, averaged over
+where the person may be (the estimate's spread) and where on the circle the vehicle is when the
+phone speaks: information of one RSSI range about the horizontal position grows as rho^2 / d^4
+(rho horizontal, d 3-D distance; largest at rho = altitude) and is only gained when the burst is
+heard (p_burst_heard), so :func:`orbit_radius_m` maximises E[p_heard(d) rho^2 / d^4].
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..mission import (FRAME_GLOBAL_RELATIVE_ALT, MissionItem, MissionPlan, change_speed, pass_through_waypoint,
+                       return_to_launch, takeoff)
+
+NAV_LOITER_TURNS = 18
+
+# How each autopilot flies an orbit (measured, docs/readme/orbits.md).
+ORBIT_FORM = {"ardupilot": "loiter-turns", "px4": "ring"}
+RING_POINTS_PER_TURN = 12
+# Speeds measured on SITL around a 60 m circle with 10 m/s asked (docs/readme/orbits.md): the
+# planner's orbit speed is min(cruise, this, sqrt(a_c * r)) with a_c the centripetal acceleration
+# the measured speed implies; energy and dwell are counted at that speed.
+ORBIT_SPEED_M_S = {"loiter-turns": 7.9, "ring": 4.9}
+ORBIT_MEASURED_RADIUS_M = 60.0
+# Bursts an orbit waits for and the probability it catches them (k, p): one heard burst locates
+# nobody in the field world, two or three give a fix of 116-153 m RMSE (docs/readme/localization.md),
+# so an orbit asks for two.
+ORBIT_BURSTS = 2
+ORBIT_P = 0.5
+MAX_DWELL_S = 600.0  # one orbit never waits longer than this (a phone in a long silence is missed)
+MIN_RADIUS_M = 20.0
+
+
+@dataclass(frozen=True)
+class OrbitLook:
+    """One orbit: centre and entry point [m, local frame], radius [m], dwell [s], speed [m/s]."""
+
+    centre_xy_m: tuple[float, float]
+    radius_m: float
+    dwell_s: float
+    speed_m_s: float
+    form: str = "ring"
+
+    @property
+    def turns(self) -> int:
+        """Whole turns that last at least ``dwell_s`` at ``speed_m_s``."""
+        per_turn = 2 * math.pi * self.radius_m / max(self.speed_m_s, 1e-6)
+        return max(1, math.ceil(self.dwell_s / per_turn - 1e-9))
+
+    @property
+    def flown_s(self) -> float:
+        """Time on the circle [s] (whole turns)."""
+        return self.turns * 2 * math.pi * self.radius_m / max(self.speed_m_s, 1e-6)
+
+    def entry_xy_m(self, from_xy_m) -> np.ndarray:
+        """Where the vehicle joins the circle coming from ``from_xy_m`` (the nearest point)."""
+        c = np.asarray(self.centre_xy_m, float)
+        d = np.asarray(from_xy_m, float)[:2] - c
+        n = float(np.hypot(*d))
+        u = d / n if n > 1e-9 else np.array([1.0, 0.0])
+        return c + self.radius_m * u
+
+    def ring_xy_m(self, entry_xy_m, points_per_turn: int = RING_POINTS_PER_TURN,
+                  clockwise: bool = True) -> np.ndarray:
+        """(turns * points_per_turn + 1, 2) points of the ring from the entry round to it again."""
+        c = np.asarray(self.centre_xy_m, float)
+        e = np.asarray(entry_xy_m, float) - c
+        a0 = math.atan2(e[1], e[0])
+        sign = -1.0 if clockwise else 1.0
+        k = np.arange(self.turns * points_per_turn + 1)
+        a = a0 + sign * 2 * math.pi * k / points_per_turn
+        return c + self.radius_m * np.column_stack([np.cos(a), np.sin(a)])
+
+    def path_xy_m(self, from_xy_m, points_per_turn: int = 36) -> np.ndarray:
+        """The circle as flown, for simulators: entry, then ``turns`` turns back to it."""
+        return self.ring_xy_m(self.entry_xy_m(from_xy_m), points_per_turn)
+
+
+def orbit_speed_m_s(form: str, radius_m: float, cruise_m_s: float) -> float:
+    """The speed [m/s] an orbit of ``radius_m`` is flown at (see ORBIT_SPEED_M_S)."""
+    v0 = ORBIT_SPEED_M_S.get(form, ORBIT_SPEED_M_S["ring"])
+    a_c = v0 * v0 / ORBIT_MEASURED_RADIUS_M
+    return float(min(cruise_m_s, math.sqrt(a_c * max(radius_m, 1.0)), max(v0, 1.0) * 2.0))
+
+
+_HEARD_CACHE: dict = {}
+
+
+def _p_heard_table(sc):
+    """p_burst_heard at the scenario's altitude on a grid of horizontal distances (cached)."""
+    from .pod import p_burst_heard
+
+    key = (repr(sc.channel), repr(sc.emission), repr(sc.simulation), sc.fleet.comm_range_m, sc.fleet.altitude_m)
+    if key not in _HEARD_CACHE:
+        grid = np.linspace(0.0, 4.0 * max(float(sc.horizontal_range_m), 50.0) + 200.0, 241)
+        _HEARD_CACHE[key] = (grid, np.asarray(p_burst_heard(sc, grid, float(sc.fleet.altitude_m)), float))
+    return _HEARD_CACHE[key]
+
+
+def _circle_geometry(sc, radius_m: float, spread_m: float, draws: int, seed: int):
+    grid, table = _p_heard_table(sc)
+    rng = np.random.default_rng(seed)
+    off = rng.standard_normal((draws, 2)) * max(float(spread_m), 0.0)
+    ang = np.linspace(0, 2 * np.pi, 24, endpoint=False)
+    veh = radius_m * np.column_stack([np.cos(ang), np.sin(ang)])  # (A, 2)
+    rel = veh[None, :, :] - off[:, None, :]  # (D, A, 2) person -> vehicle, horizontal
+    rho = np.linalg.norm(rel, axis=2)
+    ph = np.interp(rho, grid, table, right=0.0)
+    return rel, rho, ph
+
+
+_RADIUS_CACHE: dict = {}
+
+
+def orbit_radius_m(sc, spread_m: float, *, draws: int = 300, seed: int = 0) -> float:
+    """The orbit radius [m] of most expected information per burst for a person whose position is
+    known to ``spread_m`` (1-sigma per axis, the estimate's), at the scenario's altitude and
+    receiver. For a person at offset delta from the centre the Fisher information of the heard
+    bursts about their horizontal position, averaged over the circle, is
+    J(delta) = mean_theta p_heard(rho) (rho^2 / d^4) u u^T (u the unit vector from person to
+    vehicle; one RSS range informs only along it); the radius maximises E_delta sqrt(det J), the
+    D-optimal design (a circle the person is outside of sees them from a narrow fan of bearings
+    and scores low). Deterministic; cached per 5 m of spread."""
+    h = float(sc.fleet.altitude_m)
+    spread = 5.0 * round(max(float(spread_m), 0.0) / 5.0)
+    key = (id(sc), spread)
+    if key in _RADIUS_CACHE:
+        return _RADIUS_CACHE[key]
+    rng_h = max(float(sc.horizontal_range_m), MIN_RADIUS_M + 1.0)
+    best, best_r = -1.0, MIN_RADIUS_M
+    for r in np.linspace(MIN_RADIUS_M, 1.5 * rng_h, 30):
+        rel, rho, ph = _circle_geometry(sc, float(r), spread, draws, seed)
+        d2 = rho * rho + h * h
+        w = ph / (d2 * d2)  # (D, A): p_heard * rho^2 / d^4 / rho^2, times rel rel^T below
+        jxx = np.mean(w * rel[..., 0] ** 2, axis=1)
+        jyy = np.mean(w * rel[..., 1] ** 2, axis=1)
+        jxy = np.mean(w * rel[..., 0] * rel[..., 1], axis=1)
+        score = float(np.mean(np.sqrt(np.maximum(jxx * jyy - jxy * jxy, 0.0))))
+        if score > best:
+            best, best_r = score, float(r)
+    _RADIUS_CACHE[key] = best_r
+    return best_r
+
+
+def mean_p_heard(sc, radius_m: float, spread_m: float, *, draws: int = 300, seed: int = 0) -> float:
+    """Mean probability that a burst sent while the vehicle is on the circle is heard."""
+    return float(np.mean(_circle_geometry(sc, radius_m, spread_m, draws, seed)[2]))
+
+
+_DWELL_CACHE: dict = {}
+
+
+def dwell_s(sc, p_heard: float, k: int = ORBIT_BURSTS, p: float = ORBIT_P) -> float:
+    """Seconds on the circle to hear ``k`` bursts with probability ``p``: the window in which the
+    phone sends k bursts with probability p (pod.BurstTiming.window_for), stretched by the share
+    of bursts the circle hears (a thinning of the burst process), at most MAX_DWELL_S."""
+    from .pod import BurstTiming
+
+    key = (repr(sc.emission), sc.channel.slot_s, k, p)
+    if key not in _DWELL_CACHE:
+        _DWELL_CACHE[key] = BurstTiming.from_scenario(sc).window_for(k, p)
+    w = _DWELL_CACHE[key]
+    if not math.isfinite(w):
+        return MAX_DWELL_S
+    return float(min(w / max(p_heard, 1e-3), MAX_DWELL_S))
+
+
+def plan_orbit(sc, centre_xy_m, spread_m: float, autopilot: str | None = None,
+               k: int = ORBIT_BURSTS, p: float = ORBIT_P) -> OrbitLook:
+    """The orbit look at ``centre_xy_m`` for a person known to ``spread_m`` (1-sigma) [m]."""
+    form = ORBIT_FORM.get(autopilot or sc.fleet.autopilot, "ring")
+    spread = float(min(max(spread_m, 0.0), sc.horizontal_range_m)) if math.isfinite(spread_m) else sc.horizontal_range_m
+    r = orbit_radius_m(sc, spread)
+    ph = mean_p_heard(sc, r, spread)
+    v = orbit_speed_m_s(form, r, sc.fleet.speed_m_s)
+    return OrbitLook((float(centre_xy_m[0]), float(centre_xy_m[1])), r, dwell_s(sc, ph, k, p), v, form)
+
+
+# -- missions -----------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class LookMission:
+    """A look mission and, per uploaded item from the first look item on, the point [m] where
+    that item counts as reached and the person it looks at (an orbit's first item counts at its
+    entry point, so the look is reported when the orbit begins)."""
+
+    plan: MissionPlan
+    item_xy_m: np.ndarray  # (k, 2)
+    item_targets: tuple[int, ...]
+    first_item: int  # index in plan.items of the first look item
+
+
+def look_mission(frame, points_xy_m, targets, orbits, *, alt_m: float, speed_m_s: float, autopilot: str,
+                 home_latlon_deg, start_xy_m=None, include_takeoff: bool = True) -> LookMission:
+    """The mission for looks at ``points_xy_m`` (access points, local metres of ``frame``) with
+    ``orbits`` (None or an OrbitLook per point): takeoff (``include_takeoff``), speed, per look a
+    pass-through waypoint or the orbit in the autopilot's form, RTL. ``start_xy_m``: where the
+    vehicle is (an orbit's entry is the circle point nearest the previous point)."""
+    pts = np.asarray(points_xy_m, float).reshape(-1, 2)
+    orbits = list(orbits) if orbits is not None else [None] * len(pts)
+    items: list[MissionItem] = []
+    if include_takeoff:
+        items.append(takeoff(alt_m, *home_latlon_deg))
+    items.append(change_speed(speed_m_s))
+    first = len(items)
+    xy_out, tgt_out = [], []
+    prev = np.zeros(2) if start_xy_m is None else np.asarray(start_xy_m, float)[:2]
+
+    def ll(xy):
+        lat, lon = frame.to_wgs84_latlon(np.asarray(xy, float).reshape(-1, 2))[0]
+        return float(lat), float(lon)
+
+    for q, tid, orb in zip(pts, targets, orbits):
+        if orb is None:
+            items.append(pass_through_waypoint(*ll(q), alt_m))
+            xy_out.append(q)
+            tgt_out.append(tid)
+            prev = q
+            continue
+        entry = orb.entry_xy_m(prev)
+        if orb.form == "loiter-turns" and autopilot == "ardupilot":
+            # NAV_LOITER_TURNS: turns, (heading-required), radius (positive: clockwise), xtrack
+            items.append(MissionItem(NAV_LOITER_TURNS, FRAME_GLOBAL_RELATIVE_ALT,
+                                     (float(orb.turns), 0.0, float(orb.radius_m), 0.0), *ll(orb.centre_xy_m), alt_m))
+            xy_out.append(entry)
+            tgt_out.append(tid)
+        else:
+            if orb.speed_m_s < speed_m_s - 0.5:
+                items.append(change_speed(orb.speed_m_s))
+                xy_out.append(entry)
+                tgt_out.append(tid)
+            for r in orb.ring_xy_m(entry):
+                items.append(pass_through_waypoint(*ll(r), alt_m))
+                xy_out.append(r)
+                tgt_out.append(tid)
+            if orb.speed_m_s < speed_m_s - 0.5:
+                items.append(change_speed(speed_m_s))
+                xy_out.append(entry)
+                tgt_out.append(tid)
+        prev = entry
+    items.append(return_to_launch())
+    plan = MissionPlan(tuple(items), float(home_latlon_deg[0]), float(home_latlon_deg[1]), autopilot=autopilot,
+                       cruise_speed_m_s=speed_m_s, hover_speed_m_s=5.0)
+    return LookMission(plan, np.asarray(xy_out, float).reshape(-1, 2), tuple(tgt_out), first)
+
+
+def expand_path(points_xy_m, orbits, start_xy_m) -> tuple[np.ndarray, np.ndarray]:
+    """A task's path with its orbits flown (for simulators): the polyline from ``start_xy_m``
+    through every access point, each orbit's circle inserted at its entry, and the speed factor of
+    each segment (orbit speed / cruise is the caller's; here 1 on legs, the orbit's speed
+    marker -1 on circle segments). Returns (path (n, 2), per-segment orbit index or -1)."""
+    pts = np.asarray(points_xy_m, float).reshape(-1, 2)
+    path = [np.asarray(start_xy_m, float)[:2]]
+    seg_orbit: list[int] = []
+    orbits = list(orbits) if orbits is not None else []
+    for i, q in enumerate(pts):
+        orb = orbits[i] if i < len(orbits) else None
+        if orb is None:
+            path.append(q)
+            seg_orbit.append(-1)
+            continue
+        ring = orb.path_xy_m(path[-1])
+        path.append(ring[0])
+        seg_orbit.append(-1)
+        for r in ring[1:]:
+            path.append(r)
+            seg_orbit.append(i)
+    return np.asarray(path), np.asarray(seg_orbit, int)
