@@ -140,6 +140,10 @@ class ReplaySource:
         self._start = time.time()
         self._t0 = self.records[0][1] if self.records else 0.0
 
+    def restart(self) -> None:
+        self._k = 0
+        self._start = time.time()
+
     @property
     def done(self) -> bool:
         return self._k >= len(self.records)

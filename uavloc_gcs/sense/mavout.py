@@ -64,6 +64,11 @@ class RssiSender:
         self._sub = autopilot_link.subscribe(("HEARTBEAT", "SYSTEM_TIME", "GLOBAL_POSITION_INT", "TIMESYNC"),
                                              callback=self._on_message)
 
+    @property
+    def ready(self) -> bool:
+        """The autopilot's clock and at least one position are known."""
+        return self.clock.ready and self.track.last_t is not None
+
     # -- receiving ----------------------------------------------------------------------------
     def _on_message(self, msg) -> None:
         kind = msg.get_type()

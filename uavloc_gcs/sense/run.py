@@ -13,12 +13,14 @@ import logging
 import time
 from pathlib import Path
 
+from ..errors import LinkError
 from .frames import Frames, SkipCounts, parse_records
 
 log = logging.getLogger(__name__)
 
 TICK_S = 0.05
-REPLAY_DRAIN_S = 1.5  # after a replay: time for the last slots' positions and batches
+REPLAY_DRAIN_S = 1.5
+AUTOPILOT_WAIT_S = 30.0  # a replay to MAVLink waits this long for the autopilot's clock and position  # after a replay: time for the last slots' positions and batches
 
 
 def run_stream(args, exclusion) -> int:
@@ -32,7 +34,7 @@ async def _main(args, exclusion) -> int:
     sources, hopper, sender = [], None, None
     try:
         if args.capture:
-            sources.append(ReplaySource(args.capture, skips.read))
+            replay = ReplaySource(args.capture, skips.read)  # read now: a broken file fails before linking
         else:
             chans = parse_channels(args.channels) if args.channels else None
             for name in args.interface:
@@ -49,6 +51,14 @@ async def _main(args, exclusion) -> int:
         done_at = None
         try:
             while True:
+                if args.capture and not sources and sender is not None and not sender.ready \
+                        and time.monotonic() - t_start > AUTOPILOT_WAIT_S:
+                    raise LinkError(f"no autopilot clock and position on {args.autopilot or args.mavlink} within "
+                                    f"{AUTOPILOT_WAIT_S:g} s (HEARTBEAT, SYSTEM_TIME and GLOBAL_POSITION_INT are needed "
+                                    "to time-tag and place the replay)", operation="sense")
+                if args.capture and not sources and (sender is None or sender.ready):
+                    replay.restart()  # a replay starts once the autopilot's clock and position are known
+                    sources.append(replay)
                 recs = [r for s in sources for r in s.poll()]
                 frames = parse_records(recs, skips)
                 if exclusion is not None and len(frames):
@@ -63,7 +73,7 @@ async def _main(args, exclusion) -> int:
                 now = time.monotonic()
                 if args.duration_s is not None and now - t_start >= args.duration_s:
                     break
-                if args.capture and sources[0].done:
+                if args.capture and sources and sources[0].done:
                     done_at = done_at or now
                     if now - done_at >= REPLAY_DRAIN_S:
                         break
