@@ -262,11 +262,11 @@ class _StuckAgent:
 
 
 def test_a_start_acknowledged_but_never_climbing_is_a_failed_start(tmp_path, monkeypatch):
-    import uavloc_gcs.service.daemon as daemon_mod
+    import uavloc_gcs.service.commands as commands_mod
     from uavloc_gcs.mission import to_wire
     from uavloc_gcs.scan import plan_scan, scan_missions
 
-    monkeypatch.setattr(daemon_mod, "CLIMB_WAIT_S", 0.5)
+    monkeypatch.setattr(commands_mod, "CLIMB_WAIT_S", 0.5)
     sc = small_scenario("ardupilot").replace(fleet={"vehicles": 1})
     d = Daemon(sc, [(1, "udpout:127.0.0.1:9")], DaemonOptions(store_path=tmp_path / "s.sqlite"), policy=_NoPolicy())
     d.store = Store(tmp_path / "s.sqlite")
