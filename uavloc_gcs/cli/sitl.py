@@ -61,7 +61,7 @@ def _check_args(args, scenario):
     if not (math.isfinite(speedup) and 0 < speedup <= 100):
         raise ConfigError(f"{args.speedup} is not a speed-up in (0, 100]", key="--speedup")
     if args.base_port is not None and not 1024 <= args.base_port <= 65535 - n + 1:
-        raise ConfigError(f"{args.base_port} leaves no room for {n} ports in 1024-65535", key="--base-port")
+        raise ConfigError(f"{args.base_port} leaves no room for {n} port(s) in 1024-65535", key="--base-port")
     if not (math.isfinite(args.home_alt) and -500 <= args.home_alt <= 9000):
         raise ConfigError(f"{args.home_alt} is not an altitude in -500..9000 m", key="--home-alt")
     timeout = sitl.READY_TIMEOUT_S if args.ready_timeout is None else args.ready_timeout

@@ -98,8 +98,8 @@ def find_build(kind: str, path: Path | None = None) -> Path:
     """The ArduCopter binary or the PX4 build folder, at ``path`` or in the default places; a
     ConfigError naming ``--sitl-dir`` when there is none."""
     find = arducopter_in if kind == "ardupilot" else px4_in
-    what = ("an 'arducopter' binary" if kind == "ardupilot"
-            else "a PX4 SITL build (bin/px4 and etc/init.d-posix/rcS)")
+    what = ("ArduCopter SITL binary ('arducopter')" if kind == "ardupilot"
+            else "PX4 SITL build (bin/px4 and etc/init.d-posix/rcS)")
     if path is not None:
         found = find(Path(path))
         if found is None:
@@ -110,7 +110,7 @@ def find_build(kind: str, path: Path | None = None) -> Path:
         found = find(d)
         if found is not None:
             return found.resolve()
-    raise ConfigError(f"no {what} found in {', '.join(str(d) for d in default_sitl_dirs())}: give --sitl-dir "
+    raise ConfigError(f"no {what} in {', '.join(str(d) for d in default_sitl_dirs())}: give --sitl-dir "
                       "(a folder with ardupilot/ and px4/ as in ../shared/sitl, or your own build)",
                       key="--sitl-dir")
 
