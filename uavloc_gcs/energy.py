@@ -4,6 +4,13 @@
 
 The seed paper prints V^2 inside the inner root, which goes negative above ~5.7 m/s; not copied.
 Energy of a leg flown at constant V is P(V) * length / V (turns and accelerations are not modelled).
+
+Climbing (terrain, issue 28): climbing at rate v_c takes the work against gravity on top of the
+level-flight power, P_climb = W v_c (W the vehicle's weight, Zeng's Table I: 20 N), so a climb of
+dh metres costs W dh joules whatever its rate. This is the potential-energy term m g (h(T) - h(0))
+of the heuristic 3-D extension Zeng, Xu and Zhang give beside their level-flight model; the change
+of induced power with the climb rate is left out (small at the few m/s missions climb). Descents
+are given no credit: the rotors still lift the vehicle, and no energy is recovered.
 """
 
 from __future__ import annotations
@@ -26,6 +33,7 @@ class RotorcraftPower:
     air_density_kg_m3: float = 1.225  # rho
     rotor_solidity: float = 0.05  # s
     rotor_disc_area_m2: float = 0.503  # A
+    weight_n: float = 20.0  # W (Zeng's Table I), for the climb power W v_c
 
     def power_w(self, speed_m_s):
         """Propulsion power [W] in level flight at ``speed_m_s`` (scalar or array)."""
@@ -44,6 +52,19 @@ class RotorcraftPower:
         )
         p = blade + induced + parasite
         return float(p) if np.ndim(p) == 0 else p
+
+    def climb_power_w(self, climb_rate_m_s) -> float:
+        """Power [W] on top of the level-flight power to climb at ``climb_rate_m_s`` (W v_c; none
+        for a descent, which recovers nothing)."""
+        r = np.maximum(np.asarray(climb_rate_m_s, dtype=float), 0.0)
+        p = self.weight_n * r
+        return float(p) if np.ndim(p) == 0 else p
+
+    def climb_energy_j(self, heights_m) -> float:
+        """Energy [J] of the climbs along a sequence of heights [m]: W times the metres climbed
+        (descents free), the integral of :meth:`climb_power_w` over any climb rate."""
+        h = np.asarray(heights_m, dtype=float).reshape(-1)
+        return float(self.weight_n * np.sum(np.maximum(np.diff(h), 0.0))) if len(h) > 1 else 0.0
 
     def hover_power_w(self) -> float:
         return float(self.power_w(0.0))

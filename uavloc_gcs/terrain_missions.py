@@ -276,3 +276,52 @@ def clearance_along(plan: MissionPlan, scenario, *, step_m: float | None = None)
         q = a + f * (b - a)
         out.append(q[:, 2] - dem.height_xy(q[:, :2]))
     return np.concatenate(out) if out else np.zeros(0)
+
+
+def point_seqs(wire_items, latlon_deg) -> tuple[int, ...]:
+    """Wire seqs of the NAV_WAYPOINTs at ``latlon_deg`` (N, 2), in order: where a mission's own
+    points (looks) went once :func:`terrain_safe` added waypoints between them."""
+    from .mission import deg_to_e7
+
+    want = [(deg_to_e7(float(a)), deg_to_e7(float(b))) for a, b in np.asarray(latlon_deg, dtype=float).reshape(-1, 2)]
+    out, k = [], 0
+    for it in wire_items:
+        if k < len(want) and it.command == NAV_WAYPOINT and it.seq > 0 and (it.x, it.y) == want[k]:
+            out.append(int(it.seq))
+            k += 1
+    return tuple(out)
+
+
+def mission_heights_m(plan: MissionPlan, scenario) -> np.ndarray:
+    """The altitudes [m, the DEM's datum] a mission flies through in order: the launch point's
+    ground, the take-off altitude, every route item (absolute or relative altitudes alike)."""
+    dem = scenario.dem
+    home_g = dem.height_at(0.0, 0.0) if dem is not None else 0.0
+    out = []
+    for it in plan.items:
+        if it.command in TAKEOFF_COMMANDS:
+            out += [home_g, home_g + it.alt_m]
+        elif it.command in ROUTE_COMMANDS and it.has_position:
+            out.append(it.alt_m if it.frame == FRAME_GLOBAL else home_g + it.alt_m)
+    return np.asarray(out, dtype=float)
+
+
+def climb_energy_j(plan: MissionPlan, scenario) -> float:
+    """Energy [J] of a mission's climbs (energy.RotorcraftPower.climb_energy_j over its heights)."""
+    return scenario.power_model.climb_energy_j(mission_heights_m(plan, scenario))
+
+
+def check_climb_energy(scenario, vehicles, missions) -> list[float]:
+    """Each terrain-safe mission's climb energy [J]; refuses (one sentence naming the vehicle) a
+    mission whose level-flight energy (``vehicles[i].energy_j``) plus climbs exceed the usable budget."""
+    usable = scenario.usable_energy_j
+    out = []
+    for v, m in zip(vehicles, missions):
+        c = climb_energy_j(m, scenario)
+        if v.energy_j + c > usable:
+            raise InfeasibleError(
+                f"vehicle uav{v.index + 1} needs {v.energy_j / 1000:.1f} kJ for its scan plus {c / 1000:.1f} kJ to climb "
+                f"over the terrain, more than the usable {usable / 1000:.1f} kJ; add vehicles (fleet.vehicles = "
+                f"{scenario.fleet.vehicles}) or raise fleet.energy_budget_j")
+        out.append(c)
+    return out

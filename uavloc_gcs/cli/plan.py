@@ -93,11 +93,19 @@ def summary(sc, plan, missions) -> str:
     if idle:
         head.append(f"{idle} vehicle(s) have nothing to scan (more vehicles than lanes) and get no mission.")
     rows = []
-    for v, m in zip(plan.vehicles, missions):
+    climbs = [0.0] * len(missions)
+    if sc.dem is not None:  # the climbs over the terrain (energy.RotorcraftPower.climb_energy_j)
+        from ..terrain_missions import check_climb_energy
+        climbs = check_climb_energy(sc, plan.vehicles, missions)
+    for v, m, c in zip(plan.vehicles, missions, climbs):
         mins, secs = divmod(int(round(v.duration_s)), 60)
         rows.append([f"uav{v.index + 1}", len(m.waypoints()), len(m.items), f"{v.length_m / 1000:.2f}",
-                     f"{mins}:{secs:02d}", f"{v.energy_j / 1000:.1f}", f"{100 * v.energy_j / usable:.1f}"])
-    table = format_table(["vehicle", "waypoints", "items", "length km", "time m:s", "energy kJ", "% budget"], rows)
+                     f"{mins}:{secs:02d}", f"{(v.energy_j + c) / 1000:.1f}", f"{100 * (v.energy_j + c) / usable:.1f}"]
+                    + ([f"{c / 1000:.1f}"] if sc.dem is not None else []))
+    table = format_table(["vehicle", "waypoints", "items", "length km", "time m:s", "energy kJ", "% budget"]
+                         + (["of it climbing kJ"] if sc.dem is not None else []), rows)
     foot = (f"% budget = share of the usable {usable / 1000:.1f} kJ per vehicle ({f.energy_budget_j / 1000:g} kJ "
-            f"minus {f.energy_reserve_fraction:.0%} reserve); times at cruise speed, climb and turns not included.")
+            f"minus {f.energy_reserve_fraction:.0%} reserve); times at cruise speed, climb and turns not included."
+            + (" Energy includes the climbs over the terrain (the vehicle's weight times the metres climbed)."
+               if sc.dem is not None else ""))
     return "\n".join(head) + "\n\n" + table + "\n" + foot
