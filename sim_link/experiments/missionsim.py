@@ -66,6 +66,8 @@ class MissionResult:
     # the clairvoyant yardstick (see oracle_completion_time_s); NaN when not computed
     oracle_completion_time_s: float = math.nan
     error_times_s: np.ndarray = field(repr=False, default_factory=lambda: np.zeros(0))
+    pod_overall: float = math.nan  # achieved POD over the area from the flown tracks (search/coverage.py)
+    pass_rounds: int = 0  # replans that added passes over cells below the POD target
     max_error_m: np.ndarray = field(repr=False, default_factory=lambda: np.zeros(0))
 
     @property
@@ -201,6 +203,7 @@ def slot_times(t_from_s: float, t_to_s: float, slot_s: float) -> np.ndarray:
 # companion that reported every slot it listened); "heard", only the slots where it heard some
 # phone (what the daemon knows: SearchPolicy.tracks_from_slots); "none", no silences.
 LISTENING = "flown"
+COVERAGE_STEP_S = 1.0  # flown positions given to the coverage accumulator this often [s]
 
 
 def hear(world: World, vehicles: list[Vehicle], t_from_s: float, t_to_s: float, policy=None):
@@ -222,6 +225,10 @@ def hear(world: World, vehicles: list[Vehicle], t_from_s: float, t_to_s: float, 
         out.append(world.hear_track(v.index, tt, xyz))
         if policy is not None and not policy.tracks_from_slots:
             policy.ingest_track(v.index, tt, xyz)
+        cov = getattr(policy, "coverage", None)
+        if cov is not None:  # what was flown within hearing (uavloc_gcs/search/coverage.py), as the daemon
+            step = max(1, int(round(COVERAGE_STEP_S / sc.channel.slot_s)))
+            cov.add_track(v.index, tt[::step], xyz[::step])
     return SlotBatch.concat(out)
 
 
@@ -273,6 +280,7 @@ def simulate_mission(
     max_time_s: float = DEFAULT_MAX_TIME_S,
     oracle: bool = False,
     hearing_evidence: bool = True,
+    coverage: bool = True,
 ) -> MissionResult:
     """Fly one mission with one of :data:`METHODS` and report completion time, run times, errors."""
     if method not in METHODS:
@@ -283,6 +291,10 @@ def simulate_mission(
                           max_iter=max_iter)
     policy.hearing_evidence = hearing_evidence and LISTENING != "none" and math.isfinite(scenario.fleet.comm_range_m)
     policy.tracks_from_slots = LISTENING == "heard"
+    if coverage:
+        from uavloc_gcs.search.coverage import attach
+
+        attach(scenario, policy)  # cells below the POD target get another pass, as in the daemon
     scan = plan_scan(scenario)
     m = scenario.fleet.vehicles
     vehicles = [Vehicle(i + 1, scenario) for i in range(m)]
@@ -338,4 +350,6 @@ def simulate_mission(
         planner_runtime_s=policy.planner_runtime_s, estimator_runtime_s=policy.estimator_runtime_s,
         replans=replans, energy_j=tuple(v.energy_j for v in vehicles),
         persons=person_results(world, statuses, t_end), oracle_completion_time_s=t_oracle,
-        error_times_s=np.asarray(err_t), max_error_m=np.asarray(err_v))
+        error_times_s=np.asarray(err_t), max_error_m=np.asarray(err_v),
+        pod_overall=policy.coverage.overall() if getattr(policy, "coverage", None) is not None else math.nan,
+        pass_rounds=policy.coverage.pass_rounds if getattr(policy, "coverage", None) is not None else 0)

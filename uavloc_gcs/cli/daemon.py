@@ -4,7 +4,9 @@ Connects to every vehicle in the config's ``[link]`` section, uploads the scan, 
 waits for the operator), localizes, replans and uploads in flight, brings everyone home, and
 writes the results. Restarted with the same ``--out`` after a crash it resumes the search.
 Exit code 0 when every person heard was located within the required accuracy, 1 otherwise
-(the statement says who and why), 2 for bad input, 3 for link failures.
+(the statement says who and why), 2 for bad input, 3 for link failures, 4 when part of the area
+was not searched because a vehicle was lost (or its scan never started) and no other vehicle could
+take it over (the statement says how much and where; docs/readme/daemon.md).
 """
 
 from __future__ import annotations
@@ -124,4 +126,8 @@ def run(args: argparse.Namespace) -> int:
         view = LiveView(sys.stdout)
         result = run_search(scenario, connections, opts, out, view=view, web=web, on_web_url=print_web_url,
                             on_result=reporter(out, web))
+    from ..service.outcome import EXIT_UNSEARCHED
+
+    if result.outcome.unsearched_after_loss:
+        return EXIT_UNSEARCHED  # part of the area was not searched: a lost vehicle's, nobody took it over
     return 0 if result.outcome.all_located else 1

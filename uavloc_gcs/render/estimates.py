@@ -52,20 +52,27 @@ STATE_LEGEND = {"located": "located (95 % circle)", "heard": "heard, not located
 
 def result_figure(people, *, area_xy_m: np.ndarray, tracks_xy_m: Mapping[int, np.ndarray],
                   truth_xy_m: Mapping[int, np.ndarray] | None = None, title: str = "Result",
-                  subtitle: str | None = None) -> Figure:
+                  subtitle: str | None = None, coverage=None) -> Figure:
     """The end-of-search map: area, flown tracks, each person's reported position with its 95 %
     circle coloured by state and its label (P01 ...; labels never overlap), the true positions
     joined to their estimates when simulated, launch point, legend, scale bar and north arrow.
 
     ``people``: objects with ``east_m``, ``north_m``, ``radius95_m``, ``state``, ``label`` and
-    ``emitter_id`` (``service.results.PersonResult``)."""
+    ``emitter_id`` (``service.results.PersonResult``). ``coverage`` (search.coverage.CoverageSummary):
+    the achieved POD of every cell under it all, red (0: unsearched) to green (the target)."""
     import math  # noqa: PLC0415
+    import textwrap  # noqa: PLC0415
+
+    if subtitle:
+        subtitle = "\n".join(textwrap.fill(line, 120) for line in subtitle.split("\n"))
 
     area = np.asarray(area_xy_m, dtype=float)
     span = area.max(axis=0) - area.min(axis=0)
     n_ok = sum(p.state == "located" for p in people)
     fig, ax = maps.new_map(f"{title}: {n_ok} of {len(people)} people located", subtitle=subtitle,
                            extent_m=tuple(span))
+    if coverage is not None:
+        draw_pod(fig, ax, coverage)
     maps.draw_area(ax, area)
     ids = sorted(tracks_xy_m)
     colors = maps.vehicle_colors(max(ids, default=0))
@@ -96,3 +103,16 @@ def result_figure(people, *, area_xy_m: np.ndarray, tracks_xy_m: Mapping[int, np
                           [p.label or f"#{p.emitter_id}" for p in est],
                           [STATE_COLORS.get(p.state, "#222222") for p in est], avoid_xy=truth)
     return fig
+
+
+def draw_pod(fig, ax, coverage) -> None:
+    """The achieved POD per cell as a raster (red 0 .. green at the target) with a colour bar."""
+    g = coverage.grid
+    ny, nx = g.shape
+    raster = np.full((ny, nx), np.nan)
+    raster[g.index[:, 0], g.index[:, 1]] = coverage.pod1
+    extent = (g.x0_m, g.x0_m + nx * g.cell_m, g.y0_m, g.y0_m + ny * g.cell_m)
+    im = ax.imshow(np.ma.masked_invalid(raster), origin="lower", extent=extent, cmap="RdYlGn", vmin=0.0,
+                   vmax=max(coverage.target, 1e-6), alpha=0.35, zorder=0, interpolation="nearest")
+    bar = fig.colorbar(im, ax=ax, shrink=0.5, pad=0.01)
+    bar.set_label(f"achieved POD (target {coverage.target:.2f})")

@@ -474,14 +474,19 @@ class SearchPolicy:
         return self._plan
 
     def done(self, t_s: float) -> bool:
-        """True when every emitter heard is located or given up and no look is outstanding."""
-        return not self.pending_ids()
+        """True when every emitter heard is located or given up and no look is outstanding, and no
+        pass over cells below the POD target is wanted (search/coverage.py, with ``coverage``)."""
+        from .coverage import passes_wanted
+
+        return not self.pending_ids() and not passes_wanted(self)
 
     def needs_replan(self, t_s: float, changed: set[int]) -> bool:
         """True if the current plan no longer fits what is known."""
         pending = set(self.pending_ids())
         if self._plan is None:
-            return bool(pending)
+            from .coverage import passes_wanted
+
+            return bool(pending) or passes_wanted(self)
         planned = {e for task in self._plan.tasks for e in task.target_ids}
         if planned - pending:  # someone in the plan is already located or given up
             return True
@@ -560,6 +565,10 @@ class SearchPolicy:
                 if ta <= t_s and e not in self._flown:
                     self._flown[e] = ta
         self._plan = self._to_search_plan(t_s, vehicles, result, runtime)
+        if getattr(self, "coverage", None) is not None:  # cells below the POD target get another pass
+            from .coverage import add_passes
+
+            self._plan = add_passes(self, t_s, vehicles, self._plan)
         self._awaiting = {e: ta for task in self._plan.tasks for e, ta in zip(task.target_ids, task.access_times_s)}
         self._unplanned = set(self.pending_ids()) - {e for task in self._plan.tasks for e in task.target_ids}
         self._look_vehicle = {e: task.vehicle_id for task in self._plan.tasks for e in task.target_ids}

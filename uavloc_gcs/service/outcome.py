@@ -196,14 +196,46 @@ class SearchOutcome:
     # per vehicle: (id, replans that changed its looks, missions uploaded incl. the scan, new plans not
     # uploaded because not worth a restarted leg)
     uploads: tuple[tuple[int, int, int, int], ...] = ()
+    # what was searched (search.coverage.CoverageSummary), set once the results are written
+    coverage: object = None
+    # part of the area went unsearched because a vehicle was lost (or its scan never started) and
+    # nobody could take it over: the daemon's exit code says so (EXIT_UNSEARCHED)
+    unsearched_after_loss: bool = False
+
+
+EXIT_UNSEARCHED = 4  # `uavloc daemon`'s exit code when part of the area was left unsearched (see above)
+
+
+def coverage_statement(summary, lost: Sequence[int] = (), not_started: Sequence[int] = ()) -> tuple[str, bool]:
+    """What was searched, for the end of the statement, and whether part of the area went
+    unsearched because vehicles ``lost`` (or whose scans were ``not_started``) left it and
+    nobody took it over."""
+    if summary is None:
+        return "", False
+    text = summary.sentence()
+    gone = sorted({*lost, *not_started})
+    left = bool(gone) and summary.unsearched_m2 > 0 and not summary.nothing_flown
+    if left:
+        text += (f" Part of the area ({summary.unsearched_m2 / 1e6:.3f} km²) was not searched: vehicle(s) "
+                 f"{', '.join(map(str, gone))} could not fly it and no other vehicle had the energy to take it over.")
+    elif gone and summary.nothing_flown:
+        left = True
+    return text, left
 
 
 def statement_for(people: Sequence[PersonResult], required_m: float, lost: Sequence[int],
-                  not_home: Sequence[int], returning: Sequence[int] = ()) -> str:
-    """One clear statement: everyone located, or who is not and why; and where the fleet is."""
+                  not_home: Sequence[int], returning: Sequence[int] = (), coverage=None) -> str:
+    """One clear statement: everyone located, or who is not and why; and where the fleet is.
+    ``coverage`` (search.coverage.CoverageSummary): "no phone heard" is said with the POD reached,
+    or as "nothing flew" when no vehicle flew over the area at survey altitude."""
     missing = [p for p in sorted(people, key=lambda p: p.emitter_id) if not p.located]
-    if not people:
-        text = "No phone was heard anywhere in the search area."
+    if not people and coverage is not None and coverage.nothing_flown:
+        text = "No phone was heard: nothing flew over the search area at survey altitude."
+    elif not people and coverage is not None:
+        text = (f"No phone was heard where the vehicles flew (achieved POD {coverage.overall1:.2f} over the area, "
+                f"target {coverage.target:.2f}).")
+    elif not people:
+        text = "No phone was heard."
     elif not missing:
         text = f"All {len(people)} people heard were located within {required_m:g} m (95 %)."
     else:

@@ -26,6 +26,7 @@ CSV_COLUMNS = (
     "label", "emitter_id", "state", "located", "time_utc", "t_ref_s", "lat_deg", "lon_deg", "east_m",
     "north_m", "vel_east_m_s", "vel_north_m_s", "speed_m_s", "radius95_m", "annulus_bound_m",
     "fix_time_s", "fix_time_utc", "ambiguity_resolved", "reason", "addresses", "link", "link_reason",
+    "pod_here",
 )
 STATES = ("located", "heard", "given up", "never heard")
 
@@ -59,6 +60,7 @@ class PersonResult:
     label: str = ""  # "P01", ... (service.labels): the same in the table, the files and the maps
     addresses: tuple = ()  # int 48-bit addresses; () = (emitter_id,)
     link_reason: str = ""
+    pod_here: float = math.nan  # achieved POD of the cell at the reported position (search.coverage)
 
     @property
     def link(self) -> str:
@@ -127,7 +129,7 @@ def people_csv(people: Sequence[PersonResult], epoch_unix_s: float | None = None
                     _num(p.north_m, 2), _num(p.vel_east_m_s, 3), _num(p.vel_north_m_s, 3), _num(_speed(p), 3),
                     _num(p.radius95_m, 2), _num(p.annulus_bound_m, 2), _num(p.fix_time_s, 2),
                     utc_text(epoch_unix_s, p.fix_time_s), int(p.ambiguity_resolved), p.reason,
-                    format_addresses(p.address_list), p.link, p.link_reason])
+                    format_addresses(p.address_list), p.link, p.link_reason, _num(p.pod_here, 3)])
     return buf.getvalue()
 
 
@@ -145,16 +147,20 @@ def _properties(p: PersonResult, epoch_unix_s: float | None) -> dict:
         "fix_time_utc": utc_text(epoch_unix_s, p.fix_time_s) or None,
         "ambiguity_resolved": p.ambiguity_resolved, "reason": p.reason,
         "addresses": [format_address(a) for a in p.address_list], "link": p.link,
-        "link_reason": p.link_reason or None,
+        "link_reason": p.link_reason or None, "pod_here": _clean(p.pod_here, 3),
     }
 
 
 def people_geojson(people: Sequence[PersonResult], truth_latlon: Mapping[int, tuple] | None = None, *,
-                   epoch_unix_s: float | None = None, frame: LocalFrame | None = None) -> str:
+                   epoch_unix_s: float | None = None, frame: LocalFrame | None = None, coverage=None) -> str:
     """A FeatureCollection: one Point per estimated person (``"kind": "estimate"``; properties:
-    label, state, UTC time and mission seconds of the position, velocity, radius, ...), its 95 %
-    circle as a Polygon (``"kind": "circle95"``, when ``frame`` is given), plus a Point per true
-    position (``"kind": "truth"``) when the run was simulated."""
+    label, state, UTC time and mission seconds of the position, velocity, radius, the achieved POD
+    where it is, ...), its 95 % circle as a Polygon (``"kind": "circle95"``, when ``frame`` is
+    given), plus a Point per true position (``"kind": "truth"``) when the run was simulated. With
+    ``coverage`` (search.coverage.CoverageSummary) and ``frame``: a square Polygon per cell of the
+    area (``"kind": "pod_cell"``: pod, pod2, below_target, unsearched) and the whole search's
+    figures as the collection's ``"coverage"`` member (overall POD, target, unsearched m², expected
+    people missed)."""
     feats = []
     for p in _order(people):
         if not (math.isfinite(p.lat_deg) and math.isfinite(p.lon_deg)):
@@ -180,7 +186,11 @@ def people_geojson(people: Sequence[PersonResult], truth_latlon: Mapping[int, tu
             "geometry": {"type": "Point", "coordinates": [round(float(lon), 7), round(float(lat), 7)]},
             "properties": {"kind": "truth", "emitter_id": int(eid)},
         })
-    return json.dumps({"type": "FeatureCollection", "features": feats}, indent=1) + "\n"
+    out = {"type": "FeatureCollection", "features": feats}
+    if coverage is not None and frame is not None:
+        feats[:0] = coverage.cells_geojson_features(frame)  # under the people in a GIS
+        out["coverage"] = {**coverage.to_dict(), "statement": coverage.sentence()}
+    return json.dumps(out, indent=1) + "\n"
 
 
 def _circle_latlon(frame: LocalFrame, e: float, n: float, r: float, k: int = 36) -> np.ndarray:
@@ -193,12 +203,17 @@ _KML_STYLE = {"located": "ff2ca02c", "heard": "ff0e7fff", "given up": "ff2827d6"
 
 
 def people_kml(people: Sequence[PersonResult], frame: LocalFrame, name: str = "uavloc", *,
-               epoch_unix_s: float | None = None) -> str:
+               epoch_unix_s: float | None = None, coverage=None) -> str:
     """KML for Google Earth: a placemark per person and its 95 % circle, each with a TimeStamp
-    (the UTC time the position refers to) so the time slider works; colour by state."""
+    (the UTC time the position refers to) so the time slider works; colour by state. With
+    ``coverage``: the document's description states what was searched, and a folder "achieved POD"
+    holds one square per cell, shaded from red (POD 0, unsearched) to green (the target reached)."""
     out = ['<?xml version="1.0" encoding="UTF-8"?>',
            '<kml xmlns="http://www.opengis.net/kml/2.2"><Document>',
            f"<name>{escape(name)}</name>"]
+    if coverage is not None:
+        out.append(f"<description>{escape(coverage.sentence())}</description>")
+        out.append(_kml_cells(coverage, frame))
     for state, color in _KML_STYLE.items():
         sid = state.replace(" ", "-")
         out.append(f'<Style id="{sid}"><IconStyle><color>{color}</color></IconStyle>'
@@ -230,6 +245,33 @@ def people_kml(people: Sequence[PersonResult], frame: LocalFrame, name: str = "u
     return "\n".join(out) + "\n"
 
 
+def _kml_cells(coverage, frame: LocalFrame) -> str:
+    """The POD layer: a folder of cell squares (ExtendedData pod, pod2), colour by POD."""
+    parts = ['<Folder><name>achieved POD</name>']
+    for feat in coverage.cells_geojson_features(frame):
+        prop = feat["properties"]
+        ring = " ".join(f"{lon:.7f},{lat:.7f},0" for lon, lat in feat["geometry"]["coordinates"][0])
+        r, g, b = _pod_rgb(prop["pod"], coverage.target)
+        color = f"88{b:02x}{g:02x}{r:02x}"  # aabbggrr
+        parts.append(f"<Placemark><name>POD {prop['pod']:.2f}</name><Style><LineStyle><width>0</width></LineStyle>"
+                     f"<PolyStyle><color>{color}</color><outline>0</outline></PolyStyle></Style>"
+                     f'<ExtendedData><Data name="pod"><value>{prop["pod"]}</value></Data>'
+                     f'<Data name="pod2"><value>{prop["pod2"]}</value></Data>'
+                     f'<Data name="unsearched"><value>{str(prop["unsearched"]).lower()}</value></Data></ExtendedData>'
+                     f"<Polygon><outerBoundaryIs><LinearRing><coordinates>{ring}</coordinates></LinearRing>"
+                     "</outerBoundaryIs></Polygon></Placemark>")
+    parts.append("</Folder>")
+    return "".join(parts)
+
+
+def _pod_rgb(pod: float, target: float) -> tuple[int, int, int]:
+    """Red (POD 0) through yellow to green (the target or more): the POD layers' colour."""
+    f = min(1.0, max(0.0, pod / target)) if target > 0 else 1.0
+    if f < 0.5:
+        return 214, int(39 + (190 - 39) * f * 2), 40
+    return int(214 - (214 - 44) * (f - 0.5) * 2), int(190 - (190 - 160) * (f - 0.5) * 2), int(40 + (44 - 40) * (f - 0.5) * 2)
+
+
 def _kml_value(v) -> str:
     if v is None:
         return ""
@@ -238,7 +280,7 @@ def _kml_value(v) -> str:
 
 def results_table(people: Sequence[PersonResult], required_accuracy_m: float,
                   truth_xy_m: Mapping[int, Sequence[float]] | None = None, *,
-                  epoch_unix_s: float | None = None) -> str:
+                  epoch_unix_s: float | None = None, coverage=None) -> str:
     """A plain-text table for the terminal, with the error to the truth when simulated."""
     width = max([13, *(len(p.name) for p in people)])
     head = f"{'person':<{width}}  {'lat':>11}  {'lon':>11}  {'95% r':>7}  {'at (UTC)':>10}  {'status':<10}"
@@ -258,15 +300,19 @@ def results_table(people: Sequence[PersonResult], required_accuracy_m: float,
         lines.append(row)
     n_ok = sum(p.located for p in people)
     lines.append(f"{n_ok} of {len(people)} people located within {required_accuracy_m:g} m (95 %).")
+    if coverage is not None:
+        lines.append(coverage.sentence())
     return "\n".join(lines) + "\n"
 
 
 def write_results(out_dir: str | Path, people: Sequence[PersonResult], *, frame: LocalFrame,
                   area_latlon_deg: np.ndarray, tracks_latlon_deg: Mapping[int, np.ndarray],
                   required_accuracy_m: float, truth_xy_m: Mapping[int, Sequence[float]] | None = None,
-                  name: str = "uavloc", epoch_unix_s: float | None = None) -> list[Path]:
+                  name: str = "uavloc", epoch_unix_s: float | None = None, coverage=None) -> list[Path]:
     """Write people.csv, people.geojson, people.kml, result.png and results.txt into ``out_dir``.
-    ``epoch_unix_s``: UNIX time of mission time 0 (the UTC times in the files; omitted when None)."""
+    ``epoch_unix_s``: UNIX time of mission time 0 (the UTC times in the files; omitted when None).
+    ``coverage`` (search.coverage.CoverageSummary): what was searched, in every file (the POD
+    cells in the GeoJSON, KML and picture, the statement in results.txt)."""
     from ..atomicfile import atomic_write_text
 
     out = Path(out_dir)
@@ -278,9 +324,11 @@ def write_results(out_dir: str | Path, people: Sequence[PersonResult], *, frame:
         truth_latlon = {i: (float(a), float(b)) for i, (a, b) in zip(ids, ll)}
     files = {
         "people.csv": people_csv(people, epoch_unix_s),
-        "people.geojson": people_geojson(people, truth_latlon, epoch_unix_s=epoch_unix_s, frame=frame),
-        "people.kml": people_kml(people, frame, name, epoch_unix_s=epoch_unix_s),
-        "results.txt": results_table(people, required_accuracy_m, truth_xy_m, epoch_unix_s=epoch_unix_s),
+        "people.geojson": people_geojson(people, truth_latlon, epoch_unix_s=epoch_unix_s, frame=frame,
+                                         coverage=coverage),
+        "people.kml": people_kml(people, frame, name, epoch_unix_s=epoch_unix_s, coverage=coverage),
+        "results.txt": results_table(people, required_accuracy_m, truth_xy_m, epoch_unix_s=epoch_unix_s,
+                                     coverage=coverage),
     }
     written = []
     for fname, text in files.items():
@@ -289,7 +337,7 @@ def write_results(out_dir: str | Path, people: Sequence[PersonResult], *, frame:
     png = out / "result.png"
     render_result_png(png, people, frame=frame, area_latlon_deg=area_latlon_deg,
                       tracks_latlon_deg=tracks_latlon_deg, truth_xy_m=truth_xy_m, title=name,
-                      epoch_unix_s=epoch_unix_s)
+                      epoch_unix_s=epoch_unix_s, coverage=coverage)
     written.append(png)
     return written
 
@@ -297,7 +345,7 @@ def write_results(out_dir: str | Path, people: Sequence[PersonResult], *, frame:
 def render_result_png(path: Path, people: Sequence[PersonResult], *, frame: LocalFrame,
                       area_latlon_deg: np.ndarray, tracks_latlon_deg: Mapping[int, np.ndarray],
                       truth_xy_m: Mapping[int, Sequence[float]] | None, title: str,
-                      epoch_unix_s: float | None = None) -> None:
+                      epoch_unix_s: float | None = None, coverage=None) -> None:
     """The result map in local metres (``render.estimates.result_figure``)."""
     from ..render import maps  # noqa: PLC0415
     from ..render.estimates import result_figure  # noqa: PLC0415
@@ -309,6 +357,8 @@ def render_result_png(path: Path, people: Sequence[PersonResult], *, frame: Loca
     times = sorted(t for t in times if t)
     if times:
         caption += f"\npositions at {times[0][:19].replace('T', ' ')} to {times[-1][11:19]} UTC"
+    if coverage is not None:
+        caption += "\n" + coverage.sentence()
     fig = result_figure(people, area_xy_m=area, tracks_xy_m=tracks, truth_xy_m=truth_xy_m, title=title,
-                        subtitle=caption)
+                        subtitle=caption, coverage=coverage)
     maps.save_figure(fig, path)

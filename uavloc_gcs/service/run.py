@@ -19,7 +19,7 @@ from ..scenario import Scenario
 from .daemon import Daemon, DaemonOptions
 from .labels import PersonLabels
 from .liveview import LiveView
-from .outcome import SearchOutcome, statement_for
+from .outcome import SearchOutcome, coverage_statement, statement_for
 from .results import PersonResult, results_table, write_results
 from .store import StoreReader
 
@@ -146,17 +146,39 @@ def _results(outcome: SearchOutcome, daemon: Daemon, scenario: Scenario, connect
     heard = [p for p in people if p.reason != "never heard"]
     others = tuple(v for v, _ in connections if v not in (*outcome.vehicles_home, *outcome.vehicles_lost,
                                                           *outcome.vehicles_returning))
-    outcome = dataclasses.replace(outcome, people=tuple(heard), statement=statement_for(
-        heard, scenario.people.required_accuracy_m, outcome.vehicles_lost, others, outcome.vehicles_returning))
+    summary, not_started = _coverage(daemon)
+    statement = statement_for(heard, scenario.people.required_accuracy_m, outcome.vehicles_lost, others,
+                              outcome.vehicles_returning, coverage=summary)
+    for vid, why in not_started:  # a refused start is no scan flown: say so, whatever else is said
+        statement += f" Vehicle {vid} did not fly its scan ({why}); its part of the area was not searched."
+    searched, left = coverage_statement(summary, outcome.vehicles_lost, [vid for vid, _ in not_started])
+    outcome = dataclasses.replace(outcome, people=tuple(heard), statement=" ".join(filter(None, [statement, searched])),
+                                  coverage=summary, unsearched_after_loss=left)
+    if summary is not None:
+        people = [dataclasses.replace(p, pod_here=summary.pod_at((p.east_m, p.north_m))) for p in people]
     epoch = daemon.epoch_unix_s
     with StoreReader(options.store_path) as rd:
         tracks = rd.tracks()
     frame = scenario.frame
     files = write_results(out_dir, people, frame=frame, area_latlon_deg=np.array(scenario.polygon_latlon_deg),
                           tracks_latlon_deg=tracks, required_accuracy_m=scenario.people.required_accuracy_m,
-                          truth_xy_m=truth_xy, name=scenario.name, epoch_unix_s=epoch)
-    table = results_table(people, scenario.people.required_accuracy_m, truth_xy, epoch_unix_s=epoch)
+                          truth_xy_m=truth_xy, name=scenario.name, epoch_unix_s=epoch, coverage=summary)
+    table = results_table(people, scenario.people.required_accuracy_m, truth_xy, epoch_unix_s=epoch,
+                          coverage=summary)
     return RunResult(outcome, tuple(people), table, tuple(files))
+
+
+def _coverage(daemon: Daemon):
+    """The final coverage claims of ``daemon``'s search (search.coverage.final_summary) and the
+    vehicles whose scans never started [(id, why)]; (None, [...]) without a coverage accumulator."""
+    not_started = [(v.id, v.start_failed) for v in getattr(daemon, "vehicles", {}).values()
+                   if getattr(v, "start_failed", "") and not getattr(v, "scan_done", False)]
+    cov = getattr(daemon, "coverage", None)
+    if cov is None:
+        return None, not_started
+    from ..search.coverage import final_summary  # noqa: PLC0415
+
+    return final_summary(cov), not_started
 
 
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
