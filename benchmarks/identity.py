@@ -28,6 +28,7 @@ measured in the same run: ``addresses`` (no linking: every address a person) and
 
 from __future__ import annotations
 
+from uavloc_gcs.cli._inputs import number
 import argparse
 import time
 from dataclasses import dataclass
@@ -74,17 +75,17 @@ FIELD = Setting((0.0, 0.0), (1120.0, 640.0), 4, 25.0, 100.0, ChannelModel(-40.0,
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--runs", type=int, default=5, help="worlds per configuration (default 5)")
+    parser.add_argument("--runs", type=number(int, min=1), default=5, help="worlds per configuration (default 5)")
     parser.add_argument("--people", default="10,20,50", help="comma-separated densities (default 10,20,50)")
     parser.add_argument("--models", default="2,5,11",
                         help="comma-separated numbers of phone models, equally common (default 2,5,11; sim_link's "
                              "catalogue has 11)")
-    parser.add_argument("--stable", type=float, default=0.14,
+    parser.add_argument("--stable", type=number(float, min=0, max=1), default=0.14,
                         help="fraction of phones with a stable address (default 0.14, sim_link's catalogue)")
-    parser.add_argument("--duration", type=float, default=1800.0, help="flight time [s] (default 1800)")
+    parser.add_argument("--duration", type=number(float, above=0, unit="s"), default=1800.0, help="flight time [s] (default 1800)")
     parser.add_argument("--scenario", default="field",
                         help="scenario file, or a shipped one by name (default field: the burst world's channel)")
-    parser.add_argument("--seed", type=int, default=0, help="seed (default 0)")
+    parser.add_argument("--seed", type=number(int, min=0), default=0, help="seed (default 0)")
     parser.add_argument("--world", choices=("sim_link", "own"), default="sim_link",
                         help="sim_link: the scenario's simulated world (its emission model and phone catalogue; "
                              "--models and --stable do not apply); own: this module's generator (default sim_link)")

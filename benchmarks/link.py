@@ -18,6 +18,7 @@ Target (issue 6): not slower than MAVSDK, 100 % success at 0 % and 20 % loss.
 
 from __future__ import annotations
 
+from uavloc_gcs.cli._inputs import number
 import argparse
 import asyncio
 import logging
@@ -35,12 +36,12 @@ VEHICLE_TRANSFER_TIMEOUT_S = 8.0  # ArduPilot's upload timeout (PX4: 5 s)
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--items", type=int, default=500, help="mission items (default 500)")
+    p.add_argument("--items", type=number(int, min=1, max=65535), default=500, help="mission items (default 500)")
     p.add_argument("--loss", default="0,0.2", help="comma-separated loss rates per direction (default 0,0.2)")
-    p.add_argument("--runs", type=int, default=1, help="uploads per client on a lossy link (default 1; ~4 min)")
-    p.add_argument("--runs-clean", type=int, default=5, help="uploads per client at 0 %% loss (default 5)")
+    p.add_argument("--runs", type=number(int, min=1), default=1, help="uploads per client on a lossy link (default 1; ~4 min)")
+    p.add_argument("--runs-clean", type=number(int, min=0), default=5, help="uploads per client at 0 %% loss (default 5)")
     p.add_argument("--autopilot", choices=("px4", "ardupilot"), default="px4", help="fake vehicle flavour")
-    p.add_argument("--seed", type=int, default=1)
+    p.add_argument("--seed", type=number(int, min=0), default=1)
     p.add_argument("--scenario", default="small", metavar="FILE.toml",
                    help="scenario of the fake vehicle (or a shipped one: small, paper; default small)")
     p.add_argument("--no-mavsdk", action="store_true", help="measure uavloc only")

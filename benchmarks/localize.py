@@ -57,6 +57,7 @@ looks, coverage 0.93-0.97 (i.i.d.) and >= 0.85 (correlated), < 10 ms per emitter
 
 from __future__ import annotations
 
+from uavloc_gcs.cli._inputs import number
 import argparse
 import math
 import sys
@@ -148,8 +149,8 @@ PREDICT_S = (30.0, 60.0)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--runs", type=int, default=60, help="Monte Carlo runs per family (default 60)")
-    parser.add_argument("--seed", type=int, default=1, help="base seed (default 1)")
+    parser.add_argument("--runs", type=number(int, min=1), default=60, help="Monte Carlo runs per family (default 60)")
+    parser.add_argument("--seed", type=number(int, min=0), default=1, help="base seed (default 1)")
     parser.add_argument("--family", action="append", help="only families whose name contains this text")
     parser.add_argument("--evidence", choices=("all", "heard", "none"), default="all",
                         help="hearing as evidence (estimate_emitter(silence=)): 'all' (slots heard and the silences "
@@ -157,7 +158,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "estimator's default)")
     parser.add_argument("--scenario", default="paper", metavar="FILE.toml",
                         help="channel and fleet of this scenario (or a shipped one: paper, small; default paper)")
-    parser.add_argument("--maneuver-time", type=float, default=None, metavar="S",
+    parser.add_argument("--maneuver-time", type=number(float, min=0, unit="s"), default=None, metavar="S",
                         help="the estimator's maneuver time for every family (default: its own, "
                              "uavloc_gcs.estimation.maneuver.MANEUVER_TIME_S; inf: the pure constant-velocity "
                              "model, without the turn models)")

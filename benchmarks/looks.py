@@ -62,6 +62,7 @@ difference of completion times against ``default``.
 
 from __future__ import annotations
 
+from uavloc_gcs.cli._inputs import number
 import argparse
 import math
 import re
@@ -75,14 +76,14 @@ from ._progress import Progress
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--runs", type=int, default=10, help="paired worlds per variant (default 10; 40 for the README)")
-    parser.add_argument("--people", type=int, default=20, help="people per world (default 20)")
-    parser.add_argument("--seed", type=int, default=0, help="experiment seed (default 0, as `uavloc experiment`)")
+    parser.add_argument("--runs", type=number(int, min=1), default=10, help="paired worlds per variant (default 10; 40 for the README)")
+    parser.add_argument("--people", type=number(int, min=1, max=1000), default=20, help="people per world (default 20)")
+    parser.add_argument("--seed", type=number(int, min=0), default=0, help="experiment seed (default 0, as `uavloc experiment`)")
     parser.add_argument("--scenario", default="paper",
                         help="scenario file, or a shipped one by name: paper, field, small (default paper; field: "
                              "the same area with phones that send probe bursts)")
     parser.add_argument("--variants", default=",".join(VARIANTS), help=f"comma-separated, of {', '.join(VARIANTS)}")
-    parser.add_argument("--jobs", type=int, default=2, help="worker processes (default 2)")
+    parser.add_argument("--jobs", type=number(int, min=1, max=64), default=2, help="worker processes (default 2)")
 
 
 # variant -> (module, switch, its value in that variant); "default" changes nothing

@@ -18,6 +18,7 @@ means of the makespan ratios (and the worst instance), and mean runtimes.
 
 from __future__ import annotations
 
+from uavloc_gcs.cli._inputs import number
 import argparse
 import math
 import time
@@ -38,16 +39,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help=f"comma-separated subset of {', '.join(FAMILIES)}")
     parser.add_argument("--paper-sizes", default="10,20,50",
                         help="people per paper-like instance (default 10,20,50; the paper used 5-50)")
-    parser.add_argument("--size", type=int, default=30, help="people in the other families (default 30)")
-    parser.add_argument("--seeds", type=int, default=2, help="instances per family and size (default 2)")
-    parser.add_argument("--time-limit", type=float, default=1.0, help="budget per solver run [s] (default 1)")
-    parser.add_argument("--vehicles", type=int, help="vehicles (default 4, or the scenario's)")
+    parser.add_argument("--size", type=number(int, min=1, max=2000), default=30, help="people in the other families (default 30)")
+    parser.add_argument("--seeds", type=number(int, min=1), default=2, help="instances per family and size (default 2)")
+    parser.add_argument("--time-limit", type=number(float, above=0, unit="s"), default=1.0, help="budget per solver run [s] (default 1)")
+    parser.add_argument("--vehicles", type=number(int, min=1, max=64), help="vehicles (default 4, or the scenario's)")
     parser.add_argument("--scenario", metavar="FILE.toml",
                         help="take area size, vehicles and speed from this scenario (or a shipped one: "
                              "paper, small); default: the paper's 1120 m x 640 m, 4 vehicles, 25 m/s")
     parser.add_argument("--no-anchors", action="store_true", help="skip OR-Tools and PyVRP")
     parser.add_argument("--no-baselines", action="store_true", help="skip plain EPSO/PSO/GA")
-    parser.add_argument("--plain-iters", type=int, default=0, metavar="N",
+    parser.add_argument("--plain-iters", type=number(int, min=0), default=0, metavar="N",
                         help="run the plain EPSO/PSO/GA for N iterations of 40 particles (equal evaluation "
                              "counts, as in the paper) instead of the time budget")
     parser.add_argument("--verbose", action="store_true", help="one line per instance")

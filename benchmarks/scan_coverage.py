@@ -18,6 +18,7 @@ layout that is not slower and is more often right.
 
 from __future__ import annotations
 
+from uavloc_gcs.cli._inputs import number
 import argparse
 import math
 import time
@@ -29,11 +30,11 @@ from ._progress import Progress
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--runs", type=int, default=6, help="simulated worlds per layout (default 6; 20 for the README)")
-    parser.add_argument("--seed", type=int, default=100, help="first world seed (default 100)")
+    parser.add_argument("--runs", type=number(int, min=1), default=6, help="simulated worlds per layout (default 6; 20 for the README)")
+    parser.add_argument("--seed", type=number(int, min=0), default=100, help="first world seed (default 100)")
     parser.add_argument("--scenario", default="paper",
                         help="scenario file, or a shipped one by name: paper, small (default paper)")
-    parser.add_argument("--time-limit", type=float, default=0.3, help="planner time limit per replan, s (default 0.3)")
+    parser.add_argument("--time-limit", type=number(float, above=0, unit="s"), default=0.3, help="planner time limit per replan, s (default 0.3)")
 
 
 def run_layout(sc, coverage: str, seeds: list[int], time_limit_s: float, bar=None) -> list:

@@ -110,3 +110,39 @@ def test_ctrl_c_during_an_ortools_route_is_not_success_and_writes_nothing(tmp_pa
     assert "Traceback" not in err
     assert "interrupted" in err or "stopped by Ctrl-C" in err
     assert not (tmp_path / "o.json").exists()
+
+
+# ---------------------------------------------------------------------------------------------
+# plan, bench: flags are blamed on the flag
+
+def _inproc(capsys, *args):
+    from uavloc_gcs.cli import main
+
+    code = main([str(a) for a in args])
+    out = capsys.readouterr()
+    return subprocess.CompletedProcess(args, code, out.out, out.err)
+
+
+@pytest.mark.parametrize("value, needle", [("0.5", "too narrow"), ("1", "too narrow"), ("-5", "more than 0"),
+                                           ("nan", "finite")])
+def test_plan_lane_spacing_is_refused_quickly_naming_the_flag(tmp_path, capsys, value, needle):
+    r = _inproc(capsys, "plan", "paper", "--lane-spacing", value, "--out", tmp_path / "o")
+    line = one_sentence(r, "--lane-spacing", needle)
+    assert "paper.toml" not in line  # the operator typed it: the scenario file is not to blame
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_scenario_without_fleet_says_the_default_fleet_is_assumed(tmp_path, capsys):
+    (tmp_path / "s.toml").write_text("[area]\norigin_lat_deg = 47.0\norigin_lon_deg = 8.0\nwidth_m = 400\n"
+                                     "height_m = 300\n")
+    r = _inproc(capsys, "plan", tmp_path / "s.toml", "--out", tmp_path / "o")
+    assert r.returncode == 0
+    assert "has no [fleet] section, so the default fleet is assumed: 4 ArduPilot vehicles at 100 m and 25 m/s" \
+        in r.stdout
+
+
+@pytest.mark.parametrize("args", [["localize", "--runs", "-1"], ["localize", "--runs", "0"],
+                                  ["looks", "--people", "0"], ["plan", "--time-limit", "nan"]])
+def test_bench_counts_out_of_range_are_one_sentence(capsys, args):
+    r = _inproc(capsys, "bench", *args)
+    one_sentence(r, f"argument {args[1]}")

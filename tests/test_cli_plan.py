@@ -206,7 +206,8 @@ def test_preview_missing_file_and_bad_picture_suffix(small_out, tmp_path, uavloc
     assert ".png or .svg" in err and not (tmp_path / "p.jpg").exists()
 
 
-@pytest.mark.parametrize("args, fragment", [(["--lane-spacing", "-5"], "scan.lane_spacing_m"),
+@pytest.mark.parametrize("args, fragment", [(["--lane-spacing", "-5"], "--lane-spacing"),
+                                            (["--lane-spacing", "0.5"], "--lane-spacing: 0.5 m is too narrow"),
                                             (["--lane-spacing", "400"], "too wide")])
 def test_bad_overrides(tmp_path, uavloc_inproc, args, fragment):
     err = _one_sentence_error(uavloc_inproc("plan", EXAMPLES / "small.toml", "--out", tmp_path / "o", *args))

@@ -8,8 +8,9 @@ line.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
-from typing import Any, Callable
+from typing import Any, Callable, Iterator
 
 from ..errors import ConfigError
 
@@ -51,3 +52,52 @@ def override(sc, flag: str, **sections: Any):
         return sc.replace(**sections)
     except ConfigError as err:
         raise ConfigError(f"{flag}: {getattr(err, 'message', str(err))}") from None
+
+
+@contextlib.contextmanager
+def blaming(flag: str, key: str) -> Iterator[None]:
+    """Inside the block, a ConfigError about scenario ``key`` is reported against ``flag``, which
+    set it."""
+    try:
+        yield
+    except ConfigError as err:
+        if err.key != key:
+            raise
+        raise ConfigError(f"{flag}: {getattr(err, 'message', str(err))}") from None
+
+
+def _has_section(sc, section: str) -> bool:
+    """Whether the scenario's file spells out ``[section]`` (True when it is not a file)."""
+    import tomllib
+    from pathlib import Path
+
+    path = Path(sc.source)
+    if sc.source == "<string>" or not path.is_file():
+        return True
+    try:
+        return section in tomllib.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
+        return True
+
+
+def _default_fleet(sc) -> str:
+    f = sc.fleet
+    label = "ArduPilot" if f.autopilot == "ardupilot" else "PX4"
+    return (f"{f.vehicles} {label} vehicles at {f.altitude_m:g} m and {f.speed_m_s:g} m/s, "
+            f"{f.energy_budget_j / 1000:g} kJ each")
+
+
+def fleet_note(sc) -> str | None:
+    """The sentence to print when the scenario has no ``[fleet]`` section (what is planned then
+    is for the default fleet, which may not be the operator's); None when it has one."""
+    if _has_section(sc, "fleet"):
+        return None
+    return (f"Note: {sc.source} has no [fleet] section, so the default fleet is assumed: {_default_fleet(sc)}; "
+            "add a [fleet] section with yours.")
+
+
+def require_fleet(sc) -> None:
+    """Refuse a scenario without ``[fleet]`` where real vehicles are flown."""
+    if not _has_section(sc, "fleet"):
+        raise ConfigError(f"missing: the daemon flies real vehicles and does not assume the default fleet "
+                          f"({_default_fleet(sc)}); add a [fleet] section", source=sc.source, key="fleet")

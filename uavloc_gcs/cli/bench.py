@@ -42,7 +42,9 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _parser_for(name: str, module) -> argparse.ArgumentParser:
-    bp = argparse.ArgumentParser(prog=f"uavloc bench {name}", description=BENCHMARKS[name])
+    from . import _Parser  # one-sentence flag errors, as every command
+
+    bp = _Parser(prog=f"uavloc bench {name}", description=BENCHMARKS[name])
     module.add_arguments(bp)
     return bp
 
@@ -52,7 +54,10 @@ def run(args: argparse.Namespace) -> int:
     rc = 0
     for name in names:
         module = importlib.import_module(f"benchmarks.{name}")
-        bargs = _parser_for(name, module).parse_args(args.options if args.benchmark else [])
+        try:
+            bargs = _parser_for(name, module).parse_args(args.options if args.benchmark else [])
+        except SystemExit as done:  # --help, or a bad option (its sentence is printed)
+            return done.code if isinstance(done.code, int) else 0
         if not args.benchmark:
             print(f"\n=== uavloc bench {name} ===", flush=True)
         rc = max(rc, int(module.main(bargs) or 0))

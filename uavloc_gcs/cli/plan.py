@@ -6,6 +6,8 @@ import argparse
 import logging
 from pathlib import Path
 
+from ._inputs import number
+
 log = logging.getLogger(__name__)
 
 HELP = "plan the initial scan: .plan/.waypoints per vehicle, scan.geojson, scan.kml, preview.png"
@@ -13,12 +15,14 @@ HELP = "plan the initial scan: .plan/.waypoints per vehicle, scan.geojson, scan.
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("plan", help=HELP, description=HELP + ". Writes nothing if anything fails.")
-    p.add_argument("scenario", metavar="SCENARIO.toml", help="scenario file (see examples/)")
+    p.add_argument("scenario", metavar="SCENARIO.toml",
+                   help="scenario file, or a shipped one by name: paper, small, polygon, field (see examples/)")
     p.add_argument("--out", metavar="DIR", default="plans", help="output directory (default: plans)")
     p.add_argument("--coverage", choices=["double", "single"],
                    help="override scan.coverage: 'double' (lanes <= R apart, every point heard from two "
                         "lanes; default) or 'single' (the paper's sqrt(2) R spacing)")
-    p.add_argument("--lane-spacing", type=float, metavar="M", help="override scan.lane_spacing_m (metres)")
+    p.add_argument("--lane-spacing", type=number(float, above=0, unit="m"), metavar="M",
+                   help="override scan.lane_spacing_m (metres)")
     p.add_argument("--svg", action="store_true", help="also write preview.svg")
     p.set_defaults(func=run)
 
@@ -34,15 +38,17 @@ def run(args: argparse.Namespace) -> int:
     from ..scenario import load_scenario
     from ._output import atomic_output_dir
 
+    from ._inputs import blaming, fleet_note, override
+
     sc = load_scenario(args.scenario)
-    scan_changes = {}
     if args.coverage:
-        scan_changes["coverage"] = args.coverage
+        sc = override(sc, "--coverage", scan={"coverage": args.coverage})
     if args.lane_spacing is not None:
-        scan_changes["lane_spacing_m"] = args.lane_spacing
-    if scan_changes:
-        sc = sc.replace(scan=scan_changes)
-    plan = plan_scan(sc)
+        sc = override(sc, "--lane-spacing", scan={"lane_spacing_m": args.lane_spacing})
+        with blaming("--lane-spacing", "scan.lane_spacing_m"):
+            plan = plan_scan(sc)
+    else:
+        plan = plan_scan(sc)
     missions = scan_missions(sc, plan)
     from ..terrain_missions import terrain_safe  # over the DEM's ground when terrain.dem is given
     missions = [terrain_safe(m, sc, name=f"uav{v.index + 1}") for m, v in zip(missions, plan.vehicles)]
@@ -63,6 +69,8 @@ def run(args: argparse.Namespace) -> int:
             save_figure(fig, tmp / "preview.svg")
             written.append("preview.svg")
     print(summary(sc, plan, missions))
+    if note := fleet_note(sc):
+        print(note)
     print(f"\nWrote {len(written)} files to {Path(args.out)}/: {', '.join(written)}")
     stale = sorted(p.name for p in Path(args.out).glob("uav*.*")
                    if p.suffix in (".plan", ".waypoints") and p.name not in written)
