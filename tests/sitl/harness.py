@@ -3,6 +3,10 @@
 >>> with start_arducopter(home=HOME) as ap:          # or start_px4(home=HOME)
 ...     run(fly(ap.connection, ap.sysid))             # the uavloc side connects to ap.connection
 
+The processes, instance numbers, ports and readiness are uavloc's own (``uavloc_gcs/service/sitl.py``,
+what ``uavloc sitl`` runs); this module adds where the tests find the builds, their speed-ups and
+instance ranges, and the sentence a test skips with.
+
 Where the builds are: ``$UAVLOC_ARDUCOPTER`` (the ``arducopter`` binary; ``copter.parm`` beside it)
 and ``$UAVLOC_PX4_DIR`` (the folder holding ``run-px4-sih.sh``), else ``$UAVLOC_SITL_DIR/ardupilot``
 and ``$UAVLOC_SITL_DIR/px4``, else ``../shared/sitl`` beside the project root (where CI puts it).
@@ -23,19 +27,12 @@ Ports on 127.0.0.1:
 
 from __future__ import annotations
 
-import atexit
-import contextlib
-import fcntl
 import os
-import signal
-import socket
-import subprocess
-import tempfile
-import time
-from dataclasses import dataclass, field
 from pathlib import Path
 
-from uavloc_gcs.dialect import mavlink
+from uavloc_gcs.service import sitl as _sitl
+from uavloc_gcs.service.sitl import (LOCK_DIR, READY_TIMEOUT_S, STOP_GRACE_S, InstanceLock,  # noqa: F401
+                                     SitlError, SitlProcess, free_udp_port)
 
 ROOT = Path(__file__).resolve().parents[2]
 DEFAULT_SITL_DIR = ROOT.parent / "shared" / "sitl"
@@ -47,9 +44,6 @@ PX4_SPEEDUP = int(os.environ.get("UAVLOC_SITL_PX4_SPEEDUP", "5"))
 
 AP_INSTANCES = range(0, 40)  # 40-49 are kept for SITLs run by hand
 PX4_INSTANCES = range(0, 8)  # 8-9 are kept for SITLs run by hand; >9 share ports in PX4's scripts
-LOCK_DIR = Path(tempfile.gettempdir()) / "uavloc-sitl-instances"
-STOP_GRACE_S = 5.0
-READY_TIMEOUT_S = 120.0  # wall seconds from start to ready (GPS in use / ready for takeoff)
 
 HOME = (42.625, 13.283, 900.0, 0.0)  # lat, lon, alt AMSL m, heading deg: the project's scenario area
 
@@ -57,25 +51,21 @@ ENABLE_HINT = ("real-autopilot SITL builds not found: put them at ../shared/sitl
                "or set UAVLOC_SITL_DIR (or UAVLOC_ARDUCOPTER / UAVLOC_PX4_DIR) to enable these tests")
 
 
-class SitlError(RuntimeError):
-    """A SITL instance did not start or did not become ready; the message carries its log tail."""
-
-
 # -- where the builds are -------------------------------------------------------------------------
 
 def arducopter_binary() -> Path | None:
     env = os.environ.get("UAVLOC_ARDUCOPTER")
     if env:
-        return Path(env) if Path(env).is_file() else None
+        return Path(env).resolve() if Path(env).is_file() else None
     base = Path(os.environ.get("UAVLOC_SITL_DIR", DEFAULT_SITL_DIR))
     path = base / "ardupilot" / "arducopter"
-    return path if path.is_file() else None
+    return path.resolve() if path.is_file() else None
 
 
 def px4_dir() -> Path | None:
     env = os.environ.get("UAVLOC_PX4_DIR")
     base = Path(env) if env else Path(os.environ.get("UAVLOC_SITL_DIR", DEFAULT_SITL_DIR)) / "px4"
-    return base if (base / "run-px4-sih.sh").is_file() else None
+    return base.resolve() if (base / "run-px4-sih.sh").is_file() else None
 
 
 def skip_reason(kind: str) -> str | None:
@@ -84,329 +74,47 @@ def skip_reason(kind: str) -> str | None:
     return None if found is not None else ENABLE_HINT
 
 
-# -- instance numbers -----------------------------------------------------------------------------
-
-class InstanceLock:
-    """An instance number held through ``LOCK_DIR/<kind>-<n>.lock`` until :meth:`release`."""
-
-    def __init__(self, kind: str, numbers: range):
-        LOCK_DIR.mkdir(parents=True, exist_ok=True)
-        for n in numbers:
-            fd = os.open(LOCK_DIR / f"{kind}-{n}.lock", os.O_RDWR | os.O_CREAT, 0o666)
-            try:
-                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            except OSError:
-                os.close(fd)
-                continue
-            if kind == "px4" and _px4_instance_running(n):  # a PX4 nobody's lock accounts for
-                os.close(fd)
-                continue
-            os.ftruncate(fd, 0)
-            os.write(fd, f"{os.getpid()}\n".encode())
-            self.kind, self.number, self._fd = kind, n, fd
-            return
-        raise SitlError(f"all {kind} SITL instance numbers {numbers.start}-{numbers.stop - 1} are in use "
-                        f"(lock files in {LOCK_DIR})")
-
-    def release(self) -> None:
-        if self._fd is not None:
-            os.close(self._fd)  # closing drops the flock
-            self._fd = None
-
-
-def _px4_instance_running(n: int) -> bool:
-    """Whether a PX4 server holds its own per-instance lock (``/tmp/px4_lock-N``, a POSIX record
-    lock while it runs), e.g. one started by hand or left by a test process that was killed."""
-    path = Path("/tmp") / f"px4_lock-{n}"
-    if not path.exists():
-        return False
-    try:
-        fd = os.open(path, os.O_RDWR)
-    except OSError:
-        return True
-    try:
-        fcntl.lockf(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        fcntl.lockf(fd, fcntl.LOCK_UN)
-        return False
-    except OSError:
-        return True
-    finally:
-        os.close(fd)
-
-
-def _die_with_parent() -> None:
-    """In the child before exec: SIGKILL when the test process dies, however it dies (a killed
-    pytest runs no atexit handler, and the SITL lives in its own session)."""
-    try:
-        import ctypes
-        ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
-    except Exception:  # not Linux: the finalizers and atexit still stop it
-        pass
-
-
-def free_udp_port() -> int:
-    """An ephemeral UDP port on 127.0.0.1 that was free a moment ago."""
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
+def build(kind: str) -> Path:
+    """The ArduCopter binary or the PX4 folder; SitlError with the enabling sentence if absent."""
+    found = arducopter_binary() if kind == "ardupilot" else px4_dir()
+    if found is None:
+        raise SitlError(ENABLE_HINT)
+    return found
 
 
 # -- processes ------------------------------------------------------------------------------------
 
-_LIVE: set["SitlProcess"] = set()
-
-
-@dataclass(eq=False)
-class SitlProcess:
-    """One running autopilot. ``connection`` is what uavloc opens to talk to it."""
-
-    kind: str  # "ardupilot" | "px4"
-    instance: int
-    sysid: int
-    connection: str
-    workdir: Path
-    home: tuple[float, float, float, float]
-    speedup: float
-    proc: subprocess.Popen | None = None
-    started_wall_s: float = field(default_factory=time.monotonic)
-    ready_after_s: float | None = None  # wall seconds from start to ready
-    _lock: InstanceLock | None = None
-    _tmp: tempfile.TemporaryDirectory | None = None
-
-    @property
-    def log_path(self) -> Path:
-        return self.workdir / "sitl-output.log"
-
-    def log_tail(self, lines: int = 40) -> str:
-        try:
-            text = self.log_path.read_text(errors="replace")
-        except OSError:
-            return "(no output)"
-        return "\n".join(text.splitlines()[-lines:])
-
-    def alive(self) -> bool:
-        return self.proc is not None and self.proc.poll() is None
-
-    def stop(self) -> None:
-        """Stop the process group (TERM, then KILL after STOP_GRACE_S); free the instance number.
-        Keeps the work dir when ``UAVLOC_SITL_KEEP`` is set (its path is in the log)."""
-        proc, self.proc = self.proc, None
-        if proc is not None and proc.poll() is None:
-            with contextlib.suppress(ProcessLookupError):
-                os.killpg(proc.pid, signal.SIGTERM)
-            try:
-                proc.wait(STOP_GRACE_S)
-            except subprocess.TimeoutExpired:
-                with contextlib.suppress(ProcessLookupError):
-                    os.killpg(proc.pid, signal.SIGKILL)
-                proc.wait(STOP_GRACE_S)
-        elif proc is not None:
-            with contextlib.suppress(ProcessLookupError):  # children may outlive a dead leader
-                os.killpg(proc.pid, signal.SIGKILL)
-        if self._lock is not None:
-            self._lock.release()
-            self._lock = None
-        if self._tmp is not None and not os.environ.get("UAVLOC_SITL_KEEP"):
-            self._tmp.cleanup()
-            self._tmp = None
-        _LIVE.discard(self)
-
-    def __enter__(self) -> "SitlProcess":
-        return self
-
-    def __exit__(self, *exc) -> None:
-        self.stop()
-
-
-@atexit.register
-def _stop_all() -> None:
-    for p in list(_LIVE):
-        p.stop()
-
-
-def _spawn(sitl: SitlProcess, argv: list[str], env: dict[str, str] | None = None) -> None:
-    out = open(sitl.log_path, "wb")
-    try:
-        sitl.proc = subprocess.Popen(argv, cwd=sitl.workdir, stdin=subprocess.DEVNULL, stdout=out,
-                                     stderr=subprocess.STDOUT, start_new_session=True, preexec_fn=_die_with_parent,
-                                     env={**os.environ, **(env or {})})
-    finally:
-        out.close()
-    sitl.started_wall_s = time.monotonic()
-    _LIVE.add(sitl)
-
-
-def _new(kind: str, numbers: range, home, speedup) -> SitlProcess:
-    lock = InstanceLock(kind, numbers)
-    tmp = tempfile.TemporaryDirectory(prefix=f"uavloc-{kind}{lock.number}-")
-    return SitlProcess(kind, lock.number, 0, "", Path(tmp.name), tuple(home), speedup, _lock=lock, _tmp=tmp)
-
-
 def start_arducopter(*, home=HOME, sysid: int = 1, speedup: float = ARDUPILOT_SPEEDUP,
                      gcs_port: int | None = None, serial1: str = "none:0", params: dict[str, float] | None = None,
-                     wait: str = "gps", timeout_s: float = READY_TIMEOUT_S) -> SitlProcess:
+                     wait: str = "gps", timeout_s: float = READY_TIMEOUT_S, companion: bool = False) -> SitlProcess:
     """Start ArduCopter (``--model +``, copter.parm, a wiped eeprom) and wait for ``wait``:
     "gps" (STATUSTEXT "... is using GPS": the EKF can arm soon), "heartbeat", or "none".
 
     ``gcs_port``: the UDP port the ground station listens on (default: a fresh ephemeral one;
     give the same port to several vehicles for one shared link). ``params``: extra parameters
-    written to a defaults file after copter.parm.
+    written to a defaults file after copter.parm. ``companion``: serial1 wired for a companion
+    (``.companion_url``), as ``uavloc sitl`` does.
     """
-    binary = arducopter_binary()
-    if binary is None:
-        raise SitlError(ENABLE_HINT)
-    sitl = _new("ardupilot", AP_INSTANCES, home, speedup)
-    try:
-        sitl.sysid = sysid
-        port = gcs_port or free_udp_port()
-        sitl.connection = f"udpin:127.0.0.1:{port}"
-        defaults = [str(binary.parent / "copter.parm")]
-        if params:
-            extra = sitl.workdir / "uavloc.parm"
-            extra.write_text("".join(f"{k} {v:g}\n" for k, v in params.items()))
-            defaults.append(str(extra))
-        argv = [str(binary), "--model", "+", "--speedup", f"{speedup:g}", "--defaults", ",".join(defaults),
-                "-I", str(sitl.instance), "--home", ",".join(f"{v:g}" for v in home), "--wipe",
-                "--sysid", str(sysid), "--serial0", f"udpclient:127.0.0.1:{port}", "--serial1", serial1,
-                "--serial2", "none:0"]
-        if wait != "none" and gcs_port is None:
-            with _listener(port) as sock:
-                _spawn(sitl, argv)
-                _wait_ardupilot(sitl, sock, wait, timeout_s)
-        else:
-            _spawn(sitl, argv)
-        return sitl
-    except BaseException:
-        sitl.stop()
-        raise
+    return _sitl.start_arducopter(build("ardupilot"), home=home, sysid=sysid, speedup=speedup, gcs_port=gcs_port,
+                                  serial1=serial1, params=params, wait=wait, timeout_s=timeout_s,
+                                  instances=AP_INSTANCES, companion=companion)
 
 
 def start_px4(*, home=HOME, speedup: float = PX4_SPEEDUP, gcs_port: int | None = None,
-              env: dict[str, str] | None = None,
-              wait: str = "ready", timeout_s: float = READY_TIMEOUT_S) -> SitlProcess:
-    """Start PX4 SIH (quadrotor, as run-px4-sih.sh does) and wait for ``wait``: "ready" (console "Ready for takeoff") or
-    "none". Its system id is 1 + instance. Its ground-station link sends to ``gcs_port`` (default:
-    a fresh ephemeral one) where uavloc listens, like QGC on 14550.
+              env: dict[str, str] | None = None, wait: str = "ready", timeout_s: float = READY_TIMEOUT_S,
+              sysid: int | None = None, companion: bool = False) -> SitlProcess:
+    """Start PX4 SIH (quadrotor, as run-px4-sih.sh does) and wait for ``wait``: "ready" (console
+    "Ready for takeoff") or "none". Its system id is ``sysid`` (default PX4's own: 1 + instance).
+    Its ground-station link sends to ``gcs_port`` (default: a fresh ephemeral one) where uavloc
+    listens, like QGC on 14550; with ``companion`` its onboard link sends to a fresh port
+    (``.companion_url``), else to PX4's 14540 + instance.
 
     PX4 answers the first ground station it hears on a UDP link, for the rest of its life. With the
     remote port set to where uavloc listens, every later ``udpin`` on that port is that same peer,
     so several uavloc commands in a row can talk to one PX4 (``udpout`` to 18570+i works once).
     """
-    folder = px4_dir()
-    if folder is None:
-        raise SitlError(ENABLE_HINT)
-    sitl = _new("px4", PX4_INSTANCES, home, speedup)
-    try:
-        sitl.sysid = 1 + sitl.instance
-        port = gcs_port or free_udp_port()
-        sitl.connection = f"udpin:127.0.0.1:{port}"
-        lat, lon, alt = home[:3]
-        run_env = {"PX4_HOME_LAT": f"{lat:.7f}", "PX4_HOME_LON": f"{lon:.7f}", "PX4_HOME_ALT": f"{alt:g}",
-                   "PX4_SIM_SPEED_FACTOR": f"{speedup:g}", **(env or {})}
-        run_env.update(PX4_SYS_AUTOSTART="10040", PX4_SIMULATOR="sihsim", PX4_SIM_MODEL="sihsim_quadx",
-                       PATH=f"{_px4_bin(folder, sitl.workdir, port)}{os.pathsep}{os.environ.get('PATH', '')}")
-        (sitl.workdir / "px4").mkdir()
-        _spawn(sitl, [str(folder / "bin" / "px4"), "-d", "-i", str(sitl.instance), "-w", str(sitl.workdir / "px4"),
-                      str(folder / "etc")], run_env)
-        if wait == "ready":
-            _wait_log(sitl, "Ready for takeoff", timeout_s)
-        return sitl
-    except BaseException:
-        sitl.stop()
-        raise
-
-
-def _px4_bin(folder: Path, workdir: Path, gcs_port: int) -> Path:
-    """A bin dir of ``px4-<module>`` command links to ``px4``, which PX4's startup shell calls.
-
-    run-px4-sih.sh does the same with the build's own bin/, but a copy of a build may have turned
-    those symbolic links into small files holding the link's target ("px4"), which the shell cannot
-    run; the links are made again here, in the instance's own directory.
-    """
-    src, dst = folder / "bin", workdir / "bin"
-    dst.mkdir()
-    for entry in src.iterdir():
-        target = entry
-        if entry.is_symlink():
-            target = src / os.readlink(entry)
-        elif entry.name.startswith("px4-") and entry.stat().st_size < 64 and not os.access(entry, os.X_OK):
-            target = src / entry.read_text().strip()
-        (dst / entry.name).symlink_to(target.resolve())
-    # rcS sources px4-rc.mavlink from PATH ("user defined mavlink streams ... can be in PATH"):
-    # the shipped one with the ground-station link's remote port (-o, default 14550) set.
-    shipped = (folder / "etc" / "init.d-posix" / "px4-rc.mavlink").read_text()
-    gcs_line = "mavlink start -x -u $udp_gcs_port_local -r 4000000 -f"
-    if gcs_line not in shipped:
-        raise SitlError(f"PX4's px4-rc.mavlink has no line {gcs_line!r} to give the ground station's port")
-    (dst / "px4-rc.mavlink").write_text(shipped.replace(gcs_line, f"{gcs_line} -o {gcs_port}", 1))
-    return dst
-
-
-# -- readiness ------------------------------------------------------------------------------------
-
-@contextlib.contextmanager
-def _listener(port: int):
-    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    try:
-        sock.bind(("127.0.0.1", port))
-        sock.settimeout(0.5)
-        yield sock
-    finally:
-        sock.close()
-
-
-def _check_alive(sitl: SitlProcess, waiting_for: str) -> None:
-    if not sitl.alive():
-        code = sitl.proc.returncode if sitl.proc is not None else None
-        raise SitlError(f"{sitl.kind} SITL instance {sitl.instance} exited (code {code}) while waiting for "
-                        f"{waiting_for}; its output ends:\n{sitl.log_tail()}")
-
-
-def _timeout(sitl: SitlProcess, waiting_for: str, timeout_s: float) -> SitlError:
-    return SitlError(f"{sitl.kind} SITL instance {sitl.instance} showed no {waiting_for} within {timeout_s:g} s "
-                     f"(speed-up {sitl.speedup:g}); its output ends:\n{sitl.log_tail()}")
-
-
-def _wait_ardupilot(sitl: SitlProcess, sock: socket.socket, wait: str, timeout_s: float) -> None:
-    """Listen where serial0 sends; answer with a GCS heartbeat, since ArduPilot sends STATUSTEXT
-    only on channels it has heard MAVLink on."""
-    parser = mavlink.MAVLink(None)
-    parser.robust_parsing = True
-    gcs = mavlink.MAVLink(None, srcSystem=254, srcComponent=190)
-    deadline = time.monotonic() + timeout_s
-    what = "heartbeat" if wait == "heartbeat" else 'STATUSTEXT "... is using GPS"'
-    peer, next_heartbeat = None, 0.0
-    while time.monotonic() < deadline:
-        _check_alive(sitl, what)
-        if peer is not None and time.monotonic() >= next_heartbeat:
-            sock.sendto(gcs.heartbeat_encode(mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0,
-                                             mavlink.MAV_STATE_ACTIVE).pack(gcs), peer)
-            next_heartbeat = time.monotonic() + 1.0
-        try:
-            data, peer = sock.recvfrom(65535)
-        except socket.timeout:
-            continue
-        for msg in parser.parse_buffer(data) or ():
-            kind = msg.get_type()
-            if kind == "HEARTBEAT" and wait == "heartbeat" and msg.get_srcSystem() == sitl.sysid:
-                sitl.ready_after_s = time.monotonic() - sitl.started_wall_s
-                return
-            if kind == "STATUSTEXT" and "is using GPS" in str(msg.text):
-                sitl.ready_after_s = time.monotonic() - sitl.started_wall_s
-                return
-    raise _timeout(sitl, what, timeout_s)
-
-
-def _wait_log(sitl: SitlProcess, text: str, timeout_s: float) -> None:
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        with contextlib.suppress(OSError):
-            if text in sitl.log_path.read_text(errors="replace"):
-                sitl.ready_after_s = time.monotonic() - sitl.started_wall_s
-                return
-        _check_alive(sitl, f'"{text}"')
-        time.sleep(0.2)
-    raise _timeout(sitl, f'"{text}"', timeout_s)
+    return _sitl.start_px4(build("px4"), home=home, sysid=sysid, speedup=speedup, gcs_port=gcs_port, env=env,
+                           wait=wait, timeout_s=timeout_s, instances=PX4_INSTANCES, companion=companion)
 
 
 def run(coro, timeout_s: float = 300.0):

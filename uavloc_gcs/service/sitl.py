@@ -148,7 +148,9 @@ def instance_ports(kind: str, n: int) -> list[int]:
     RC input)."""
     if kind == "px4":
         return [18570 + n, 14580 + n, 14280 + n, 13030 + n, 19450 + n]
-    return [5501 + 10 * n]
+    if kind == "ardupilot":
+        return [5501 + 10 * n]
+    return []
 
 
 class InstanceLock:
