@@ -143,3 +143,21 @@ def test_the_plan_file_carries_qgroundcontrol_s_terrain_fields(tmp_path):
     assert doc["mission"]["plannedHomePosition"][2] == pytest.approx(sc.dem.height_at(0, 0), abs=0.01)
     back = plan_file.read(p)
     assert back.same_as(m)
+
+
+def test_look_points_are_found_among_the_waypoints_terrain_added(tmp_path):
+    from uavloc_gcs.mission import to_wire
+    from uavloc_gcs.terrain_missions import point_seqs
+    sc = ridge_scenario(tmp_path)
+    looks = sc.frame.to_wgs84_latlon(np.array([[700.0, 150.0], [100.0, 100.0], [750.0, 250.0]]))
+    flat = flight_mission(looks.tolist(), alt_m=100.0, speed_m_s=10.0, autopilot="ardupilot",
+                          home_latlon_deg=sc.launch_latlon_deg, include_takeoff=False)
+    safe = terrain_safe(flat, sc, start_xy_m=np.array([50.0, 50.0]))
+    wire = to_wire(safe, "ardupilot")
+    seqs = point_seqs(wire, looks)
+    assert len(seqs) == 3 and list(seqs) == sorted(seqs)
+    assert seqs[1] - seqs[0] > 1  # waypoints over the ridge between the first two looks
+    for s, (lat, lon) in zip(seqs, looks):
+        assert abs(wire[s].x - round(lat * 1e7)) <= 0 and abs(wire[s].y - round(lon * 1e7)) <= 0
+    # flat: the look points are consecutive, as the daemon's count of passed looks assumes
+    assert point_seqs(to_wire(flat, "ardupilot"), looks) == (2, 3, 4)

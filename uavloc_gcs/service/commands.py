@@ -16,9 +16,10 @@ import math
 
 import numpy as np
 
-from ..errors import LinkError
+from ..errors import InfeasibleError, LinkError
 from ..estimation.identity import person_name
 from ..mission import NAV_WAYPOINT, flight_mission, to_wire
+from ..terrain_missions import point_seqs, terrain_safe
 from .lifecycle import persist
 from .missionstate import final_seq, hold_seq, same_stored_mission
 from .starting import CLIMB_WAIT_S, StartFailed, UnsafeStart, read_facts, refusal_in, start_guard, takeoff_seen
@@ -253,7 +254,8 @@ class VehicleCommands:
         old_pts, old_targets = np.zeros((0, 2)), ()
         if flying_look:
             seq = v.agent.tel.mission_seq
-            passed = 0 if seq is None else int(np.clip(seq - v.look_first_seq, 0, len(v.look_xy_m)))
+            passed = 0 if seq is None else (sum(k < seq for k in v.look_seqs) if v.look_seqs else
+                                             int(np.clip(seq - v.look_first_seq, 0, len(v.look_xy_m))))
             old_pts, old_targets = v.look_xy_m[passed:], tuple(v.targets[passed:])
         return decide_upload(
             flying_look=flying_look, uploads_since_look=v.uploads_since_look,
@@ -274,6 +276,13 @@ class VehicleCommands:
             on_ground = v.home or v.agent.on_ground()
             plan = flight_mission(latlon.tolist(), alt_m=f.altitude_m, speed_m_s=f.speed_m_s, autopilot=f.autopilot,
                                   home_latlon_deg=self.sc.launch_latlon_deg, include_takeoff=on_ground)
+            if self.sc.dem is not None:  # over the ground of terrain.dem, from where the vehicle is
+                try:
+                    plan = terrain_safe(plan, self.sc, name=f"vehicle {v.id}", start_xy_m=None if on_ground
+                                        else np.asarray(v.agent.position_xy_m() or (0.0, 0.0)))
+                except InfeasibleError as exc:
+                    self._event("hold", f"look not flown: {exc}", v.id)
+                    return
             items = to_wire(plan, f.autopilot)
             try:
                 await self._upload(v, "look", items, first_seq=first,
@@ -290,6 +299,8 @@ class VehicleCommands:
                 return
         v.targets, v.look_xy_m, v.looks_reported = targets, pts, 0
         v.look_first_seq = next(it.seq for it in items if it.command == NAV_WAYPOINT and it.seq > 0)
+        # over terrain, waypoints added between the look points: where each look point went
+        v.look_seqs = point_seqs(items, latlon) if self.sc.dem is not None else ()
         a = v.agent
         # Read now, not assumed: a start whose ACKs were lost lasts as long as a short look, and the
         # vehicle may have flown it and landed meanwhile (tests/test_e2e_vehicle_faults.py's store:

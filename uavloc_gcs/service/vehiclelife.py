@@ -117,6 +117,7 @@ class VehicleLife:
     targets: tuple = ()
     look_xy_m: np.ndarray | None = None
     look_first_seq: int = 0  # wire seq of the first look waypoint
+    look_seqs: tuple = ()  # wire seqs of the look waypoints when terrain added waypoints between them
     looks_reported: int = 0  # looks of the current mission reported flown to the policy
     lost: bool = False
     scan_done: bool = False
