@@ -31,17 +31,15 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from ..errors import ConfigError, LinkError, UavlocError
-from ..mission import to_wire
+from ..errors import LinkError, UavlocError
 from ..observations import SlotBatch
 from ..scenario import Scenario
-from .commands import STOP_WAIT_S, WAYPOINT_TOLERANCE_M, VehicleCommands  # noqa: F401 (STOP_WAIT_S re-exported)
+from .commands import STOP_WAIT_S, WAYPOINT_TOLERANCE_M, VehicleCommands
 from .liveview import LiveView, StatusSnapshot, VehicleStatus, person_view
-from .missionstate import ClockRate, same_stored_mission, with_hold_before_rtl
+from .missionstate import ClockRate
 from .outcome import SearchOutcome, estimate_row, final_results, statement_for
+from .preparing import FleetPreparation
 from .store import Store, StoreReader, TelemetryRow
-from .vehicle import VehicleAgent
-from .vehiclelife import HOMING_MODES, MISSION_STATE_COMPLETE  # noqa: F401 (re-exported)
 from .vehiclelife import VehicleLife as _Vehicle
 from .vehiclelife import read_facts as read_life_facts
 
@@ -51,9 +49,7 @@ REPLAN_BACKOFF_S = 10.0  # mission seconds before planning again after the plann
 LAND_WAIT_S = 300.0  # mission seconds to wait at most for the fleet to land after sending it home
 LANDING_MARGIN_S = 30.0  # beyond the flight home and the descent at LANDING_RATE_M_S
 LANDING_RATE_M_S = 1.0
-HOLD_WALL_S = 30.0  # a finished scan holds at least this many wall seconds for the next mission
 JOB_WAIT_S = 3.0  # wall seconds the brain waits for a vehicle's exchanges before leaving them to it
-START_WAIT_S = 10.0  # the same for the scan starts
 IDLE_END_S = 10.0  # mission seconds with every vehicle home and no look planned before the search ends
 
 
@@ -83,7 +79,7 @@ def _idle(vehicles) -> bool:
     return all(v.home and v.job is None for v in vehicles)
 
 
-class Daemon(VehicleCommands):
+class Daemon(FleetPreparation, VehicleCommands):
     """One search. ``connections``: [(vehicle system id, connection string)]."""
 
     def __init__(self, scenario: Scenario, connections: Sequence[tuple[int, str]], options: DaemonOptions,
@@ -107,9 +103,6 @@ class Daemon(VehicleCommands):
             # under a receiver threshold (the field world) from its telemetry (_on_position): a
             # silence is evidence there only while some vehicle heard a burst, and bursts are sparse
             policy.tracks_from_slots = scenario.channel.receiver_sensitivity_dbm is None
-        from ..search.coverage import attach  # noqa: PLC0415
-
-        self.coverage = attach(scenario, policy)  # what was flown within hearing (search/coverage.py)
         self.store: Store | None = None
         self.epoch_unix_s: float | None = None
         self._slots_in: list[SlotBatch] = []
@@ -195,225 +188,7 @@ class Daemon(VehicleCommands):
         finally:
             self.store.close()
 
-    async def _close_links(self) -> None:
-        links = []
-        for v in self.vehicles.values():
-            if v.agent is not None:
-                v.agent.close()
-            if v.link is not None and all(v.link is not other for other in links):
-                links.append(v.link)
-        links += [lk for lk in self._rssi_links if all(lk is not other for other in links)]
-        for link in links:
-            await link.close()
-
     # -- start-up --------------------------------------------------------------------------------
-    def _reload(self) -> dict:
-        """Reload a previous run's state from the store; {vehicle: (purpose, items)} or {}."""
-        if not self.opt.resume or not self.opt.store_path.exists():
-            self.store.set_meta("scenario", self.sc.name)
-            return {}
-        with StoreReader(self.opt.store_path) as rd:
-            meta = rd.meta()
-            if "epoch_unix_s" not in meta:
-                self.store.set_meta("scenario", self.sc.name)
-                return {}
-            if meta.get("finished"):
-                raise ConfigError(f"{self.opt.store_path} holds a search that already finished; "
-                                  "start a new one with --fresh or another --out")
-            if meta.get("scenario") != self.sc.name:
-                raise UavlocError(f"the store {self.opt.store_path} holds the search '{meta.get('scenario')}', "
-                                  f"not '{self.sc.name}'; use another --store or --fresh")
-            self.epoch_unix_s = float(meta["epoch_unix_s"])
-            slots = rd.slots()
-            missions = rd.latest_missions()
-            self._seq_before_crash = rd.last_mission_seq()
-        self.policy.ingest(slots)
-        self._n_slots = len(slots)
-        self._event("resume", f"resuming the search: {len(slots)} slots and {len(missions)} missions reloaded")
-        return missions
-
-    async def _connect_all(self) -> None:
-        from ..link.connection import open_link  # noqa: PLC0415
-
-        # Vehicles that share a connection (a router, a multipoint radio) share one link.
-        by_conn: dict[str, list[_Vehicle]] = {}
-        for v in self.vehicles.values():
-            by_conn.setdefault(v.connection, []).append(v)
-        opened: dict[str, asyncio.Future] = {}
-
-        async def open_one(conn: str, group: list[_Vehicle]):
-            tlog = None
-            if self.opt.tlog_dir is not None:
-                Path(self.opt.tlog_dir).mkdir(parents=True, exist_ok=True)
-                tlog = Path(self.opt.tlog_dir) / f"uav{'-'.join(str(v.id) for v in group)}.tlog"
-            return await open_link(conn, source_system=self.opt.source_system,
-                                   signing_key=self.opt.signing_key, tlog_path=tlog)
-
-        async def connect(v: _Vehicle) -> None:
-            if v.connection not in opened:
-                opened[v.connection] = asyncio.ensure_future(open_one(v.connection, by_conn[v.connection]))
-            v.link = await opened[v.connection]
-            v.agent = VehicleAgent(v.id, v.link, self.frame, autopilot=self.sc.fleet.autopilot,
-                                   epoch_unix_s=self._epoch, on_slots=self._on_slots,
-                                   on_position=self._on_position, on_status_text=self._on_text, wall=self.wall)
-            await v.link.wait_heartbeat(v.id, timeout_s=self.opt.connect_timeout_s)
-            v.phase = "connected"
-
-        results = await asyncio.gather(*(connect(v) for v in self.vehicles.values()), return_exceptions=True)
-        bad = [(v, r) for v, r in zip(self.vehicles.values(), results) if isinstance(r, BaseException)]
-        for _, r in bad:
-            if not isinstance(r, Exception):
-                await self._close_links()
-                raise r
-        fatal = [r for _, r in bad if not isinstance(r, LinkError)]
-        names = ", ".join(f"{v.id} ({v.connection})" for v, _ in bad)
-        if fatal or len(bad) == len(self.vehicles):
-            await self._close_links()
-            if fatal:
-                raise fatal[0]
-            raise LinkError(f"no heartbeat within {self.opt.connect_timeout_s:g} s from vehicle(s) {names}; "
-                            "check that they are powered and the connection strings in [link] are right",
-                            operation="connect")
-        for v in self.vehicles.values():
-            if v.phase == "connected":
-                self._event("connect", f"vehicle {v.id} connected on {v.connection}", v.id)
-        for v, _ in bad:
-            # The others search without it; if it is heard later it joins for the looks.
-            v.phase, v.lost, v.scan_done, v.home = "not connected", True, True, True
-            if v.agent is None:
-                v.unusable = "its link could not be opened"
-            self._event("lost", f"vehicle {v.id}: no heartbeat within {self.opt.connect_timeout_s:g} s on "
-                        f"{v.connection}; searching without it (it joins for the looks if heard later)", v.id)
-        await self._open_rssi_links()
-        await self._setup_vehicles([v for v in self.vehicles.values() if v.agent is not None and not v.lost])
-        # wait for a clock (SYSTEM_TIME, asked for above) so slot times have an epoch
-        deadline = self.wall() + self.opt.connect_timeout_s
-        while self._epoch() is None and self.wall() < deadline:
-            await asyncio.sleep(0.05)
-        if self.epoch_unix_s is None:
-            # degrade, do not stop: slot times then come from the ground's clock
-            self._ground_clock = True
-            self.epoch_unix_s = float(math.floor(time.time()))
-            self.store.set_meta("epoch_unix_s", self.epoch_unix_s)
-            self._event("warning", f"no vehicle sent SYSTEM_TIME within {self.opt.connect_timeout_s:g} s (asked "
-                        "with SET_MESSAGE_INTERVAL); using the ground station's clock for mission time, which "
-                        "is wrong under a simulator speed-up")
-        await self._check_failsafes()
-
-    async def _check_failsafes(self) -> None:
-        """Warn about every vehicle a lost ground station would leave hovering (service/failsafe.py)."""
-        from .failsafe import read_gcs_loss_warning  # noqa: PLC0415
-
-        heard = [v for v in self.vehicles.values() if not v.lost and v.link is not None]
-        warnings = await asyncio.gather(*(read_gcs_loss_warning(v.link, v.id, self.sc.fleet.autopilot)
-                                          for v in heard), return_exceptions=True)
-        for v, w in zip(heard, warnings):
-            if isinstance(w, LinkError):
-                w = f"vehicle {v.id}: could not read its link-loss failsafe ({w})"
-            elif isinstance(w, BaseException):
-                raise w
-            if w:
-                self._event("failsafe", w, v.id)
-
-    async def _open_rssi_links(self) -> None:
-        """RSSI beside the autopilot: one link per distinct [link] rssi_connections entry."""
-        from ..link.connection import open_link  # noqa: PLC0415
-
-        opened: dict[str, object] = {}
-        for vid, conn in self.opt.rssi_connections:
-            v = self.vehicles.get(vid)
-            if not conn or v is None or v.agent is None:
-                continue
-            if conn not in opened:
-                opened[conn] = await open_link(conn, source_system=self.opt.source_system,
-                                               signing_key=self.opt.signing_key)
-                self._rssi_links.append(opened[conn])
-            v.agent.attach_rssi(opened[conn])
-            self._event("connect", f"vehicle {vid}: RSSI also taken from {conn} (beside the autopilot)", vid)
-
-    async def _setup_vehicles(self, vehicles: list) -> None:
-        """Ask each vehicle for the streams the search reads; plan with the speed it will fly."""
-        from .setup import fleet_speed, request_streams  # noqa: PLC0415
-
-        refused = await asyncio.gather(*(request_streams(v.link, v.id, v.agent.flavour) for v in vehicles))
-        for v, names in zip(vehicles, refused):
-            if names:
-                self._event("warning", f"vehicle {v.id} did not accept a stream of {', '.join(names)}; "
-                            "the search uses what it sends anyway", v.id)
-        speed = await fleet_speed([(v.id, v.link, v.agent.flavour) for v in vehicles], self.sc.fleet.speed_m_s,
-                                  consent=self.opt.set_speed_params)
-        for note in speed.notes:
-            self._event("speed", note)
-        self._return_speed_m_s = speed.return_m_s
-        if speed.mission_m_s < self.sc.fleet.speed_m_s:
-            self.sc = self.sc.replace(fleet={"speed_m_s": speed.mission_m_s})
-            if hasattr(self.policy, "speed_m_s"):
-                self.policy.scenario, self.policy.speed_m_s = self.sc, self.sc.fleet.speed_m_s
-
-    async def _prepare_all(self, resumed: dict) -> None:
-        """Upload every scan (or re-adopt the missions found after a restart), then start."""
-        from ..scan import plan_scan, scan_missions  # noqa: PLC0415
-
-        # The scan ends holding at its last waypoint, then RTL: the adaptive phase starts from
-        # there, as the experiments model it, and the next mission is uploaded while the vehicle
-        # holds; a vehicle the daemon no longer talks to comes home by itself after the hold.
-        # The hold lasts until the longest scan is over, plus scan_hold_s.
-        plan = plan_scan(self.sc)
-        longest = max((p.duration_s for p in plan.vehicles), default=0.0)
-        # at least HOLD_WALL_S of the daemon's own time, whatever the clock rate (a simulator speed-up)
-        hold_s = max(self.opt.scan_hold_s, HOLD_WALL_S * self._rate.rate)
-        scans = [with_hold_before_rtl(m, longest - p.duration_s + hold_s)
-                 for m, p in zip(scan_missions(self.sc, plan), plan.vehicles)]
-        ap = self.sc.fleet.autopilot
-        wires = {vid: to_wire(m, ap) for vid, m in zip(sorted(self.vehicles), scans)}
-        to_start = []
-
-        async def prepare(v: _Vehicle) -> None:
-            if v.lost:  # never connected
-                return
-            previous = resumed.get(v.id)
-            if previous is not None:
-                on_board = await v.agent.download()
-                purpose, items = previous
-                if same_stored_mission(on_board, items, v.agent.flavour):
-                    self._adopt(v, purpose, items)
-                    v.scan_done = purpose != "scan"
-                    if not v.agent.tel.armed and v.agent.on_ground() and purpose != "scan":
-                        v.home, v.phase = True, "landed"
-                    self._event("resume", f"vehicle {v.id} still flies its {purpose} mission "
-                                f"(item {v.agent.tel.mission_seq})", v.id)
-                    if v.agent.tel.armed:
-                        if purpose == "scan":
-                            await self._rewind_scan(v, items)
-                        return
-                    if purpose == "scan" and v.agent.on_ground():
-                        to_start.append(v)
-                    return
-                self._event("resume", f"vehicle {v.id}: mission on board differs from the stored one", v.id)
-                if purpose != "scan" or v.agent.tel.armed:
-                    await self._upload(v, purpose, items, first_seq=None)
-                    return
-            items = wires.get(v.id)
-            if items is None:  # more vehicles than scan parts: it helps with the looks later
-                v.phase = "idle"
-                v.purpose, v.mission, v.end_seq = "home", [], 0
-                v.scan_done = True
-                v.home = True
-                return
-            v.phase = "uploading scan"
-            await self._upload(v, "scan", items, first_seq=None)
-            to_start.append(v)
-
-        await self._each(prepare, list(self.vehicles.values()))
-        to_start = [v for v in to_start if not v.unusable]
-        if self.opt.start == "operator":
-            for v in to_start:
-                v.phase = "waiting for operator"
-            self._event("operator", "scan missions uploaded; start each vehicle's mission from your "
-                        "ground station (arm + AUTO); the search follows")
-            return
-        await self._jobs([(v, self._start(v)) for v in to_start], START_WAIT_S)
-
     # -- each vehicle's exchanges run in its own task; the brain waits for them only so long -------
     def _launch(self, v: _Vehicle, coro) -> asyncio.Task:
         task = asyncio.ensure_future(coro)
@@ -477,7 +252,6 @@ class Daemon(VehicleCommands):
 
     def _on_position(self, vehicle: int, tel) -> None:
         self._rate.observe(tel)
-        self.coverage.add_telemetry(vehicle, self.now_s(), tel.lat_deg, tel.lon_deg, tel.rel_alt_m)
         w = self.wall()
         if w - self._last_tel_store.get(vehicle, -math.inf) < 0.1:
             return
@@ -565,7 +339,7 @@ class Daemon(VehicleCommands):
             if passed < len(v.look_xy_m) and xy is not None and \
                     math.dist(xy, v.look_xy_m[passed]) <= WAYPOINT_TOLERANCE_M:
                 passed += 1
-            while v.looks_reported < min(passed, len(v.targets)):  # (then passes: search/coverage.py)
+            while v.looks_reported < passed:
                 if report is not None:
                     report(v.targets[v.looks_reported], t)
                 v.looks_reported += 1
