@@ -190,7 +190,9 @@ class FleetPreparation:
         longest = max((p.duration_s for p in plan.vehicles), default=0.0)
         # at least HOLD_WALL_S of the daemon's own time, whatever the clock rate (a simulator speed-up)
         hold_s = max(self.opt.scan_hold_s, HOLD_WALL_S * self._rate.rate)
-        scans = [with_hold_before_rtl(m, longest - p.duration_s + hold_s)
+        from ..terrain_missions import terrain_safe  # noqa: PLC0415 -- over the ground of terrain.dem (none: as is)
+
+        scans = [terrain_safe(with_hold_before_rtl(m, longest - p.duration_s + hold_s), self.sc, name=f"uav{p.index + 1}")
                  for m, p in zip(scan_missions(self.sc, plan), plan.vehicles)]
         ap = self.sc.fleet.autopilot
         wires = {vid: to_wire(m, ap) for vid, m in zip(sorted(self.vehicles), scans)}
