@@ -15,7 +15,13 @@ body``, leaving out the elements that change from frame to frame or band to band
 - DS Parameter Set (3): the channel the frame was sent on;
 - Supported Rates (1) and Extended Supported Rates (50): differ between the 2.4 and 5 GHz bands for
   one phone (no 802.11b rates at 5 GHz);
-- the WPS element's (vendor 00:50:f2 type 4) UUID-E and device name are kept: they are stable.
+- the body of vendor-specific elements (221) beyond their OUI and type: some carry counters or
+  per-boot values (a Raspberry Pi in the public UJI/Brno captures sends vendor 00:50:f2 type 8 with
+  a byte that changes from burst to burst, splitting one device into 8 fingerprints in a day), and
+  WPS's UUID-E identifies the single device, not its model. Each kept as ``221, length, OUI, type``;
+- the body of the FILS Request Parameters extension element (255 with extension id 2): its maximum
+  channel time follows the scan being run (the same capture has phones switching between two values
+  under one address). Kept as ``255, length, 2``.
 
 What stays (HT/VHT/HE capabilities, extended capabilities, interworking, vendor elements and
 above all their ORDER) is what Vanhoef et al. (AsiaCCS 2016) and Martin et al. (PETS 2017) showed
@@ -34,6 +40,7 @@ MGMT = 0
 PROBE_REQUEST = 4
 HEADER_LEN = 24
 VARYING_ELEMENTS = frozenset({0, 1, 3, 50})  # SSID, rates, DS parameter set, extended rates
+FILS_REQUEST_PARAMETERS = 2  # extension element id
 
 _FP_CACHE: dict[bytes, tuple[int, int]] = {}
 _FP_CACHE_MAX = 65_536
@@ -76,6 +83,10 @@ def fingerprint_elements(ies: bytes, snapped: bool = False) -> tuple[int, int]:
             raise Malformed("bad_element")
         if eid == 3 and end - pos == 3:
             ds = ies[pos + 2]
+        elif eid == 221:
+            keep.append(ies[pos:min(end, pos + 6)])  # id, length, OUI (3), vendor type (1)
+        elif eid == 255 and end - pos >= 3 and ies[pos + 2] == FILS_REQUEST_PARAMETERS:
+            keep.append(ies[pos:pos + 3])
         elif eid not in VARYING_ELEMENTS:
             keep.append(ies[pos:end])
         pos = end

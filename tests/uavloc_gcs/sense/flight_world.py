@@ -39,7 +39,12 @@ def lawnmower(sc, spacing_m=100.0):
     return np.array(pts)
 
 
-def build(sc, phones_xy_m, randomizes, *, seed=0, burst_every_s=1.0) -> FlightWorld:
+def flight_tlog(sc, t0_unix_s: float = T0_UNIX_S) -> bytes:
+    """Only the flight's .tlog (no phones), starting at ``t0_unix_s``."""
+    return build(sc, [], [], t0_unix_s=t0_unix_s).tlog
+
+
+def build(sc, phones_xy_m, randomizes, *, seed=0, burst_every_s=1.0, t0_unix_s: float = T0_UNIX_S) -> FlightWorld:
     from scapy.all import Dot11, Dot11Elt, Dot11ProbeReq, RadioTap
 
     rng = np.random.default_rng(seed)
@@ -64,11 +69,11 @@ def build(sc, phones_xy_m, randomizes, *, seed=0, burst_every_s=1.0) -> FlightWo
         t = k / 5
         boot_ms = int((boot0 + t) * 1000)
         if k % 5 == 0:
-            log(T0_UNIX_S + t, codec.heartbeat_encode(2, 3, 0, 0, 4))
-            log(T0_UNIX_S + t, codec.system_time_encode(int((T0_UNIX_S + t) * 1e6), boot_ms))
+            log(t0_unix_s + t, codec.heartbeat_encode(2, 3, 0, 0, 4))
+            log(t0_unix_s + t, codec.system_time_encode(int((t0_unix_s + t) * 1e6), boot_ms))
         p = pos(t)
         lat, lon = sc.frame.to_wgs84(p[0], p[1])
-        log(T0_UNIX_S + t, codec.global_position_int_encode(boot_ms, int(lat * 1e7), int(lon * 1e7),
+        log(t0_unix_s + t, codec.global_position_int_encode(boot_ms, int(lat * 1e7), int(lon * 1e7),
                                                             int((alt + 400) * 1000), int(alt * 1000),
                                                             0, 0, 0, 0))
     ch = sc.channel
@@ -97,7 +102,7 @@ def build(sc, phones_xy_m, randomizes, *, seed=0, burst_every_s=1.0) -> FlightWo
                      / Dot11ProbeReq() / Dot11Elt(ID=0, info=b"") / Dot11Elt(ID=3, info=bytes([chan])))
                 for eid, info in model_ies[i % 2]:
                     p = p / Dot11Elt(ID=eid, info=info)
-                p.time = T0_UNIX_S + tf
+                p.time = t0_unix_s + tf
                 packets.append(p)
             t += burst_every_s * float(rng.uniform(0.8, 1.2))
     packets.sort(key=lambda p: p.time)
