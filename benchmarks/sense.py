@@ -86,6 +86,34 @@ def _agree(got, truth, n: int) -> int:
     return int(np.sum((a[:k] == truth.address[:k]) & (r[:k] == truth.rssi_dbm[:k]) & (c[:k] == truth.channel[:k])))
 
 
+def _radio_budget(buf: bytes) -> None:
+    """What the capture costs on the telemetry radio as UAVLOC_RSSI_BATCH2 (25 ms slots, the
+    dialect's 12-entry / 200 ms batching, MAVLink 2 framing, signed), per second of capture."""
+    from uavloc_gcs.dialect import mavlink
+    from uavloc_gcs.dialect.rssi import BATCH2, encode_rssi_batches
+    from uavloc_gcs.geo import LocalFrame
+    from uavloc_gcs.observations import SlotBatch
+    from uavloc_gcs.sense import parse_capture_bytes
+    from uavloc_gcs.sense.aggregate import slot_entries
+
+    frames, _ = parse_capture_bytes(buf)
+    e = slot_entries(frames, 0.025)
+    t = e.t_s - e.t_s[0]
+    xyz = np.column_stack([10.0 * t, np.zeros_like(t), np.full_like(t, 100.0)])  # 10 m/s at 100 m
+    slots = SlotBatch.from_columns(t, np.ones(len(t), dtype=int), xyz, e.address, e.rssi_dbm, e.n_frames,
+                                   address=e.address, fingerprint=e.fingerprint, channel=e.channel)
+    msgs = encode_rssi_batches(slots, LocalFrame(47.0, 8.0), slot_s=0.025, message=BATCH2)
+    codec = mavlink.MAVLink(None, srcSystem=1, srcComponent=191)
+    sizes = np.array([len(m.pack(codec)) + 13 for m in msgs])  # + the 13-byte signature
+    sec = np.floor(np.array([m.time_usec / 1e6 for m in msgs])).astype(int)
+    per_s = np.bincount(sec - sec.min(), weights=sizes)
+    span = max(float(t[-1]), 1.0)
+    budget = 57_600 / 8
+    print(f"radio: {len(frames) / span:,.0f} frames/s heard -> {len(e) / span:,.0f} entries/s, {len(msgs) / span:,.1f} "
+          f"UAVLOC_RSSI_BATCH2/s ({len(e) / len(msgs):.1f} entries each), {sizes.sum() / span:,.0f} B/s signed on average, "
+          f"busiest second {per_s.max():,.0f} B/s = {100 * per_s.max() / budget:.0f} % of a 57.6 kbit/s radio")
+
+
 def _time(fn, repeats: int):
     best, out = float("inf"), None
     for _ in range(repeats):
@@ -125,6 +153,7 @@ def main(args: argparse.Namespace) -> int:
     for name, n, probes, agree, t in rows:
         fps = n / t
         print(f"{name:<8} {n:>8} {probes:>8} {agree:>8} {t:>8.3f} {fps:>10,.0f} {fps / own_fps:>10.3f}")
+    _radio_budget(buf)
     ok = own_fps >= TARGET_FPS and rows[0][3] == args.frames
     print(f"uavloc: {own_fps:,.0f} frames/s on one core ({'meets' if ok else 'MISSES'} the {TARGET_FPS:,} frames/s bar"
           f"{'' if rows[0][3] == args.frames else '; fields disagree with the truth'})")
