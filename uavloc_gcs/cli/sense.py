@@ -87,20 +87,44 @@ def run(args: argparse.Namespace) -> int:
         return _offline(args, frames, skips, exclusion)
     from ..sense.run import run_stream
 
-    return run_stream(args, exclusion)
+    result = run_stream(args, exclusion)
+    heard = result.heard
+    if result.sender is not None:
+        s = result.sender
+        print(f"sent {s.messages} UAVLOC_RSSI_BATCH2 ({s.entries_sent} entries, {s.bytes_sent} bytes) to {args.mavlink}; "
+              f"frames {s.frames_in}, of them before the autopilot's clock was known {s.frames_before_clock}; "
+              f"entries without a position {s.entries_no_position}")
+        if result.sysid is None:
+            print("no autopilot heartbeat was heard: nothing could be time-tagged")
+    print(f"{result.skips.read.records or len(heard)} frames read; skipped: {result.skips.summary()}")
+    if args.learn_team:
+        _learn(args, heard)
+    if args.out:
+        from ..sense.aggregate import emitter_ids, frames_csv
+        from ._output import atomic_output_dir
+
+        with atomic_output_dir(args.out) as tmp:
+            (tmp / "frames.csv").write_text(frames_csv(heard, emitter_ids(heard)), encoding="utf-8")
+        print(f"wrote {Path(args.out) / 'frames.csv'}")
+    return 0
+
+
+def _learn(args, frames) -> None:
+    from ..sense.exclusion import learn_team
+
+    _write_text(args.learn_team, learn_team(frames, min_frames=args.learn_min_frames,
+                                            fingerprints=args.learn_fingerprints))
+    print(f"wrote {args.learn_team} (the team's devices, {len(frames)} frames heard; pass it to --exclude in flight)")
 
 
 def _offline(args, frames, skips, exclusion) -> int:
     from ..sense.aggregate import emitter_ids, frames_csv, slot_entries
-    from ..sense.exclusion import learn_team
     from ._output import atomic_output_dir
 
     print(f"{args.capture}: {skips.read.records} records, {len(frames)} probe requests used; "
           f"skipped: {skips.summary()}")
     if args.learn_team:
-        _write_text(args.learn_team, learn_team(frames, min_frames=args.learn_min_frames,
-                                                fingerprints=args.learn_fingerprints))
-        print(f"wrote {args.learn_team} (the team's devices; pass it to --exclude in flight)")
+        _learn(args, frames)
     if exclusion is not None:
         team = exclusion.mask(frames)
         frames = frames.take(~team)

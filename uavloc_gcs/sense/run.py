@@ -2,8 +2,8 @@
 
 Used by ``uavloc sense`` for live interfaces and for a capture replayed to MAVLink. Every
 :data:`TICK_S` it drains the sources, parses what arrived, and lets the sender close slots and
-send batches. Stops after ``--duration-s``, when a replayed capture is done, or on Ctrl-C;
-``--out`` and ``--learn-team`` are written once it stops.
+send batches. Stops after ``--duration-s``, when a replayed capture is done, or on Ctrl-C, and
+returns what it heard and sent (the CLI prints it and writes ``--out`` and ``--learn-team``).
 """
 
 from __future__ import annotations
@@ -11,10 +11,12 @@ from __future__ import annotations
 import asyncio
 import logging
 import time
-from pathlib import Path
+
+from dataclasses import dataclass
 
 from ..errors import LinkError
 from .frames import Frames, SkipCounts, parse_records
+from .mavout import SenderStats
 
 log = logging.getLogger(__name__)
 
@@ -23,11 +25,20 @@ REPLAY_DRAIN_S = 1.5
 AUTOPILOT_WAIT_S = 30.0  # a replay to MAVLink waits this long for the autopilot's clock and position  # after a replay: time for the last slots' positions and batches
 
 
-def run_stream(args, exclusion) -> int:
+@dataclass
+class StreamResult:
+    heard: Frames  # kept only when ``args.out`` or ``args.learn_team``
+    skips: SkipCounts
+    sender: SenderStats | None  # None without --mavlink
+    sysid: int | None  # the autopilot followed, None if none was heard
+
+
+def run_stream(args, exclusion) -> StreamResult:
+    """Run until stopped (duration, end of a replay, Ctrl-C)."""
     return asyncio.run(_main(args, exclusion))
 
 
-async def _main(args, exclusion) -> int:
+async def _main(args, exclusion) -> StreamResult:
     from .live import ChannelHopper, LiveInterface, ReplaySource, parse_channels
 
     skips = SkipCounts()
@@ -82,15 +93,8 @@ async def _main(args, exclusion) -> int:
             log.info("stopped")
         if sender is not None:
             sender.tick(final=True)
-            s = sender.stats
-            print(f"sent {s.messages} UAVLOC_RSSI_BATCH2 ({s.entries_sent} entries, {s.bytes_sent} bytes) to "
-                  f"{args.mavlink}; frames {s.frames_in}, before the autopilot's clock was known {s.frames_before_clock}, "
-                  f"entries without a position {s.entries_no_position}")
-            if sender.sysid is None:
-                print("no autopilot heartbeat was heard: nothing could be time-tagged")
-        print(f"{skips.read.records or sum(len(k) for k in kept)} frames read; skipped: {skips.summary()}")
-        all_frames = Frames.concat(kept)
-        _write_outputs(args, all_frames)
+        result = StreamResult(Frames.concat(kept), skips, sender.stats if sender else None,
+                              sender.sysid if sender else None)
     finally:
         for s in sources:
             s.close()
@@ -101,20 +105,4 @@ async def _main(args, exclusion) -> int:
             await sender.rssi_link.close()
             if sender.ap_link is not sender.rssi_link:
                 await sender.ap_link.close()
-    return 0
-
-
-def _write_outputs(args, frames: Frames) -> None:
-    from ..atomicfile import atomic_write_text
-    from ..cli._output import atomic_output_dir
-    from .aggregate import emitter_ids, frames_csv
-    from .exclusion import learn_team
-
-    if args.learn_team:
-        atomic_write_text(Path(args.learn_team), learn_team(frames, min_frames=args.learn_min_frames,
-                                                            fingerprints=args.learn_fingerprints))
-        print(f"wrote {args.learn_team} ({len(frames)} frames heard; pass it to --exclude in flight)")
-    if args.out:
-        with atomic_output_dir(args.out) as tmp:
-            (tmp / "frames.csv").write_text(frames_csv(frames, emitter_ids(frames)), encoding="utf-8")
-        print(f"wrote {Path(args.out) / 'frames.csv'}")
+    return result
