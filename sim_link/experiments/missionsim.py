@@ -81,14 +81,19 @@ class MissionResult:
 
 
 class Flight:
-    """A vehicle flying a polyline at constant speed from ``t0_s``; hovers at the end of it."""
+    """A vehicle flying a polyline at constant speed from ``t0_s``; hovers at the end of it.
+    ``seg_speeds_m_s`` (one per segment) flies some segments slower: an orbit look's circle at the
+    orbit speed (search/orbit.py)."""
 
-    def __init__(self, path_xy_m: np.ndarray, t0_s: float, speed_m_s: float):
+    def __init__(self, path_xy_m: np.ndarray, t0_s: float, speed_m_s: float, seg_speeds_m_s=None):
         self.path = np.asarray(path_xy_m, dtype=float).reshape(-1, 2)
         self.t0_s = float(t0_s)
         self.speed = float(speed_m_s)
         seg = np.linalg.norm(np.diff(self.path, axis=0), axis=1)
         self.cum_m = np.concatenate([[0.0], np.cumsum(seg)])
+        self.seg_speeds = None if seg_speeds_m_s is None else np.asarray(seg_speeds_m_s, dtype=float)
+        sp = np.full(len(seg), self.speed) if self.seg_speeds is None else self.seg_speeds
+        self.cum_t = np.concatenate([[0.0], np.cumsum(seg / sp)])
 
     @property
     def length_m(self) -> float:
@@ -96,10 +101,22 @@ class Flight:
 
     @property
     def end_t_s(self) -> float:
-        return self.t0_s + self.length_m / self.speed
+        return self.t0_s + float(self.cum_t[-1])
 
     def flown_m(self, t_s) -> np.ndarray:
+        if self.seg_speeds is not None:
+            return np.interp(np.asarray(t_s, dtype=float) - self.t0_s, self.cum_t, self.cum_m)
         return np.clip((np.asarray(t_s, dtype=float) - self.t0_s) * self.speed, 0.0, self.length_m)
+
+    def energy_j(self, t_from_s: float, t_to_s: float, pw) -> tuple[float, float]:
+        """(propulsion energy [J], seconds in flight) between two times, each segment at its speed."""
+        if self.seg_speeds is None:
+            flown = float(self.flown_m(t_to_s) - self.flown_m(t_from_s))
+            return float(pw.leg_energy_j(flown, self.speed)), flown / self.speed
+        seg_e = np.diff(self.cum_t) * np.asarray(pw.power_w(self.seg_speeds), dtype=float)
+        cum_e = np.concatenate([[0.0], np.cumsum(seg_e)])
+        a, b = (min(max(x - self.t0_s, 0.0), float(self.cum_t[-1])) for x in (t_from_s, t_to_s))
+        return float(np.interp(b, self.cum_t, cum_e) - np.interp(a, self.cum_t, cum_e)), b - a
 
     def position(self, t_s) -> np.ndarray:
         """(2,) or (N, 2) position [m] at time(s) t_s."""
@@ -121,9 +138,9 @@ class Vehicle:
         self.accounted_t_s = 0.0
         self.home_t_s: float | None = None
 
-    def fly(self, path_xy_m: np.ndarray, t_s: float) -> None:
+    def fly(self, path_xy_m: np.ndarray, t_s: float, seg_speeds_m_s=None) -> None:
         self.account(t_s)
-        self.flight = Flight(path_xy_m, t_s, self.sc.fleet.speed_m_s)
+        self.flight = Flight(path_xy_m, t_s, self.sc.fleet.speed_m_s, seg_speeds_m_s)
         self.home_t_s = None
 
     def account(self, t_s: float) -> None:
@@ -135,10 +152,8 @@ class Vehicle:
             self.accounted_t_s = t_s
             return
         f = self.flight
-        flown = float(f.flown_m(t_s) - f.flown_m(self.accounted_t_s))
-        fly_s = flown / f.speed
-        self.energy_j += float(pw.leg_energy_j(flown, f.speed)) + pw.hover_energy_j(
-            max(0.0, t_s - self.accounted_t_s - fly_s))
+        e_fly, fly_s = f.energy_j(self.accounted_t_s, t_s, pw)
+        self.energy_j += e_fly + pw.hover_energy_j(max(0.0, t_s - self.accounted_t_s - fly_s))
         self.accounted_t_s = t_s
 
     def land_if_home(self, t_s: float) -> None:
@@ -267,6 +282,18 @@ def max_error_m(world: World, statuses: list) -> float:
     return float(np.max(errs)) if errs and not any(math.isnan(e) for e in errs) else math.nan
 
 
+def _orbit_path(task, start_xy_m, cruise_m_s: float):
+    """A task's path with its orbit looks flown (search/orbit.py), and each segment's speed."""
+    from uavloc_gcs.search.orbit import expand_path
+
+    pts = np.asarray(task.waypoints_xy_m, dtype=float).reshape(-1, 2)
+    path, seg_orbit = expand_path(pts[:-1], task.orbits, start_xy_m)
+    path = np.vstack([path, pts[-1:]])  # home
+    seg_orbit = np.append(seg_orbit, -1)
+    speeds = np.array([cruise_m_s if k < 0 else task.orbits[k].speed_m_s for k in seg_orbit])
+    return path, speeds
+
+
 def simulate_mission(
     scenario: Scenario,
     world: World,
@@ -329,7 +356,11 @@ def simulate_mission(
             replans += 1
             for task, v in zip(plan.tasks, vehicles):
                 start = v.flight.position(t).reshape(1, 2)
-                v.fly(np.vstack([start, task.waypoints_xy_m]), t)
+                if any(o is not None for o in getattr(task, "orbits", ())):
+                    path, speeds = _orbit_path(task, start[0], scenario.fleet.speed_m_s)
+                    v.fly(path, t, speeds)
+                else:
+                    v.fly(np.vstack([start, task.waypoints_xy_m]), t)
         t_next = t + dt_s
         if policy.done(t):  # nothing left to learn: jump to the last landing
             t_next = max(t_next, max(v.flight.end_t_s for v in vehicles))

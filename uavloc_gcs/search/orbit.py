@@ -100,11 +100,23 @@ class OrbitLook:
         return self.ring_xy_m(self.entry_xy_m(from_xy_m), points_per_turn)
 
 
-def orbit_speed_m_s(form: str, radius_m: float, cruise_m_s: float) -> float:
-    """The speed [m/s] an orbit of ``radius_m`` is flown at (see ORBIT_SPEED_M_S)."""
-    v0 = ORBIT_SPEED_M_S.get(form, ORBIT_SPEED_M_S["ring"])
-    a_c = v0 * v0 / ORBIT_MEASURED_RADIUS_M
-    return float(min(cruise_m_s, math.sqrt(a_c * max(radius_m, 1.0)), max(v0, 1.0) * 2.0))
+# Ring of waypoints: both autopilots accelerate and brake on every leg, so the speed grows with the
+# leg length L, about sqrt(RING_SPEED_K * L) (measured 3.7-6.1 m/s on 16-31 m legs; orbits.md).
+RING_SPEED_K_M_S2 = 1.0
+
+
+def orbit_speed_m_s(form: str, radius_m: float, cruise_m_s: float,
+                    points_per_turn: int = RING_POINTS_PER_TURN) -> float:
+    """The speed [m/s] an orbit of ``radius_m`` is flown at. NAV_LOITER_TURNS (ArduCopter): the
+    centripetal acceleration the 60 m measurement implies (7.9 m/s: 1.04 m/s^2), v = sqrt(a r),
+    at most the cruise speed (measured 9.4 m/s at 120 m, its 10 m/s limit). Ring: see
+    RING_SPEED_K_M_S2."""
+    if form == "loiter-turns":
+        v0 = ORBIT_SPEED_M_S["loiter-turns"]
+        a_c = v0 * v0 / ORBIT_MEASURED_RADIUS_M
+        return float(min(cruise_m_s, math.sqrt(a_c * max(radius_m, 1.0))))
+    leg = 2.0 * radius_m * math.sin(math.pi / points_per_turn)
+    return float(min(cruise_m_s, math.sqrt(RING_SPEED_K_M_S2 * max(leg, 1.0))))
 
 
 _HEARD_CACHE: dict = {}
@@ -204,14 +216,18 @@ def plan_orbit(sc, centre_xy_m, spread_m: float, autopilot: str | None = None,
 
 @dataclass(frozen=True)
 class LookMission:
-    """A look mission and, per uploaded item from the first look item on, the point [m] where
-    that item counts as reached and the person it looks at (an orbit's first item counts at its
-    entry point, so the look is reported when the orbit begins)."""
+    """A look mission and, per look, the point [m] where it counts as flown (a fly-by's waypoint,
+    an orbit's entry on the circle) and the index in ``plan.items`` of the item that reaches it
+    (the waypoint, the ring's first waypoint, or the NAV_LOITER_TURNS item): a look is reported
+    when its orbit begins, and judged after the orbit's dwell (search/policy.py)."""
 
     plan: MissionPlan
-    item_xy_m: np.ndarray  # (k, 2)
-    item_targets: tuple[int, ...]
-    first_item: int  # index in plan.items of the first look item
+    look_xy_m: np.ndarray  # (k, 2)
+    look_items: tuple[int, ...]
+
+    def look_seqs(self, home_at_seq0: bool) -> tuple[int, ...]:
+        """The wire seq of each look's item (ArduPilot's home is seq 0)."""
+        return tuple(i + (1 if home_at_seq0 else 0) for i in self.look_items)
 
 
 def look_mission(frame, points_xy_m, targets, orbits, *, alt_m: float, speed_m_s: float, autopilot: str,
@@ -226,8 +242,7 @@ def look_mission(frame, points_xy_m, targets, orbits, *, alt_m: float, speed_m_s
     if include_takeoff:
         items.append(takeoff(alt_m, *home_latlon_deg))
     items.append(change_speed(speed_m_s))
-    first = len(items)
-    xy_out, tgt_out = [], []
+    xy_out, idx_out = [], []
     prev = np.zeros(2) if start_xy_m is None else np.asarray(start_xy_m, float)[:2]
 
     def ll(xy):
@@ -236,36 +251,34 @@ def look_mission(frame, points_xy_m, targets, orbits, *, alt_m: float, speed_m_s
 
     for q, tid, orb in zip(pts, targets, orbits):
         if orb is None:
+            idx_out.append(len(items))
             items.append(pass_through_waypoint(*ll(q), alt_m))
             xy_out.append(q)
-            tgt_out.append(tid)
             prev = q
             continue
         entry = orb.entry_xy_m(prev)
+        xy_out.append(entry)
         if orb.form == "loiter-turns" and autopilot == "ardupilot":
-            # NAV_LOITER_TURNS: turns, (heading-required), radius (positive: clockwise), xtrack
+            # NAV_LOITER_TURNS: turns, (heading-required), radius (positive: clockwise), xtrack;
+            # ArduCopter joins the circle at its point nearest to where it comes from (measured)
+            idx_out.append(len(items))
             items.append(MissionItem(NAV_LOITER_TURNS, FRAME_GLOBAL_RELATIVE_ALT,
                                      (float(orb.turns), 0.0, float(orb.radius_m), 0.0), *ll(orb.centre_xy_m), alt_m))
-            xy_out.append(entry)
-            tgt_out.append(tid)
         else:
-            if orb.speed_m_s < speed_m_s - 0.5:
+            ring = orb.ring_xy_m(entry)
+            items.append(pass_through_waypoint(*ll(ring[0]), alt_m))  # to the entry at cruise speed
+            idx_out.append(len(items) - 1)
+            slow = orb.speed_m_s < speed_m_s - 0.5
+            if slow:
                 items.append(change_speed(orb.speed_m_s))
-                xy_out.append(entry)
-                tgt_out.append(tid)
-            for r in orb.ring_xy_m(entry):
-                items.append(pass_through_waypoint(*ll(r), alt_m))
-                xy_out.append(r)
-                tgt_out.append(tid)
-            if orb.speed_m_s < speed_m_s - 0.5:
+            items += [pass_through_waypoint(*ll(r), alt_m) for r in ring[1:]]
+            if slow:
                 items.append(change_speed(speed_m_s))
-                xy_out.append(entry)
-                tgt_out.append(tid)
         prev = entry
     items.append(return_to_launch())
     plan = MissionPlan(tuple(items), float(home_latlon_deg[0]), float(home_latlon_deg[1]), autopilot=autopilot,
                        cruise_speed_m_s=speed_m_s, hover_speed_m_s=5.0)
-    return LookMission(plan, np.asarray(xy_out, float).reshape(-1, 2), tuple(tgt_out), first)
+    return LookMission(plan, np.asarray(xy_out, float).reshape(-1, 2), tuple(idx_out))
 
 
 def expand_path(points_xy_m, orbits, start_xy_m) -> tuple[np.ndarray, np.ndarray]:
@@ -290,3 +303,100 @@ def expand_path(points_xy_m, orbits, start_xy_m) -> tuple[np.ndarray, np.ndarray
             path.append(r)
             seg_orbit.append(i)
     return np.asarray(path), np.asarray(seg_orbit, int)
+
+
+# -- the search policy's orbit looks (called from search/policy.py) ----------------------------------
+
+# Orbit looks instead of fly-bys for people whose phones send probe bursts (no elicitation); False:
+# fly-bys as before. The paper's continuous world never gets orbits.
+ORBIT_LOOKS = True
+# Orbit looks per person that did not locate them before the person is given up.
+MAX_ORBIT_LOOKS = 2
+
+
+def _uses_orbits(policy) -> bool:
+    return bool(ORBIT_LOOKS and getattr(policy, "_bursts", False))
+
+
+def orbit_targets(policy, t_s: float, targets: list) -> list:
+    """The policy's planner targets with every pending person's look made an orbit (burst world):
+    the target's disk is the orbit's circle (the access point is where the vehicle joins it), its
+    service the orbit's whole turns and their energy at the orbit speed. Records the orbits on the
+    policy (``policy._orbits``: person -> OrbitLook centred at ``t_s``, ``policy._orbit_vel``)."""
+    from dataclasses import replace as _replace
+
+    if not _uses_orbits(policy):
+        return targets
+    sc = policy.scenario
+    orbits = policy.__dict__.setdefault("_orbits", {})  # person -> the orbit its look is judged by
+    planned = policy.__dict__.setdefault("_orbit_plan", {})  # person -> the orbit to fly now
+    vels = policy.__dict__.setdefault("_orbit_vel", {})
+    flown = getattr(policy, "_flown", {})
+    pw = sc.power_model
+    out = []
+    for t in targets:
+        eid = int(t.id)
+        p = policy._people.get(eid)
+        if eid in flown and eid in orbits:  # being orbited: the rest of the same orbit
+            old = orbits[eid]
+            left = max(flown[eid] + old.flown_s - t_s, 0.0)
+            orb = _replace(old, dwell_s=left)
+            svc = left
+        else:
+            r95 = policy._radius95(p) if p is not None and p.estimate is not None and policy._ok(p) else math.inf
+            spread = r95 / 2.45 if math.isfinite(r95) else float(sc.horizontal_range_m)  # 95 % of a 2-D normal
+            orb = plan_orbit(sc, t.xy_m, spread)
+            orbits[eid] = orb
+            svc = orb.flown_s
+        planned[eid], vels[eid] = orb, tuple(t.velocity_m_s)
+        out.append(_replace(t, xy_m=t.xy_m if eid not in flown else orb.centre_xy_m, radius_m=orb.radius_m,
+                            service_s=svc, service_energy_j=float(pw.power_w(orb.speed_m_s)) * svc))
+    return out
+
+
+def attach_orbits(policy, plan):
+    """``plan`` (a SearchPlan) with each task's ``orbits``: the OrbitLook of every target (centred
+    where the person is predicted at the planned access time), None for a fly-by."""
+    from dataclasses import replace as _replace
+
+    orbits = getattr(policy, "_orbit_plan", None)
+    if not _uses_orbits(policy) or not orbits:
+        return plan
+    vels = getattr(policy, "_orbit_vel", {})
+    t0 = plan.t0_s
+    tasks = []
+    for task in plan.tasks:
+        row = []
+        for k, eid in enumerate(task.target_ids):
+            orb = orbits.get(int(eid))
+            if orb is None:
+                row.append(None)
+                continue
+            ta = task.access_times_s[k] if k < len(task.access_times_s) else t0
+            vx, vy = vels.get(int(eid), (0.0, 0.0))
+            c = (orb.centre_xy_m[0] + vx * (ta - t0), orb.centre_xy_m[1] + vy * (ta - t0))
+            row.append(_replace(orb, centre_xy_m=c))
+        tasks.append(_replace(task, orbits=tuple(row)))
+    return _replace(plan, tasks=tuple(tasks))
+
+
+def orbit_dwell_s(policy, eid: int) -> float:
+    """Seconds a planned look at ``eid`` lasts beyond its access time (its orbit; 0 for a fly-by)."""
+    orb = getattr(policy, "_orbits", {}).get(int(eid)) if _uses_orbits(policy) else None
+    return 0.0 if orb is None else float(orb.flown_s)
+
+
+def judge_orbit(policy, eid: int, p, heard: bool) -> str | None:
+    """After an orbit look at ``eid`` was judged: None when it was no orbit (the policy's fly-by
+    rules apply), "" to keep looking, or the reason the person is given up."""
+    orb = getattr(policy, "_orbits", {}).pop(int(eid), None) if _uses_orbits(policy) else None
+    if orb is None:
+        return None
+    n = policy.__dict__.setdefault("_orbit_looks", {})
+    n[int(eid)] = n.get(int(eid), 0) + 1
+    if n[int(eid)] < MAX_ORBIT_LOOKS:
+        return ""
+    r95 = policy._radius95(p) if p.estimate is not None else math.nan
+    what = "heard" if heard else "not heard"
+    return (f"not located after {n[int(eid)]} orbit looks of {orb.flown_s:.0f} s ({what} on the last one; 95 % "
+            f"radius {r95:.0f} m); its phone may be in a long silence or gone")

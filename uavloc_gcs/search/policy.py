@@ -42,6 +42,7 @@ import numpy as np
 from ..errors import EstimationError, InfeasibleError
 from ..observations import SlotBatch
 from ..scenario import Scenario
+from . import orbit as orb
 from . import targets as tg
 
 log = logging.getLogger(__name__)
@@ -163,6 +164,7 @@ class VehicleTask:
     target_ids: tuple[int, ...]
     eta_s: float
     access_times_s: tuple[float, ...] = ()
+    orbits: tuple = ()  # per target: search.orbit.OrbitLook (an orbit look) or None (a fly-by)
 
 
 @dataclass(frozen=True)
@@ -564,7 +566,7 @@ class SearchPolicy:
             for e, ta in self._awaiting.items():
                 if ta <= t_s and e not in self._flown:
                     self._flown[e] = ta
-        self._plan = self._to_search_plan(t_s, vehicles, result, runtime)
+        self._plan = orb.attach_orbits(self, self._to_search_plan(t_s, vehicles, result, runtime))
         if getattr(self, "coverage", None) is not None:  # cells below the POD target get another pass
             from .coverage import add_passes
 
@@ -644,7 +646,7 @@ class SearchPolicy:
                 centre, radius = _sideways(centre, radius, starts, unresolved)
             out.append(Target(str(eid), (float(centre[0]), float(centre[1])),
                               (float(vel[0]), float(vel[1])), radius))
-        return out
+        return orb.orbit_targets(self, t_s, out)  # burst world: orbit looks (search/orbit.py)
 
     def _access_radius(self, p: _Person, t_pass_s: float) -> float:
         """The access radius [m] of ``p``'s estimate for a pass at ``t_pass_s``, rounded up to the
@@ -820,9 +822,10 @@ class SearchPolicy:
         changed = set()
         grace_s = self.range_m / self.speed_m_s
         late_s = LOOK_LATE_S if self.look_reports else 0.0
-        due = [(eid, t, self._flown) for eid, t in self._flown.items() if t_s >= t + grace_s]
+        due = [(eid, t, self._flown) for eid, t in self._flown.items()
+               if t_s >= t + grace_s + orb.orbit_dwell_s(self, eid)]
         due += [(eid, t, self._awaiting) for eid, t in self._awaiting.items()
-                if t_s >= t + grace_s + late_s and eid not in self._flown]
+                if t_s >= t + grace_s + late_s + orb.orbit_dwell_s(self, eid) and eid not in self._flown]
         for eid, t_access, book in due:
             del book[eid]
             p = self._people[eid]
@@ -834,7 +837,10 @@ class SearchPolicy:
                 p.misses += 1
                 if self._ambiguous(p):
                     p.flipped = not p.flipped
-            if p.misses >= MAX_MISSES and self._bursts:
+            orbit_verdict = orb.judge_orbit(self, eid, p, heard)  # None: not an orbit look
+            if orbit_verdict is not None:
+                p.gave_up = orbit_verdict
+            elif p.misses >= MAX_MISSES and self._bursts:
                 # a phone heard in bursts is silent most of the time: a fly-by missing it says
                 # little about whether it is still there
                 p.gave_up = (f"not heard on {p.misses} fly-by looks where it was predicted; its phone"
