@@ -52,14 +52,15 @@ STATE_LEGEND = {"located": "located (95 % circle)", "heard": "heard, not located
 
 def result_figure(people, *, area_xy_m: np.ndarray, tracks_xy_m: Mapping[int, np.ndarray],
                   truth_xy_m: Mapping[int, np.ndarray] | None = None, title: str = "Result",
-                  subtitle: str | None = None, coverage=None) -> Figure:
+                  subtitle: str | None = None, coverage=None, terrain=None) -> Figure:
     """The end-of-search map: area, flown tracks, each person's reported position with its 95 %
     circle coloured by state and its label (P01 ...; labels never overlap), the true positions
     joined to their estimates when simulated, launch point, legend, scale bar and north arrow.
 
     ``people``: objects with ``east_m``, ``north_m``, ``radius95_m``, ``state``, ``label`` and
     ``emitter_id`` (``service.results.PersonResult``). ``coverage`` (search.coverage.CoverageSummary):
-    the achieved POD of every cell under it all, red (0: unsearched) to green (the target)."""
+    the achieved POD of every cell under it all, red (0: unsearched) to green (the target).
+    ``terrain`` (uavloc_gcs.terrain.Terrain): hillshade and contours underneath."""
     import math  # noqa: PLC0415
     import textwrap  # noqa: PLC0415
 
@@ -71,6 +72,10 @@ def result_figure(people, *, area_xy_m: np.ndarray, tracks_xy_m: Mapping[int, np
     n_ok = sum(p.state == "located" for p in people)
     fig, ax = maps.new_map(f"{title}: {n_ok} of {len(people)} people located", subtitle=subtitle,
                            extent_m=tuple(span))
+    if terrain is not None:
+        from .terrain import draw_terrain  # noqa: PLC0415
+        draw_terrain(ax, terrain, np.vstack([area, np.zeros((1, 2))]
+                                            + [np.asarray(t).reshape(-1, 2) for t in tracks_xy_m.values()]))
     if coverage is not None:
         draw_pod(fig, ax, coverage)
     maps.draw_area(ax, area)

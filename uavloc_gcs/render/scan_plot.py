@@ -21,6 +21,9 @@ def scan_figure(scenario, plan, *, title: str | None = None) -> Figure:
            f"{scenario.fleet.speed_m_s:g} m/s\n{maps.origin_caption(lat0, lon0)}")
     everything = np.vstack([scenario.area_xy_m(), np.zeros((1, 2))] + [v.route_xy_m() for v in plan.vehicles])
     fig, ax = maps.new_map(head, subtitle=sub, extent_m=tuple(np.ptp(everything, axis=0)))
+    if scenario.dem is not None:  # hillshade and contours of terrain.dem underneath
+        from .terrain import draw_terrain
+        draw_terrain(ax, scenario.dem, everything)
     maps.draw_area(ax, scenario.area_xy_m(), label="search area")
     for v, col in zip(plan.vehicles, colors):
         maps.draw_polygons(ax, list(v.subarea_parts_xy_m), colors=[col] * len(v.subarea_parts_xy_m))

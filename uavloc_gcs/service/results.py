@@ -308,7 +308,8 @@ def results_table(people: Sequence[PersonResult], required_accuracy_m: float,
 def write_results(out_dir: str | Path, people: Sequence[PersonResult], *, frame: LocalFrame,
                   area_latlon_deg: np.ndarray, tracks_latlon_deg: Mapping[int, np.ndarray],
                   required_accuracy_m: float, truth_xy_m: Mapping[int, Sequence[float]] | None = None,
-                  name: str = "uavloc", epoch_unix_s: float | None = None, coverage=None) -> list[Path]:
+                  name: str = "uavloc", epoch_unix_s: float | None = None, coverage=None,
+                  terrain=None) -> list[Path]:
     """Write people.csv, people.geojson, people.kml, result.png and results.txt into ``out_dir``.
     ``epoch_unix_s``: UNIX time of mission time 0 (the UTC times in the files; omitted when None).
     ``coverage`` (search.coverage.CoverageSummary): what was searched, in every file (the POD
@@ -337,7 +338,7 @@ def write_results(out_dir: str | Path, people: Sequence[PersonResult], *, frame:
     png = out / "result.png"
     render_result_png(png, people, frame=frame, area_latlon_deg=area_latlon_deg,
                       tracks_latlon_deg=tracks_latlon_deg, truth_xy_m=truth_xy_m, title=name,
-                      epoch_unix_s=epoch_unix_s, coverage=coverage)
+                      epoch_unix_s=epoch_unix_s, coverage=coverage, terrain=terrain)
     written.append(png)
     return written
 
@@ -345,7 +346,7 @@ def write_results(out_dir: str | Path, people: Sequence[PersonResult], *, frame:
 def render_result_png(path: Path, people: Sequence[PersonResult], *, frame: LocalFrame,
                       area_latlon_deg: np.ndarray, tracks_latlon_deg: Mapping[int, np.ndarray],
                       truth_xy_m: Mapping[int, Sequence[float]] | None, title: str,
-                      epoch_unix_s: float | None = None, coverage=None) -> None:
+                      epoch_unix_s: float | None = None, coverage=None, terrain=None) -> None:
     """The result map in local metres (``render.estimates.result_figure``)."""
     from ..render import maps  # noqa: PLC0415
     from ..render.estimates import result_figure  # noqa: PLC0415
@@ -360,5 +361,5 @@ def render_result_png(path: Path, people: Sequence[PersonResult], *, frame: Loca
     if coverage is not None:
         caption += "\n" + coverage.sentence()
     fig = result_figure(people, area_xy_m=area, tracks_xy_m=tracks, truth_xy_m=truth_xy_m, title=title,
-                        subtitle=caption, coverage=coverage)
+                        subtitle=caption, coverage=coverage, terrain=terrain)
     maps.save_figure(fig, path)

@@ -162,7 +162,8 @@ def _results(outcome: SearchOutcome, daemon: Daemon, scenario: Scenario, connect
     frame = scenario.frame
     files = write_results(out_dir, people, frame=frame, area_latlon_deg=np.array(scenario.polygon_latlon_deg),
                           tracks_latlon_deg=tracks, required_accuracy_m=scenario.people.required_accuracy_m,
-                          truth_xy_m=truth_xy, name=scenario.name, epoch_unix_s=epoch, coverage=summary)
+                          truth_xy_m=truth_xy, name=scenario.name, epoch_unix_s=epoch, coverage=summary,
+                          terrain=scenario.dem)
     table = results_table(people, scenario.people.required_accuracy_m, truth_xy, epoch_unix_s=epoch,
                           coverage=summary)
     return RunResult(outcome, tuple(people), table, tuple(files))
