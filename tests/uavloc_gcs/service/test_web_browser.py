@@ -122,6 +122,10 @@ def test_live_map_shows_vehicles_moving_and_estimates_appearing(tmp_path):
         assert text("#link") == "live"
         # let the search go on a little so the picture shows someone located and (often) a plan
         _wait("someone located", lambda: _shown(driver, "svg g.person[data-state=located]"), 120, proc)
+        # the achieved POD of every cell (search/coverage.py) under the tracks, and the area's in the header
+        cells = _wait("the POD layer", lambda: _shown(driver, "svg g.pod rect.podcell"), 60, proc)
+        assert any(float(c["data-pod"]) > 0 for c in cells), "cells flown over have a POD above 0"
+        assert "POD " in text("#summary") and "target" in text("#summary")
         shot = tmp_path / "live_map.png"
         driver.save_screenshot(str(shot))
         assert shot.read_bytes()[:4] == b"\x89PNG"

@@ -31,6 +31,7 @@ from ..results import person_state, utc_text
 _LOOKS = re.compile(r"(looks at )([\d, ]+)")  # the daemon's "vehicle 2 looks at 17, 42"
 _PERSON = re.compile(r"\bperson (\d+)")  # the statement's "person 17: ..."
 TRACK_STEP_M = 2.0  # a new track point only after this much movement (keeps the page light)
+COVERAGE_PERIOD_S = 2.0  # wall seconds between two recomputations of the achieved POD for the page
 MAX_EVENTS = 500  # the newest events kept for the timeline
 
 
@@ -65,7 +66,8 @@ class MapFeed:
 
     def __init__(self, scenario: Scenario, store_path: str | Path, *,
                  snapshot: Callable[[], StatusSnapshot] | None = None,
-                 epoch: Callable[[], float | None] | None = None, labels: PersonLabels | None = None):
+                 epoch: Callable[[], float | None] | None = None, labels: PersonLabels | None = None,
+                 coverage: Callable[[], object] | None = None):
         self.sc = scenario
         self.frame = scenario.frame
         self.store_path = Path(store_path)
@@ -84,6 +86,8 @@ class MapFeed:
         self.final: list | None = None  # the search's results once written (PersonResult)
         self._cursor = {"telemetry": 0, "events": 0, "estimates": 0}
         self._plan_rowid = 0
+        self.coverage = coverage  # -> search.coverage.Coverage of the running search (None: no POD layer)
+        self._pod: tuple[float, dict | None] = (-math.inf, None)
 
     # -- reading the store (worker thread) ------------------------------------------------------
     def poll(self) -> bool:
@@ -168,7 +172,13 @@ class MapFeed:
         """What never changes during a search: area, launch, frame origin, colours."""
         area = self.sc.area_xy_m()
         lat0, lon0 = (float(v) for v in self.frame.to_wgs84(0.0, 0.0))
-        return {"name": self.sc.name, "origin_lat_deg": lat0, "origin_lon_deg": lon0,
+        cells = None
+        if self.coverage is not None:
+            from ...search.coverage import grid_for  # noqa: PLC0415
+
+            g = grid_for(self.sc)  # the daemon's accumulator's cells, in the same order as its POD
+            cells = {"cell_m": g.cell_m, "xy_m": np.round(g.xy_m, 1).tolist()}
+        return {"name": self.sc.name, "origin_lat_deg": lat0, "origin_lon_deg": lon0, "pod_cells": cells,
                 "area_xy_m": np.round(np.asarray(area, dtype=float), 1).tolist(),
                 "required_accuracy_m": self.sc.people.required_accuracy_m, "state_colors": STATE_COLORS,
                 "vehicles": self.sc.fleet.vehicles}
@@ -177,10 +187,14 @@ class MapFeed:
         e = self.epoch() if self.epoch is not None else None
         return e if e is not None else self.meta.get("epoch_unix_s")
 
-    def set_final(self, people) -> None:
-        """Show the final results (``service.results.PersonResult``, labelled) from now on: the
-        map then says what the files say."""
+    def set_final(self, people, coverage=None) -> None:
+        """Show the final results (``service.results.PersonResult``, labelled) from now on, and the
+        final coverage claims (search.coverage.CoverageSummary) if given: the map then says what
+        the files say."""
         self.final = list(people)
+        if coverage is not None:
+            self._pod = (math.inf, {**coverage.to_dict(), "pod": np.round(coverage.pod1, 2).tolist(),
+                                    "statement": coverage.sentence()})
         self.finished = True
         self.version += 1
 
@@ -250,6 +264,18 @@ class MapFeed:
                           "targets": targets, "labels": [self.labels.name(t) for t in targets]})
         return {"t_s": _f(self.plan.get("t_s"), 1), "tasks": tasks}
 
+    def _coverage(self) -> dict | None:
+        """The achieved POD now (per cell, in ``static()["pod_cells"]`` order, and the area's figures
+        with the statement), recomputed at most every COVERAGE_PERIOD_S."""
+        cov = self.coverage() if self.coverage is not None else None
+        if cov is None:
+            return None
+        now = time.monotonic()
+        if now - self._pod[0] >= COVERAGE_PERIOD_S or self._pod[1] is None:
+            s = cov.summary()
+            self._pod = (now, {**s.to_dict(), "pod": np.round(s.pod1, 2).tolist(), "statement": s.sentence()})
+        return self._pod[1]
+
     def live(self) -> dict:
         """The part that changes: clock, vehicles, people, plan (without tracks and events)."""
         snap = self.snapshot() if self.snapshot is not None else None
@@ -258,7 +284,7 @@ class MapFeed:
         return {"t_s": _f(t_s, 1), "epoch_unix_s": self._epoch(), "slots": snap.slots if snap is not None else None,
                 "replans": snap.replans if snap is not None else None, "finished": self.finished,
                 "wall_unix_s": round(time.time(), 1), "vehicles": self._vehicles(snap), "people": self._people(snap),
-                "plan": self._plan()}
+                "plan": self._plan(), "coverage": self._coverage()}
 
     def state(self) -> dict:
         """Everything, for a page that just connected."""

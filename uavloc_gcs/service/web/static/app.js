@@ -111,6 +111,7 @@
     tiles(gTiles);
     const area = S.static.area_xy_m;
     el("polygon", { points: poly(area), fill: "rgba(68,68,68,0.06)", stroke: "#444", "stroke-width": 2, class: "area" }, svg);
+    podLayer();
     const vcol = {};
     for (const v of S.vehicles) vcol[v.id] = v.color;
     const gTracks = el("g", { class: "tracks" }, svg);
@@ -184,6 +185,25 @@
     decorations();
   }
 
+  // the achieved POD of every cell (search/coverage.py): red 0 (unsearched) .. green at the target
+  function podColor(p, target) {
+    const f = Math.max(0, Math.min(1, target > 0 ? p / target : 1));
+    const mix = (a, b, t) => Math.round(a + (b - a) * t);
+    return f < 0.5 ? `rgb(214,${mix(39, 190, f * 2)},40)` : `rgb(${mix(214, 44, (f - 0.5) * 2)},${mix(190, 160, (f - 0.5) * 2)},${mix(40, 44, (f - 0.5) * 2)})`;
+  }
+  function podLayer() {
+    const cells = S.static.pod_cells, cov = S.coverage;
+    if (!cells || !cov || !cov.pod || cov.pod.length !== cells.xy_m.length) return;
+    const g = el("g", { class: "pod" }, svg);
+    const h = cells.cell_m / 2, w = cells.cell_m * view.s + 0.5;
+    cells.xy_m.forEach(([e, n], i) => {
+      const [x, y] = px(e - h, n + h);
+      el("rect", { x: x.toFixed(1), y: y.toFixed(1), width: w.toFixed(1), height: w.toFixed(1),
+                   fill: podColor(cov.pod[i], cov.pod_target), "fill-opacity": 0.33, class: "podcell",
+                   "data-pod": cov.pod[i] }, g);
+    });
+  }
+
   function decorations() {
     // scale bar (bottom right) and north arrow (top left)
     const L = niceLength(W / 5 / view.s), w = L * view.s;
@@ -220,7 +240,10 @@
     const nLoc = S.people.filter((p) => p.state === "located").length;
     document.getElementById("summary").textContent =
       `located ${nLoc}/${S.people.length} within ${S.static.required_accuracy_m} m` +
-      (ok(S.slots) ? ` · slots ${S.slots}` : "") + (ok(S.replans) ? ` · replans ${S.replans}` : "");
+      (ok(S.slots) ? ` · slots ${S.slots}` : "") + (ok(S.replans) ? ` · replans ${S.replans}` : "") +
+      (S.coverage ? ` · POD ${fmt(S.coverage.pod_overall, 2)} (target ${fmt(S.coverage.pod_target, 2)})` +
+                    (S.coverage.unsearched_m2 > 0 ? ` · unsearched ${fmt(S.coverage.unsearched_m2 / 1e6, 3)} km²` : "") : "");
+    document.getElementById("summary").title = S.coverage ? S.coverage.statement : "";
     const vb = document.querySelector("#vehicles tbody");
     vb.textContent = "";
     for (const v of S.vehicles) {
@@ -252,6 +275,7 @@
       lg.appendChild(sw); lg.appendChild(document.createTextNode(k));
     }
     lg.appendChild(document.createTextNode(" · dashed: planned looks, mirror candidate"));
+    if (S.coverage) lg.appendChild(document.createTextNode(" · cells: achieved POD, red 0 (unsearched) to green (target)"));
   }
   function addEvents(list) {
     const ol = document.getElementById("events");
@@ -282,7 +306,7 @@
       for (const [v, pts] of Object.entries(d.tracks_append)) (S.tracks[v] = S.tracks[v] || []).push(...pts);
       S.events.push(...d.events_append);
       addEvents(d.events_append);
-      for (const k of ["t_s", "epoch_unix_s", "slots", "replans", "finished", "vehicles", "people", "plan"]) S[k] = d[k];
+      for (const k of ["t_s", "epoch_unix_s", "slots", "replans", "finished", "vehicles", "people", "plan", "coverage"]) S[k] = d[k];
       link(S.finished ? "search finished" : "live", S.finished ? "done" : "up");
       panels(); draw();
     });
