@@ -56,8 +56,8 @@ _MAX_LAYOUTS = 4096
 
 def _layout(data: bytes, hlen: int) -> tuple[tuple | None, int]:
     """Walk the present words of a radiotap header: (layout, end of present words). A layout is
-    (signal offsets, flags offset, channel offset, xchannel offset, needs_vendor_walk); offsets are
-    -1 when absent. Raises Malformed."""
+    (signal offsets, flags offset, channel offset, xchannel offset); offsets are -1 when absent.
+    Raises Malformed."""
     pos = 4
     words = []
     while True:
@@ -75,14 +75,7 @@ def _layout(data: bytes, hlen: int) -> tuple[tuple | None, int]:
     off = pos
     sig: list[int] = []
     flags = chan = xchan = -1
-    vendor = False
     for w in words:
-        if vendor:  # data of a vendor namespace was skipped with its header
-            if w & (1 << 29):
-                vendor = False
-            elif w & (1 << 30):
-                pass
-            continue
         for bit in range(29):
             if not w & (1 << bit):
                 continue
@@ -106,20 +99,14 @@ def _layout(data: bytes, hlen: int) -> tuple[tuple | None, int]:
                 raise Malformed("bad_radiotap")
             skip = _U16.unpack_from(data, off + 4)[0]
             off += 6 + skip
-            vendor = True
-            layout = (tuple(sig), flags, chan, xchan, off)
-            # a data-dependent skip: not cached, the rest is walked for this frame only
-            return _rest_after_vendor(data, hlen, words, w, layout), pos
+            if off > hlen:
+                raise Malformed("bad_radiotap")
+            # the skip depends on this frame's data: the layout is not cached, and fields after the
+            # vendor namespace (rare: drivers put it last) are not read
+            return (tuple(sig), flags, chan, xchan), pos
     if off > hlen:
         raise Malformed("bad_radiotap")
     return _finish(key, sig, flags, chan, xchan), pos
-
-
-def _rest_after_vendor(data, hlen, words, _w, layout):
-    sig, flags, chan, xchan, off = layout
-    if off > hlen:
-        raise Malformed("bad_radiotap")
-    return (sig, flags, chan, xchan)  # fields after a vendor namespace are not read
 
 
 def _finish(key: bytes, sig, flags, chan, xchan):

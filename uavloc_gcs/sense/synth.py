@@ -51,8 +51,9 @@ def channel_freq(ch: int) -> int:
 
 
 def radiotap(tsft: int, freq: int, rssi: int, ant: tuple[int, int]) -> bytes:
-    """A 3-word radiotap header: TSFT, flags (FCS at end), rate, channel, signal, noise, then two
-    antenna namespaces (signal, index). 8 + 8 (pad to 8 for TSFT is already met at 16) ..."""
+    """A radiotap header with three present words: TSFT, flags (FCS at end), rate, channel, combined
+    signal and noise, then two antenna namespaces (signal, antenna index). The 16-byte preamble
+    (version, pad, length, 3 present words) leaves TSFT 8-aligned without padding."""
     h = struct.pack("<BBHIII", 0, 0, 0, *RADIOTAP_PRESENT)  # 16 bytes: TSFT is 8-aligned here
     h += struct.pack("<QBBHHbb", tsft, 0x10, 2, freq, 0x00a0, rssi, -95)
     h += struct.pack("<bBbB", ant[0], 0, ant[1], 1)
