@@ -76,7 +76,8 @@ async def _run(daemon: Daemon, scenario: Scenario, options: DaemonOptions, web, 
     if web is not None:
         from .web import MapFeed, MapServer  # noqa: PLC0415 (aiohttp only when the map is wanted)
 
-        feed = MapFeed(scenario, options.store_path, snapshot=daemon.snapshot, epoch=lambda: daemon.epoch_unix_s)
+        feed = MapFeed(scenario, options.store_path, snapshot=daemon.snapshot, epoch=lambda: daemon.epoch_unix_s,
+                       coverage=lambda: getattr(daemon, "coverage", None))
         server = await MapServer(feed, web).start()
         if on_web_url is not None:
             on_web_url(server.url)
@@ -84,7 +85,7 @@ async def _run(daemon: Daemon, scenario: Scenario, options: DaemonOptions, web, 
         outcome = await _until_stopped(daemon)  # Ctrl-C / SIGTERM: the fleet is told what to do first
         result = await asyncio.to_thread(finish, outcome)  # the map keeps answering meanwhile
         if feed is not None:
-            feed.set_final(result.people)  # the map then shows what the files say
+            feed.set_final(result.people, result.outcome.coverage)  # the map then shows what the files say
         if on_result is not None:
             on_result(result)
         if server is not None and web.keep:
