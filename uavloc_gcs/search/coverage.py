@@ -402,6 +402,24 @@ def final_summary(cov: Coverage, target: float | None = None) -> CoverageSummary
     return summarize(cov.grid, np.asarray(g.pod1)[inside], np.asarray(g.pod2)[inside], target, density, cov.flown_s)
 
 
+def add_stored(cov: Coverage, store_path) -> int:
+    """Feed ``cov`` the telemetry a store kept (a restarted daemon: what was flown before the
+    restart stays searched); the number of rows read."""
+    import sqlite3  # noqa: PLC0415
+
+    conn = sqlite3.connect(f"file:{store_path}?mode=ro", uri=True)
+    try:
+        rows = conn.execute("SELECT t_s, vehicle, lat_deg, lon_deg, alt_m FROM telemetry "
+                            "WHERE lat_deg IS NOT NULL AND t_s IS NOT NULL ORDER BY vehicle, t_s").fetchall()
+    except sqlite3.OperationalError:  # no telemetry table yet
+        rows = []
+    finally:
+        conn.close()
+    for t, v, lat, lon, alt in rows:
+        cov.add_telemetry(int(v), float(t), lat, lon, alt)
+    return len(rows)
+
+
 def coverage_from_store(sc, rows) -> Coverage:
     """The coverage of a finished (or resumed) search from its stored telemetry rows
     (``service.store.TelemetryRow``-like: t_s, vehicle, lat_deg, lon_deg, alt_m)."""

@@ -86,3 +86,21 @@ def test_summary_of_nothing_flown_says_so():
     s = summarize(cov.grid, cov.pod(1), cov.pod(2), 0.9, None)
     assert s.nothing_flown and s.sentence().startswith("Nothing flew")
     assert s.expected_missed is None
+
+
+def test_a_restarted_daemon_gets_back_what_was_flown_from_the_store(tmp_path):
+    from uavloc_gcs.search.coverage import add_stored
+    from uavloc_gcs.service.store import Store, TelemetryRow
+
+    sc = small_scenario()
+    xs = np.linspace(0.0, 400.0, 60)
+    ll = sc.frame.to_wgs84_latlon(np.column_stack([xs, np.full(60, 100.0)]))
+    with Store(tmp_path / "s.sqlite") as st:
+        st.add_telemetry([TelemetryRow(float(i), 1, float(a), float(b), 60.0, 90.0, "AUTO", 1, False)
+                          for i, (a, b) in enumerate(ll)])
+    fresh = Coverage(sc)
+    _lane(fresh, 1, 100.0, 0.0, 400.0, speed=400.0 / 59.0, dt=1.0)
+    resumed = Coverage(sc)
+    assert add_stored(resumed, tmp_path / "s.sqlite") == 60
+    assert resumed.overall() > 0.5
+    assert np.allclose(resumed.pod(1), fresh.pod(1), atol=0.02)
