@@ -56,6 +56,9 @@ class FleetPreparation:
             missions = rd.latest_missions()
             self._seq_before_crash = rd.last_mission_seq()
         self.policy.ingest(slots)
+        from ..search.coverage import add_stored  # noqa: PLC0415
+
+        add_stored(self.coverage, self.opt.store_path)  # what was flown before the restart stays searched
         self._n_slots = len(slots)
         self._event("resume", f"resuming the search: {len(slots)} slots and {len(missions)} missions reloaded")
         return missions
