@@ -1,9 +1,16 @@
-"""Whole ``uavloc daemon`` searches against the real SITL autopilots (issue 14, item 1).
+"""Whole ``uavloc daemon`` searches against the real SITL autopilots (issue 14, item 1; issue 24
+item 5: the field world).
 
-Each: the companion emulator supplies the RSSI of 3 simulated static people in a 300 m x 300 m
-area; the daemon runs as a child process to its end. Checked: exit 0, every person heard located,
-at most one of them outside their 95 % circle and none outside their 99.9 % circle, a handful of
-uploads per vehicle, every vehicle landed and disarmed at home. Durations are in docs/readme/sitl.md.
+Each: the companion emulators supply the RSSI of 3 simulated static people in a 300 m x 300 m
+area; the daemon runs as a child process to its end. In the field world (probe bursts, a receiver
+threshold; most searches here) today's search hears few people twice, so the checks are what it may
+honestly claim (daemon_run.field_check): it ends, every vehicle is home, every reported person was
+heard, nobody is located without bursts or far from the truth, and the figures are printed. The
+look-phase test keeps the paper's world, where people are heard often enough for looks to locate:
+exit 0, every person heard located, at most one outside their 95 % circle and none outside their
+99.9 % circle, a handful of uploads per vehicle. Two ArduCopters at once and a PX4 searching twice
+(previously flown), started by ``uavloc sitl`` itself: test_sitl_command.py. Durations are in
+docs/readme/sitl.md.
 """
 
 from __future__ import annotations
@@ -49,22 +56,11 @@ def _check(run, scenario, vehicles):
         assert ok, f"vehicle {v.sitl.sysid}: {why}"
 
 
-def test_one_arducopter_whole_search(sitl, tmp_path):
-    v = dr.start_arducopter(sitl)
-    sc = dr.load(dr.scenario_text("ap1", "ardupilot", [v]), tmp_path / "mission.toml")
+def _field_search(sitl, tmp_path, v, name: str, kind: str, seed: int = 3, tag: str = ""):
+    sc = dr.load(dr.scenario_text(name, kind, [v], seed=seed, world="field"), tmp_path / f"{name}.toml")
     with dr.Companions(sc, [v]):
-        run = dr.run_daemon(tmp_path / "mission.toml", tmp_path / "out")
-    print(f"one ArduCopter: {run.wall_s:.0f} s wall")
-    _check(run, sc, [v])
-
-
-def test_two_arducopters_together(sitl, tmp_path):
-    vs = [dr.start_arducopter(sitl, sysid=1), dr.start_arducopter(sitl, sysid=2)]
-    sc = dr.load(dr.scenario_text("ap2", "ardupilot", vs), tmp_path / "mission.toml")
-    with dr.Companions(sc, vs):
-        run = dr.run_daemon(tmp_path / "mission.toml", tmp_path / "out")
-    print(f"two ArduCopters: {run.wall_s:.0f} s wall")
-    _check(run, sc, vs)
+        run = dr.run_daemon(tmp_path / f"{name}.toml", tmp_path / f"out-{name}")
+    return dr.field_check(run, sc, [v], tag or name)
 
 
 SPARSE_SCAN = "[scan]\nlane_spacing_m = 220.0\ncoverage = \"single\""  # two lanes: people are left for looks
@@ -86,36 +82,13 @@ def test_a_search_with_looks_replans_without_churn(sitl, tmp_path, kind):
     (``uavloc bench looks --scenario benchmarks/scenarios/sitl_sparse_scan.toml --people 3
     --runs 40`` with ``required_accuracy_m = 10``)."""
     v = dr.start_px4(sitl) if kind == "px4" else dr.start_arducopter(sitl)
-    sc = dr.load(dr.scenario_text(f"{kind}-looks", kind, [v], scan=SPARSE_SCAN, required_m=LOOKS_REQUIRED_M),
-                 tmp_path / "mission.toml")
+    sc = dr.load(dr.scenario_text(f"{kind}-looks", kind, [v], scan=SPARSE_SCAN, required_m=LOOKS_REQUIRED_M,
+                                  world="paper"), tmp_path / "mission.toml")
     with dr.Companions(sc, [v]):
         run = dr.run_daemon(tmp_path / "mission.toml", tmp_path / "out")
     print(f"{kind} with looks: {run.wall_s:.0f} s wall")
     _check(run, sc, [v])
     assert re.search(r"replans [1-9]", run.output), "the look phase ran"
-
-
-def test_one_px4_whole_search_with_rssi_beside_the_autopilot(sitl, tmp_path):
-    v = dr.start_px4(sitl)
-    sc = dr.load(dr.scenario_text("px4", "px4", [v]), tmp_path / "mission.toml")
-    with dr.Companions(sc, [v]):
-        run = dr.run_daemon(tmp_path / "mission.toml", tmp_path / "out")
-    print(f"one PX4: {run.wall_s:.0f} s wall")
-    _check(run, sc, [v])
-
-
-@pytest.mark.parametrize("kind", ["px4", "ardupilot"])
-def test_a_previously_flown_vehicle_searches_again(sitl, tmp_path, kind):
-    """PX4 keeps reporting the last mission "complete" after a flight; taken at face value it ended
-    the next search right after its scan started (exit 1, no RTL). Two searches in a row on the
-    same vehicle: the second must run to its end like the first."""
-    v = dr.start_px4(sitl) if kind == "px4" else dr.start_arducopter(sitl)
-    for k in range(2):
-        sc = dr.load(dr.scenario_text(f"{kind}-again{k}", kind, [v], seed=3 + k), tmp_path / f"m{k}.toml")
-        with dr.Companions(sc, [v]):
-            run = dr.run_daemon(tmp_path / f"m{k}.toml", tmp_path / f"out{k}")
-        print(f"{kind} search {k + 1}: {run.wall_s:.0f} s wall")
-        _check(run, sc, [v])
 
 
 @pytest.mark.parametrize("kind", ["ardupilot", "px4"])
@@ -128,8 +101,4 @@ def test_a_freshly_booted_vehicle_searches(sitl, tmp_path, kind):
     non-strict xfail for that until 2026-11-24; 16 runs in a row have passed since.)"""
     wait = "heartbeat" if kind == "ardupilot" else "none"
     v = dr.start_px4(sitl, wait=wait) if kind == "px4" else dr.start_arducopter(sitl, wait=wait)
-    sc = dr.load(dr.scenario_text(f"{kind}-fresh", kind, [v]), tmp_path / "mission.toml")
-    with dr.Companions(sc, [v]):
-        run = dr.run_daemon(tmp_path / "mission.toml", tmp_path / "out")
-    print(f"{kind} freshly booted: {run.wall_s:.0f} s wall")
-    _check(run, sc, [v])
+    _field_search(sitl, tmp_path, v, f"{kind}-fresh", kind, tag=f"{kind} freshly booted, field world")
