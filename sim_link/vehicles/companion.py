@@ -61,7 +61,7 @@ class CompanionStats:
 class CompanionEmulator:
     def __init__(self, scenario: Scenario, autopilot_url: str, *, world=None, seed: int | None = None,
                  epoch_unix_s: float | None = None, signing_key: bytes | None = None, max_gap_s: float = MAX_GAP_S,
-                 rssi_url: str | None = None):
+                 rssi_url: str | None = None, via_sense: bool = False):
         if world is None:
             from ..world import World
 
@@ -70,6 +70,7 @@ class CompanionEmulator:
         self.world = world
         self.url = autopilot_url
         self.rssi_url = rssi_url
+        self.via_sense = via_sense  # send what the real sensor makes of the world's frames (sensor_feed)
         self._rssi_link: ByteLink | None = None
         self.epoch_unix_s = epoch_unix_s
         self.max_gap_s = max_gap_s
@@ -192,6 +193,10 @@ class CompanionEmulator:
         if len(ts) == 0:
             return
         heard = self.world.hear_track(self.sysid, ts, track)
+        if self.via_sense:
+            from .sensor_feed import through_sensor
+
+            heard = through_sensor(heard, slot, self.epoch_unix_s)
         self.stats.slots += len(heard)
         for m in self._batcher.add(heard) + self._batcher.flush(now_s=t):
             self.stats.messages += 1

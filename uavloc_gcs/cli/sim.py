@@ -40,6 +40,9 @@ def register(sub) -> None:
                    help="with --companion: send the RSSI beside the autopilot to this connection (e.g. "
                         "udpout:127.0.0.1:14600, the daemon's [link] rssi_connections entry) instead of "
                         "through it; PX4 drops the RSSI message, ArduPilot forwards it only with MAVn_OPTIONS bit 3")
+    p.add_argument("--via-sense", action="store_true",
+                   help="with --companion: turn the simulated slots into radiotap probe requests and send what "
+                        "uavloc sense's parser and aggregator make of them (docs/readme/sense.md)")
     p.set_defaults(func=run)
 
 
@@ -105,7 +108,8 @@ async def _run_companion(args, scenario, key, stop) -> None:
     parse_url(args.autopilot)
     if args.rssi_to is not None:
         parse_url(args.rssi_to)
-    comp = CompanionEmulator(scenario, args.autopilot, seed=args.seed, signing_key=key, rssi_url=args.rssi_to)
+    comp = CompanionEmulator(scenario, args.autopilot, seed=args.seed, signing_key=key, rssi_url=args.rssi_to,
+                             via_sense=args.via_sense)
     path = f"beside the autopilot to {args.rssi_to}" if args.rssi_to else "through the autopilot"
     print(f"uavloc sim: companion emulator on {args.autopilot}: {len(comp.world)} simulated people, "
           f"UAVLOC_RSSI_BATCH from component 191 {path}; Ctrl-C to stop", flush=True)

@@ -1,0 +1,82 @@
+"""The simulated companion's slots through the real sensor (``uavloc sim --companion --via-sense``)."""
+
+from __future__ import annotations
+
+import asyncio
+
+import numpy as np
+
+from uavloc_gcs.dialect import mavlink as mav
+from uavloc_gcs.dialect.rssi import decode_rssi_batches
+from uavloc_gcs.observations import SlotBatch
+from uavloc_gcs.scenario import load_scenario
+from sim_link.vehicles.companion import CompanionEmulator
+from sim_link.vehicles.fleet import FakeFleet
+from sim_link.vehicles.sensor_feed import frames_for, through_sensor
+from sim_link.world import World
+
+from .mavclient import MavClient
+
+SC = load_scenario("examples/paper.toml").replace(fleet={"vehicles": 1})
+
+
+def _heard(n=60, seed=0):
+    rng = np.random.default_rng(seed)
+    t = np.sort(rng.choice(2000, n, replace=False)) * 0.025
+    addr = rng.integers(0, 2**48, n)
+    return SlotBatch.from_columns(t, np.full(n, 2), rng.normal(size=(n, 3)), addr, rng.uniform(-90, -40, n),
+                                  rng.integers(1, 12, n), address=addr, fingerprint=rng.choice([11, 22, 33], n),
+                                  channel=rng.choice([1, 6, 11], n))
+
+
+def test_slots_survive_the_sensor():
+    h = _heard()
+    out = through_sensor(h, 0.025, 1.75e9)
+    assert len(out) == len(h)
+    o = np.argsort(out.address)
+    i = np.argsort(h.address)
+    assert np.array_equal(out.address[o], h.address[i])
+    assert np.array_equal(out.n_samples[o], h.n_samples[i]) and np.array_equal(out.channel[o], h.channel[i])
+    assert np.abs(out.rssi_dbm[o] - h.rssi_dbm[i]).max() <= 0.5  # whole dBm per frame, as drivers report
+    assert np.array_equal(out.xyz_m[o], h.xyz_m[i]) and np.allclose(out.t_s[o], h.t_s[i])
+    # the sensor's own fingerprints, one per world fingerprint
+    pairs = set(zip(h.fingerprint[i].tolist(), out.fingerprint[o].tolist()))
+    assert len(pairs) == 3 and len({b for _, b in pairs}) == 3
+
+
+def test_the_frames_are_a_capture_the_cli_reads(tmp_path):
+    from uavloc_gcs.cli import main
+
+    (tmp_path / "c.pcap").write_bytes(frames_for(_heard(20), 0.025, 1.75e9))
+    assert main(["sense", str(tmp_path / "c.pcap"), "--out", str(tmp_path / "o")]) == 0
+    rows = (tmp_path / "o" / "frames.csv").read_text().splitlines()
+    assert len(rows) - 1 == int(_heard(20).n_samples.sum())
+
+
+def test_companion_via_sense_on_a_fake_autopilot():
+    world = World.with_people(SC, [[0.0, 60.0], [30.0, -40.0], [900.0, 500.0]], seed=3)
+
+    async def main():
+        async with FakeFleet(SC, speedup=20, seed=1, base_port=0, world=world, onboard_rssi=False,
+                             route=True) as fleet:
+            url = fleet.endpoints[0][1]
+            comp = CompanionEmulator(SC, url, world=world, epoch_unix_s=fleet.epoch_unix_s, via_sense=True)
+            stop = asyncio.Event()
+            task = asyncio.create_task(comp.run(stop))
+            gcs = await MavClient.connect(url)
+            await gcs.recv("HEARTBEAT")
+            assert (await gcs.command(1, mav.MAV_CMD_DO_SET_MODE, 1, 4)).result == 0
+            assert (await gcs.command(1, mav.MAV_CMD_COMPONENT_ARM_DISARM, 1)).result == 0
+            assert (await gcs.command(1, mav.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, 100)).result == 0
+            await asyncio.sleep(1.2)
+            stop.set()
+            await task
+            msgs = [m for m in gcs.log if m.get_type() == "UAVLOC_RSSI_BATCH2"]
+            assert msgs and comp.stats.slots > 0
+            slots = decode_rssi_batches(msgs, SC.frame, epoch_unix_s=fleet.epoch_unix_s)
+            # the near people, by their addresses; whole-dBm frames; the sensor's channel and fingerprint
+            assert set(slots.address.tolist()) == set(world.emitter_ids[:2].tolist())
+            assert np.all(slots.channel == 6) and np.all(slots.fingerprint > 0)
+            assert np.abs(slots.xyz_m[:, :2]).max() < 1.0
+            gcs.close()
+    asyncio.run(asyncio.wait_for(main(), 90))
