@@ -146,3 +146,53 @@ def test_a_scenario_without_fleet_says_the_default_fleet_is_assumed(tmp_path, ca
 def test_bench_counts_out_of_range_are_one_sentence(capsys, args):
     r = _inproc(capsys, "bench", *args)
     one_sentence(r, f"argument {args[1]}")
+
+
+# ---------------------------------------------------------------------------------------------
+# demo, daemon, localize: flags named, nothing left behind
+
+@pytest.mark.parametrize("args, flag", [(["--people", "-1"], "--people"), (["--people", "100000"], "--people"),
+                                        (["--speedup", "0"], "--speedup"), (["--seed", "-1"], "--seed"),
+                                        (["--loss", "2"], "--loss"), (["--base-port", "70000"], "--base-port")])
+def test_demo_flags_are_blamed_on_the_flag(tmp_path, capsys, args, flag):
+    r = _inproc(capsys, "demo", "--scenario", "paper", "--no-web", "--out", tmp_path / "d", *args)
+    line = one_sentence(r, f"argument {flag}")
+    assert "paper.toml" not in line
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_demo_into_a_directory_that_cannot_be_made_is_one_sentence(capsys):
+    r = _inproc(capsys, "demo", "--scenario", "small", "--no-web", "--out", "/proc/uavloc-x")
+    one_sentence(r, "/proc/uavloc-x")
+
+
+def test_a_daemon_that_never_reached_its_vehicle_leaves_nothing_behind(tmp_path):
+    cfg = (EXAMPLES / "sitl_arducopter.toml").read_text().replace(
+        'connections = ["udpin:127.0.0.1:14550"]', 'connections = ["udpout:127.0.0.1:9"]')
+    (tmp_path / "m.toml").write_text(cfg)
+    r = uavloc("daemon", "--config", tmp_path / "m.toml", "--no-web", "--connect-timeout", "2",
+               "--out", tmp_path / "out", timeout=300)
+    one_sentence(r, "no heartbeat", code=3)
+    assert not (tmp_path / "out").exists()  # no .uavloc.lock, search.sqlite or empty .tlog
+
+
+def test_the_daemon_refuses_a_scenario_without_fleet(tmp_path):
+    text = (EXAMPLES / "sitl_arducopter.toml").read_text()
+    start = text.index("[fleet]")
+    end = text.index("[", start + 1)
+    text = text[:start] + text[end:]  # four default vehicles: four connections, so only [fleet] is missing
+    text = text.replace('connections = ["udpin:127.0.0.1:14550"]',
+                        "connections = [" + ", ".join(f'"udpout:127.0.0.1:{9 + i}"' for i in range(4)) + "]")
+    (tmp_path / "m.toml").write_text(text)
+    r = uavloc("daemon", "--config", tmp_path / "m.toml", "--no-web", "--out", tmp_path / "out")
+    one_sentence(r, "key 'fleet'", "default fleet")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["m.toml"]
+
+
+@pytest.mark.parametrize("value, needle", [("nan", "argument --t-ref: must be a finite number"),
+                                           ("1e12", "--t-ref 1e+12: must be within an hour")])
+def test_localize_t_ref_far_from_the_slots_is_refused(tmp_path, capsys, value, needle):
+    r = _inproc(capsys, "localize", EXAMPLES / "slots_small.csv", "--scenario", "small", "--t-ref", value,
+                "--out", tmp_path / "o")
+    one_sentence(r, needle)
+    assert list(tmp_path.iterdir()) == []

@@ -15,7 +15,7 @@ import queue as queue_mod
 import signal
 from dataclasses import dataclass
 
-from ..errors import LinkError
+from ..errors import LinkError, UavlocError
 
 START_TIMEOUT_S = 30.0
 
@@ -58,12 +58,15 @@ def _child(scenario, kwargs: dict, queue, stop, commands, parent_pid: int) -> No
     from sim_link.vehicles.fleet import FakeFleet
 
     async def main() -> None:
-        fleet = FakeFleet(scenario, **kwargs)
         try:
+            fleet = FakeFleet(scenario, **kwargs)
             await fleet.start()
         except OSError as exc:
             queue.put(("error", f"cannot open the fake vehicles' UDP ports ({exc.strerror}); "
                                 "try another --base-port"))
+            return
+        except Exception as exc:  # said in the parent, not as a child's traceback and a 30 s wait
+            queue.put(("failed", f"the fake fleet could not start: {type(exc).__name__}: {exc}"))
             return
         queue.put(("ok", fleet.endpoints, fleet.epoch_unix_s, fleet.speedup))
         while not stop.is_set() and os.getppid() == parent_pid:
@@ -84,7 +87,17 @@ def start_fleet_process(scenario, **kwargs) -> FleetProcess:
                        name="uavloc-fake-fleet", daemon=True)
     proc.start()
     try:
-        msg = queue.get(timeout=START_TIMEOUT_S)
+        msg = None
+        for _ in range(int(START_TIMEOUT_S / 0.5)):
+            try:
+                msg = queue.get(timeout=0.5)
+                break
+            except queue_mod.Empty:
+                if not proc.is_alive():  # died without a word (killed, out of memory)
+                    raise UavlocError(f"the fake fleet's process ended at start (exit code {proc.exitcode})") \
+                        from None
+        if msg is None:
+            raise queue_mod.Empty
     except queue_mod.Empty:
         _kill(proc)
         raise LinkError(f"the fake fleet did not start within {START_TIMEOUT_S:g} s", operation="demo") from None
@@ -93,5 +106,5 @@ def start_fleet_process(scenario, **kwargs) -> FleetProcess:
         raise
     if msg[0] != "ok":
         proc.join(5)
-        raise LinkError(msg[1], operation="demo")
+        raise (LinkError(msg[1], operation="demo") if msg[0] == "error" else UavlocError(msg[1]))
     return FleetProcess(msg[1], msg[2], msg[3], proc, stop, commands)

@@ -101,3 +101,45 @@ def require_fleet(sc) -> None:
     if not _has_section(sc, "fleet"):
         raise ConfigError(f"missing: the daemon flies real vehicles and does not assume the default fleet "
                           f"({_default_fleet(sc)}); add a [fleet] section", source=sc.source, key="fleet")
+
+
+def existing_files(out) -> set:
+    """The files in directory ``out`` now (to tell later which ones a failed run created)."""
+    from pathlib import Path
+
+    out = Path(out)
+    return {p.name for p in out.iterdir()} if out.is_dir() else set()
+
+
+def discard_empty_leftovers(out, before: set) -> None:
+    """After a run that failed: remove what it created in ``out`` that holds nothing -- empty
+    files (a .tlog no vehicle ever wrote to) and a store with no rows beyond its header -- so a
+    failure leaves nothing behind. A store or log with data stays (a later run resumes from it)."""
+    import sqlite3
+    from pathlib import Path
+
+    out = Path(out)
+    if not out.is_dir():
+        return
+    for p in sorted(out.iterdir()):
+        if p.name in before or not p.is_file():
+            continue
+        if p.suffix == ".sqlite" and _store_is_empty(p, sqlite3):
+            for q in (p, p.with_name(p.name + "-wal"), p.with_name(p.name + "-shm"), p.with_name(p.name + "-journal")):
+                with contextlib.suppress(OSError):
+                    q.unlink()
+        elif p.exists() and p.stat().st_size == 0:
+            with contextlib.suppress(OSError):
+                p.unlink()
+
+
+def _store_is_empty(path, sqlite3) -> bool:
+    try:
+        con = sqlite3.connect(f"file:{path}?mode=ro", uri=True, timeout=1.0)
+        try:
+            tables = [t for (t,) in con.execute("SELECT name FROM sqlite_master WHERE type = 'table'")]
+            return all(con.execute(f'SELECT 1 FROM "{t}" LIMIT 1').fetchone() is None for t in tables if t != "meta")
+        finally:
+            con.close()
+    except sqlite3.Error:
+        return False

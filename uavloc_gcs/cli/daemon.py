@@ -117,15 +117,23 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.out) if args.out else Path(f"uavloc-{scenario.name}")
     if out.exists() and not out.is_dir():
         raise ConfigError(f"output path {out} exists and is not a directory")
+    from ._inputs import discard_empty_leftovers, existing_files, require_fleet
+
+    require_fleet(scenario)
     with store_lock(out, "daemon"):
         if args.fresh:
             for f in [out / "search.sqlite", out / "search.sqlite-wal", out / "search.sqlite-shm",
                       *out.glob("uav*.tlog")]:
                 f.unlink(missing_ok=True)
-        opts = options_from(args, scenario, out)
-        view = LiveView(sys.stdout)
-        result = run_search(scenario, connections, opts, out, view=view, web=web, on_web_url=print_web_url,
-                            on_result=reporter(out, web))
+        before = existing_files(out)
+        try:
+            opts = options_from(args, scenario, out)
+            view = LiveView(sys.stdout)
+            result = run_search(scenario, connections, opts, out, view=view, web=web, on_web_url=print_web_url,
+                                on_result=reporter(out, web))
+        except BaseException:
+            discard_empty_leftovers(out, before)  # a failure before anything was heard leaves nothing
+            raise
     from ..service.outcome import EXIT_UNSEARCHED
 
     if result.outcome.unsearched_after_loss:

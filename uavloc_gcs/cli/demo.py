@@ -18,7 +18,10 @@ import signal
 import sys
 from pathlib import Path
 
+from ._inputs import number, override
 from .daemon import add_web_options, print_web_url, reporter, web_options_from
+
+MAX_PEOPLE = 1000  # simulated people: beyond this the fake fleet's world does not start in time
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -27,12 +30,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--scenario", metavar="FILE.toml", help="scenario TOML, or a shipped one by name: field, paper, small (default: field, "
                         "the paper's area in the field world; paper is the paper's own world)")
     p.add_argument("--out", default="uavloc-demo", metavar="DIR", help="output directory (default uavloc-demo)")
-    p.add_argument("--speedup", type=float, metavar="K", help="simulated seconds per second (default: scenario's)")
+    p.add_argument("--speedup", type=number(float, above=0, max=1000), metavar="K", help="simulated seconds per second (default: scenario's)")
     p.add_argument("--autopilot", choices=("ardupilot", "px4"), help="fake vehicle flavour (default: scenario's)")
-    p.add_argument("--people", type=int, metavar="N", help="number of simulated people (default: scenario's)")
-    p.add_argument("--seed", type=int, metavar="N", help="world seed (default: scenario's)")
-    p.add_argument("--loss", type=float, default=0.0, metavar="P", help="packet loss fraction on every link")
-    p.add_argument("--base-port", type=int, default=14560, metavar="PORT",
+    p.add_argument("--people", type=number(int, min=0, max=MAX_PEOPLE), metavar="N", help="number of simulated people (default: scenario's)")
+    p.add_argument("--seed", type=number(int, min=0, max=2**32 - 1), metavar="N", help="world seed (default: scenario's)")
+    p.add_argument("--loss", type=number(float, min=0, max=0.99), default=0.0, metavar="P", help="packet loss fraction on every link")
+    p.add_argument("--base-port", type=number(int, min=0, max=65000), default=14560, metavar="PORT",
                    help="vehicle i listens on UDP port PORT+i (default 14560: 14561, 14562, ...; 0 = any free)")
     p.add_argument("--signing-key", metavar="HEX", help="sign every link with this 32-byte key (64 hex digits)")
     add_web_options(p)
@@ -54,10 +57,11 @@ def run(args: argparse.Namespace) -> int:
         sim["people"] = args.people
     if args.seed is not None:
         sim["seed"] = args.seed
-    if sim:
-        sc = sc.replace(simulation=sim)
+    for flag, key in (("--speedup", "speedup"), ("--people", "people"), ("--seed", "seed")):
+        if key in sim:
+            sc = override(sc, flag, simulation={key: sim[key]})
     if args.autopilot:
-        sc = sc.replace(fleet={"autopilot": args.autopilot})
+        sc = override(sc, "--autopilot", fleet={"autopilot": args.autopilot})
     if not 0.0 <= args.loss < 1.0:
         raise ConfigError(f"--loss must be in [0, 1), got {args.loss}")
     key = parse_signing_key(args.signing_key) if args.signing_key else None
@@ -69,7 +73,14 @@ def run(args: argparse.Namespace) -> int:
         for old in [out / "search.sqlite", out / "search.sqlite-wal", out / "search.sqlite-shm",
                     *out.glob("uav*.tlog")]:
             old.unlink(missing_ok=True)
-        return _run(args, sc, key, out, web)
+        from ._inputs import discard_empty_leftovers, existing_files
+
+        before = existing_files(out)
+        try:
+            return _run(args, sc, key, out, web)
+        except BaseException:
+            discard_empty_leftovers(out, before)  # a failure before anything was heard leaves nothing
+            raise
 
 
 @contextlib.contextmanager

@@ -16,7 +16,11 @@ import logging
 import math
 from pathlib import Path
 
+from ._inputs import number
+
 log = logging.getLogger(__name__)
+
+T_REF_MARGIN_S = 3600.0  # --t-ref this far outside the slots' times: a walker's circle is kilometres wide
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -28,13 +32,15 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("input", metavar="INPUT", help="slot CSV (t_s,vehicle_id,lat_deg,lon_deg,alt_m,emitter_id,"
                                                   "rssi_dbm,n_samples[,address,fingerprint,channel]) or a .tlog")
-    p.add_argument("--scenario", required=True, help="scenario TOML (channel, people's speed bound, frame)")
+    p.add_argument("--scenario", required=True,
+                   help="scenario TOML (channel, people's speed bound, frame), or a shipped one by name: paper, small")
     p.add_argument("--out", required=True, help="output directory")
     p.add_argument("--static", action="store_true", help="assume people do not move (the paper's NM variant)")
     p.add_argument("--tx-power", action="store_true",
                    help="estimate each phone's transmit power offset (default: channel.estimate_tx_power)")
-    p.add_argument("--t-ref", type=float, default=None, metavar="T_S",
-                   help="report positions at this time [s] (default: each emitter's last slot)")
+    p.add_argument("--t-ref", type=number(float), default=None, metavar="T_S",
+                   help="report positions at this time [s], within an hour of the slots "
+                        "(default: each emitter's last slot)")
     p.set_defaults(func=run)
 
 
@@ -78,6 +84,13 @@ def run(args: argparse.Namespace) -> int:
     # as the daemon does: slots heard taking off, landing or on the ground are not estimated from
     slots = survey_slots(heard, sc.fleet.altitude_m)
     low = len(heard) - len(slots)
+    if args.t_ref is not None and len(slots.t_s):
+        t0, t1 = float(slots.t_s.min()), float(slots.t_s.max())
+        if not t0 - T_REF_MARGIN_S <= args.t_ref <= t1 + T_REF_MARGIN_S:
+            from ..errors import ConfigError
+
+            raise ConfigError(f"--t-ref {args.t_ref:g}: must be within an hour of the slots' times "
+                              f"({t0:.1f}..{t1:.1f} s in {Path(args.input).name})")
     channel = ChannelModel.from_scenario(sc)
     tx_power = args.tx_power or sc.channel.estimate_tx_power
     # the addresses heard, linked into people (the identity when every address is stable or no
