@@ -101,8 +101,9 @@ class OrbitLook:
 
 
 # Ring of waypoints: both autopilots accelerate and brake on every leg, so the speed grows with the
-# leg length L, about sqrt(RING_SPEED_K * L) (measured 3.7-6.1 m/s on 16-31 m legs; orbits.md).
-RING_SPEED_K_M_S2 = 1.0
+# leg length L, about sqrt(RING_SPEED_K * L) (measured 3.5-6.1 m/s on 16-31 m legs, K 0.5-1.3, median 0.8;
+# docs/readme/orbits.md).
+RING_SPEED_K_M_S2 = 0.8
 
 
 def orbit_speed_m_s(form: str, radius_m: float, cruise_m_s: float,

@@ -1,0 +1,103 @@
+"""Per autopilot, against the real SITL: an orbit look built by uavloc_gcs/search/orbit.py
+(ArduCopter: NAV_LOITER_TURNS; PX4: a ring of waypoints) is uploaded, flown and judged from the
+vehicle's own telemetry: the radius held and the time spent on the circle (the dwell)."""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+
+from uavloc_gcs.link import flavour_for, open_link, request_streams, return_home, start_mission_from, upload_mission
+from uavloc_gcs.mission import NAV_RETURN_TO_LAUNCH, to_wire
+from uavloc_gcs.scenario import loads_scenario
+from uavloc_gcs.search.orbit import ORBIT_FORM, OrbitLook, look_mission, orbit_speed_m_s
+
+from . import harness
+from .flying import Watch
+
+ALT_M = 30.0
+SPEED_M_S = 10.0
+RADIUS_M = 50.0
+DWELL_S = 60.0
+CENTRE_XY_M = (0.0, 130.0)  # east, north of home [m]
+
+SCENARIO = """\
+name = "sitl-orbit"
+[area]
+origin_lat_deg = {lat}
+origin_lon_deg = {lon}
+width_m = 300.0
+height_m = 300.0
+[fleet]
+vehicles = 1
+autopilot = "{autopilot}"
+altitude_m = {alt}
+speed_m_s = {speed}
+"""
+
+
+def test_orbit_look_radius_and_dwell(autopilot):
+    kind, sitl = autopilot
+    lat, lon = harness.HOME[:2]
+    sc = loads_scenario(SCENARIO.format(lat=lat, lon=lon, autopilot=kind, alt=ALT_M, speed=SPEED_M_S))
+    form = ORBIT_FORM[kind]
+    orb = OrbitLook(CENTRE_XY_M, RADIUS_M, DWELL_S, orbit_speed_m_s(form, RADIUS_M, SPEED_M_S), form)
+    looks = look_mission(sc.frame, [[0.0, CENTRE_XY_M[1] - RADIUS_M]], (1,), [orb], alt_m=ALT_M,
+                         speed_m_s=SPEED_M_S, autopilot=kind, home_latlon_deg=(lat, lon), start_xy_m=(0.0, 0.0))
+    rows = harness.run(_fly(sitl, kind, to_wire(looks.plan, kind), looks), timeout_s=600)
+    xy = sc.frame.to_local_xy(np.array([[r[1], r[2]] for r in rows]))
+    t = np.array([r[0] for r in rows])
+    seq = np.array([r[3] for r in rows])
+    d = np.hypot(xy[:, 0] - CENTRE_XY_M[0], xy[:, 1] - CENTRE_XY_M[1])
+    flavour = flavour_for(3 if kind == "ardupilot" else 12)
+    look_seq = looks.look_seqs(flavour.home_at_seq0)[0]
+    rtl_seq = next(i for i, it in enumerate(to_wire(looks.plan, kind)) if it.command == NAV_RETURN_TO_LAUNCH)
+    # on the circle: from the first sample within 10 % of the radius while on the look's items,
+    # until the mission moves on to the return
+    on_look = (seq >= look_seq) & (seq < rtl_seq)
+    near = np.flatnonzero(on_look & (np.abs(d - RADIUS_M) < 0.1 * RADIUS_M))
+    assert len(near), f"{kind}: never on the {RADIUS_M:g} m circle (distances {d[on_look].min():.0f}-{d[on_look].max():.0f} m)"
+    i0, i1 = near[0], np.flatnonzero(on_look)[-1]
+    ring_d = d[i0:i1 + 1]
+    dwell = t[i1] - t[i0]
+    ang = np.unwrap(np.arctan2(xy[i0:i1 + 1, 1] - CENTRE_XY_M[1], xy[i0:i1 + 1, 0] - CENTRE_XY_M[0]))
+    turns = abs(ang[-1] - ang[0]) / (2 * math.pi)
+    speed = 2 * math.pi * RADIUS_M * turns / max(dwell, 1e-9)
+    print(f"{kind} ({form}): radius mean {ring_d.mean():.1f} m (5-95 % {np.percentile(ring_d, 5):.1f}-"
+          f"{np.percentile(ring_d, 95):.1f}), {turns:.2f} turns in {dwell:.0f} s (planned {orb.turns} turns, "
+          f"dwell >= {DWELL_S:g} s, {orb.flown_s:.0f} s at {orb.speed_m_s:.1f} m/s), mean speed {speed:.1f} m/s")
+    assert abs(ring_d.mean() - RADIUS_M) < 0.05 * RADIUS_M
+    assert np.percentile(ring_d, 95) < 1.15 * RADIUS_M and np.percentile(ring_d, 5) > 0.85 * RADIUS_M
+    assert abs(turns - orb.turns) < 0.3, (turns, orb.turns)
+    assert dwell >= 0.8 * DWELL_S  # the time on the circle the look was planned for (speed model within 20 %)
+
+
+async def _fly(sitl, kind: str, wire, looks) -> list[tuple]:
+    rows: list[tuple] = []
+    async with await open_link(sitl.connection) as link:
+        hb = await link.wait_heartbeat(sitl.sysid, timeout_s=30)
+        system = hb.get_srcSystem()
+        watch = Watch(link, system)
+        flavour = flavour_for(hb.autopilot)
+        await request_streams(link, system, flavour, {"GLOBAL_POSITION_INT": 10.0, "MISSION_CURRENT": 4.0,
+                                                      "SYSTEM_TIME": 1.0, "EXTENDED_SYS_STATE": 1.0})
+        await watch.until("position", lambda: "GLOBAL_POSITION_INT" in watch.last and "MISSION_CURRENT" in watch.last, 30)
+
+        def on_pos(msg):
+            rows.append((msg.time_boot_ms / 1000.0, msg.lat / 1e7, msg.lon / 1e7, watch.mission_seq))
+        sub = link.subscribe("GLOBAL_POSITION_INT", source_system=system, callback=on_pos)
+        await upload_mission(link, system, 1, wire, verify=True, autopilot=flavour)
+        await start_mission_from(link, system, 1, flavour, flavour.first_mission_seq, armed=watch.armed, mode=watch.mode)
+        rtl = next(it.seq for it in wire if it.command == NAV_RETURN_TO_LAUNCH)
+        t0 = time.monotonic()
+        await watch.until("the orbit's end", lambda: (watch.mission_seq or 0) >= rtl
+                          or watch.mode in ("RTL", "AUTO.RTL"), 400, poll_s=0.5)
+        flown_wall = time.monotonic() - t0
+        await return_home(link, system, 1)
+        await watch.until("landing", lambda: watch.landed, 200)
+        sub.close()
+        watch.close()
+    print(f"{kind}: mission to the orbit's end in {flown_wall:.0f} wall s")
+    return rows
