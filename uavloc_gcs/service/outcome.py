@@ -206,13 +206,19 @@ class SearchOutcome:
 EXIT_UNSEARCHED = 4  # `uavloc daemon`'s exit code when part of the area was left unsearched (see above)
 
 
-def coverage_statement(summary, lost: Sequence[int] = (), not_started: Sequence[int] = ()) -> tuple[str, bool]:
+def coverage_statement(summary, lost: Sequence[int] = (), not_started: Sequence[int] = (),
+                       stopped: bool = False) -> tuple[str, bool]:
     """What was searched, for the end of the statement, and whether part of the area went
     unsearched because vehicles ``lost`` (or whose scans were ``not_started``) left it and
-    nobody took it over."""
+    nobody took it over. A search ``stopped`` before its end says that instead (its exit code is
+    the signal's)."""
     if summary is None:
         return "", False
     text = summary.sentence()
+    if stopped:
+        if summary.unsearched_m2 > 0:
+            text += f" The search was stopped before {summary.unsearched_m2 / 1e6:.3f} km² of the area were searched."
+        return text, False
     gone = sorted({*lost, *not_started})
     left = bool(gone) and summary.unsearched_m2 > 0 and not summary.nothing_flown
     if left:

@@ -152,7 +152,8 @@ def _results(outcome: SearchOutcome, daemon: Daemon, scenario: Scenario, connect
                               outcome.vehicles_returning, coverage=summary)
     for vid, why in not_started:  # a refused start is no scan flown: say so, whatever else is said
         statement += f" Vehicle {vid} did not fly its scan ({why}); its part of the area was not searched."
-    searched, left = coverage_statement(summary, outcome.vehicles_lost, [vid for vid, _ in not_started])
+    searched, left = coverage_statement(summary, outcome.vehicles_lost, [vid for vid, _ in not_started],
+                                        stopped=bool(getattr(outcome, "partial", "")))
     outcome = dataclasses.replace(outcome, people=tuple(heard), statement=" ".join(filter(None, [statement, searched])),
                                   coverage=summary, unsearched_after_loss=left)
     if summary is not None:
