@@ -56,6 +56,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="read the autopilot's position and clock here and send the RSSI to --mavlink beside it "
                         "(default: the --mavlink link itself)")
     p.add_argument("--sysid", type=int, default=None, help="autopilot system id to follow (default: the first heard)")
+    p.add_argument("--signing-key", default=None, metavar="HEX",
+                   help="MAVLink 2 signing key (64 hex digits), as the fleet's: signs what is sent, drops unsigned input")
     p.set_defaults(func=run)
 
 
@@ -76,6 +78,12 @@ def run(args: argparse.Namespace) -> int:
     if args.channels and len(args.interface) != 1:
         raise ConfigError("--channels hops one interface; give exactly one --interface (several interfaces stay "
                           "on their own fixed channels)", key="--channels")
+    if args.signing_key:
+        from ..link.connection import parse_signing_key
+
+        if not args.mavlink:
+            raise ConfigError("--signing-key signs the MAVLink output: give --mavlink URL too", key="--signing-key")
+        parse_signing_key(args.signing_key)  # a bad key is refused before anything starts
     if not (args.out or args.learn_team or args.mavlink):
         raise ConfigError("nothing to do: give --out DIR, --mavlink URL or --learn-team FILE", key="--out")
     exclusion = read_exclusion(args.exclude) if args.exclude else None

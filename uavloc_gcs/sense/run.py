@@ -55,7 +55,13 @@ async def _main(args, exclusion) -> StreamResult:
         if args.mavlink:
             from .mavout import open_sender
 
-            sender = await open_sender(args.mavlink, args.autopilot, slot_s=args.slot_ms / 1000.0, sysid=args.sysid)
+            key = None
+            if args.signing_key:
+                from ..link.connection import parse_signing_key
+
+                key = parse_signing_key(args.signing_key)
+            sender = await open_sender(args.mavlink, args.autopilot, slot_s=args.slot_ms / 1000.0, sysid=args.sysid,
+                                       signing_key=key)
         kept: list[Frames] = []
         keep = bool(args.out or args.learn_team)
         t_start = time.monotonic()

@@ -7,6 +7,7 @@ import threading
 import time
 
 import numpy as np
+import pytest
 
 from uavloc_gcs.cli import main
 from uavloc_gcs.dialect import mavlink
@@ -25,7 +26,7 @@ class FakeAutopilot(threading.Thread):
     """ArduCopter-like: HEARTBEAT and SYSTEM_TIME at 1 Hz, GLOBAL_POSITION_INT at 10 Hz (flying east
     at 10 m/s, 50 m up), TIMESYNC answered; records what the companion sends."""
 
-    def __init__(self):
+    def __init__(self, key: bytes | None = None):
         super().__init__(daemon=True)
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self.sock.bind(("127.0.0.1", 0))
@@ -34,6 +35,11 @@ class FakeAutopilot(threading.Thread):
         self.codec = mavlink.MAVLink(None, srcSystem=7, srcComponent=1)
         self.rx = mavlink.MAVLink(None)
         self.rx.robust_parsing = True
+        if key is not None:  # sign what it sends, drop what is not signed with the key
+            self.codec.signing.secret_key = key
+            self.codec.signing.sign_outgoing = True
+            self.codec.signing.timestamp = int((time.time() - 1420070400) * 1e5)
+            self.rx.signing.secret_key = key
         self.mono0 = time.monotonic()
         self.unix0 = time.time() + AHEAD_S  # the autopilot's UNIX time when its boot clock read BOOT_AT_S
         self.frame = LocalFrame(*ORIGIN)
@@ -79,13 +85,16 @@ class FakeAutopilot(threading.Thread):
                                                                  550000, 50000, 0, 1000, 0, 0), peer)
 
 
-def test_replay_to_a_fake_autopilot_in_its_clock(tmp_path):
+@pytest.mark.parametrize("signed", [False, True], ids=["unsigned", "signed"])
+def test_replay_to_a_fake_autopilot_in_its_clock(tmp_path, signed):
     buf, truth = synthetic_capture(150, n_phones=4, rng=np.random.default_rng(2))
     (tmp_path / "c.pcap").write_bytes(buf)
-    ap = FakeAutopilot()
+    key = bytes(range(32)) if signed else None
+    ap = FakeAutopilot(key)
     ap.start()
     try:
-        rc = main(["sense", str(tmp_path / "c.pcap"), "--mavlink", f"udpout:127.0.0.1:{ap.port}"])
+        rc = main(["sense", str(tmp_path / "c.pcap"), "--mavlink", f"udpout:127.0.0.1:{ap.port}"]
+                  + (["--signing-key", key.hex()] if signed else []))
         time.sleep(0.3)
     finally:
         ap.stop.set()
@@ -94,6 +103,7 @@ def test_replay_to_a_fake_autopilot_in_its_clock(tmp_path):
     assert ap.got, "no UAVLOC_RSSI_BATCH2 arrived"
     assert ap.timesyncs >= 1
     msgs = [m for m, _ in ap.got]
+    assert all(bool(getattr(m, "_signed", False)) == signed for m in msgs)
     assert {m.get_srcSystem() for m in msgs} == {7}  # the autopilot's system id
     assert {m.get_srcComponent() for m in msgs} == {COMPANION_COMPONENT_ID}
     slots = [decode_rssi_batch(m, ap.frame) for m in msgs]
