@@ -282,6 +282,17 @@ def look_mission(frame, points_xy_m, targets, orbits, *, alt_m: float, speed_m_s
     return LookMission(plan, np.asarray(xy_out, float).reshape(-1, 2), tuple(idx_out))
 
 
+def orbits_for(policy, vehicle_id, targets) -> tuple:
+    """The orbits (OrbitLook or None per target) of the policy's current plan for the vehicle
+    ``vehicle_id`` whose look targets are ``targets``; () when that plan has none (the daemon asks
+    this when it uploads a look)."""
+    plan = getattr(policy, "current_plan", None)
+    for task in getattr(plan, "tasks", ()):
+        if str(task.vehicle_id) == str(vehicle_id) and tuple(task.target_ids) == tuple(targets):
+            return tuple(getattr(task, "orbits", ()))
+    return ()
+
+
 def expand_path(points_xy_m, orbits, start_xy_m) -> tuple[np.ndarray, np.ndarray]:
     """A task's path with its orbits flown (for simulators): the polyline from ``start_xy_m``
     through every access point, each orbit's circle inserted at its entry, and the speed factor of

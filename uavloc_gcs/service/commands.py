@@ -19,6 +19,7 @@ import numpy as np
 from ..errors import InfeasibleError, LinkError
 from ..estimation.identity import person_name
 from ..mission import NAV_WAYPOINT, flight_mission, to_wire
+from ..search.orbit import look_mission, orbits_for
 from ..terrain_missions import point_seqs, terrain_safe
 from .lifecycle import persist
 from .missionstate import final_seq, hold_seq, same_stored_mission
@@ -276,6 +277,12 @@ class VehicleCommands:
             on_ground = v.home or v.agent.on_ground()
             plan = flight_mission(latlon.tolist(), alt_m=f.altitude_m, speed_m_s=f.speed_m_s, autopilot=f.autopilot,
                                   home_latlon_deg=self.sc.launch_latlon_deg, include_takeoff=on_ground)
+            orbits = orbits_for(self.policy, v.id, targets) if self.sc.dem is None else ()
+            if any(o is not None for o in orbits):  # orbit looks (search/orbit.py)
+                looks = look_mission(self.frame, pts, targets, orbits, alt_m=f.altitude_m, speed_m_s=f.speed_m_s,
+                                     autopilot=f.autopilot, home_latlon_deg=self.sc.launch_latlon_deg,
+                                     start_xy_m=v.agent.position_xy_m(), include_takeoff=on_ground)
+                plan = looks.plan
             if self.sc.dem is not None:  # over the ground of terrain.dem, from where the vehicle is
                 try:
                     plan = terrain_safe(plan, self.sc, name=f"vehicle {v.id}", start_xy_m=None if on_ground
@@ -298,9 +305,11 @@ class VehicleCommands:
                             "no take-off without a take-off item", v.id)
                 return
         v.targets, v.look_xy_m, v.looks_reported = targets, pts, 0
-        v.look_first_seq = next(it.seq for it in items if it.command == NAV_WAYPOINT and it.seq > 0)
+        v.look_first_seq = next((it.seq for it in items if it.command == NAV_WAYPOINT and it.seq > 0), first)
         # over terrain, waypoints added between the look points: where each look point went
         v.look_seqs = point_seqs(items, latlon) if self.sc.dem is not None else ()
+        if any(o is not None for o in orbits):  # each look counted at its orbit's entry
+            v.look_xy_m, v.look_seqs = looks.look_xy_m, looks.look_seqs(v.agent.flavour.home_at_seq0)
         a = v.agent
         # Read now, not assumed: a start whose ACKs were lost lasts as long as a short look, and the
         # vehicle may have flown it and landed meanwhile (tests/test_e2e_vehicle_faults.py's store:
