@@ -23,6 +23,12 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "lanes; default) or 'single' (the paper's sqrt(2) R spacing)")
     p.add_argument("--lane-spacing", type=number(float, above=0, unit="m"), metavar="M",
                    help="override scan.lane_spacing_m (metres)")
+    p.add_argument("--pod", type=number(float, above=0, max=0.999), metavar="P",
+                   help="plan lane spacing, speed and passes for this probability of detection (one and two "
+                        "heard bursts) under the scenario's emission model and energy (overrides "
+                        "search.pod_target); writes pod.png and pod.geojson; exit 2 if out of reach")
+    p.add_argument("--best-effort", action="store_true",
+                   help="with --pod: when the target is out of reach, plan the highest POD the energy allows")
     p.add_argument("--svg", action="store_true", help="also write preview.svg")
     p.set_defaults(func=run)
 
@@ -43,7 +49,20 @@ def run(args: argparse.Namespace) -> int:
     sc = load_scenario(args.scenario)
     if args.coverage:
         sc = override(sc, "--coverage", scan={"coverage": args.coverage})
-    if args.lane_spacing is not None:
+    target = args.pod if args.pod is not None else sc.search.pod_target
+    podplan = None
+    if args.best_effort and target is None:
+        from ..errors import ConfigError
+        raise ConfigError("--best-effort applies only to a scan planned for a POD (--pod or search.pod_target)")
+    if target is not None:  # the scan planned for a probability of detection (search/pod_plan.py)
+        from ..errors import ConfigError
+        from ..search.pod_plan import plan_for_pod
+        if args.lane_spacing is not None or args.coverage:
+            raise ConfigError("a scan planned for a POD chooses its own lanes: drop --lane-spacing and --coverage, "
+                              "or plan without --pod / search.pod_target")
+        podplan = plan_for_pod(sc, target, best_effort=args.best_effort)
+        sc, plan = podplan.scenario, podplan.plan
+    elif args.lane_spacing is not None:
         sc = override(sc, "--lane-spacing", scan={"lane_spacing_m": args.lane_spacing})
         with blaming("--lane-spacing", "scan.lane_spacing_m"):
             plan = plan_scan(sc)
@@ -68,7 +87,13 @@ def run(args: argparse.Namespace) -> int:
         if args.svg:
             save_figure(fig, tmp / "preview.svg")
             written.append("preview.svg")
+        if podplan is not None:
+            written += podplan.write(tmp)
     print(summary(sc, plan, missions))
+    if podplan is not None:
+        print("\n" + podplan.summary())
+        if not podplan.met:
+            print("Best effort: " + podplan.shortfall_sentence().replace(" (use --best-effort to plan it anyway)", ""))
     if note := fleet_note(sc):
         print(note)
     print(f"\nWrote {len(written)} files to {Path(args.out)}/: {', '.join(written)}")

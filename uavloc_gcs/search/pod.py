@@ -62,8 +62,8 @@ ACTIVE_CAP_S = 3600.0  # its tables reach this window; every active phone has se
 WINDOW_CAP_S = 6 * 3600.0  # window_for gives up beyond this (long silences last up to 90 min)
 MERGE_GAPS = 2.0  # looks closer than this many mean gaps (of the phone) are one window
 P_EPS = 1e-3  # a look is a run of samples where the best phone's burst is heard with more than this
-TRACK_STEP_M = 15.0  # tracks are resampled to at most this many metres ...
-TRACK_STEP_S = 1.0  # ... and seconds between samples
+TRACK_STEP_M = 25.0  # tracks are resampled to at most this many metres ...
+TRACK_STEP_S = 2.5  # ... and seconds between samples (a burst is heard over ~500 m of flight)
 CONTINUOUS_LOOK_GAP_S = 10.0  # continuous world: in-range runs farther apart are separate looks
 DEFAULT_CELLS = 1200  # grid_for's default cell size gives about this many cells over the area
 
@@ -133,6 +133,15 @@ class BurstTiming:
         long silence), the steady state of the gaps alone."""
         grid, cdf, _ = _active_tables(self, k)
         return np.interp(alive_s, grid, cdf[k - 1][iu], right=cdf[k - 1][iu][-1])
+
+    def p_active_12(self, alive_s: np.ndarray, iu: int) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`p_active` for k = 1 and 2 at once (direct indexing on the regular grid)."""
+        grid, cdf, _ = _active_tables(self)
+        x = np.clip(np.asarray(alive_s, np.float32) * np.float32(1.0 / ACTIVE_DT_S), 0, len(grid) - 1.001)
+        i = x.astype(np.int32)
+        f = x - i
+        c1, c2 = cdf[0][iu].astype(np.float32), cdf[1][iu].astype(np.float32)
+        return c1[i] + f * (c1[i + 1] - c1[i]), c2[i] + f * (c2[i + 1] - c2[i])
 
     def silences(self, horizon_s: float) -> list[np.ndarray]:
         """Per phone quantile: (SILENCE_DRAWS, M, 2) silent intervals [s] from t = 0 (steady state),
@@ -274,13 +283,18 @@ class _Hearing:
     max_range_m: float  # beyond this no type's burst is heard with more than P_EPS
 
     def p(self, d3_m) -> np.ndarray:
-        """(..., T) per type."""
-        d = np.asarray(d3_m, float)
-        i = np.clip(d / (self.d_grid[1] - self.d_grid[0]), 0, len(self.d_grid) - 1)
-        lo = np.floor(i).astype(int)
-        hi = np.minimum(lo + 1, len(self.d_grid) - 1)
-        f = (i - lo)[..., None]
-        return self.table[lo] * (1 - f) + self.table[hi] * f
+        """(..., T) per type (the table's nearest distance, 1 m away at most)."""
+        step = self.d_grid[1] - self.d_grid[0]
+        i = np.minimum(np.rint(np.asarray(d3_m, float) / step).astype(np.int32), len(self.d_grid) - 1)
+        return self.table32[i]
+
+    @property
+    def table32(self) -> np.ndarray:
+        t = self.__dict__.get("_t32")
+        if t is None:
+            t = self.table.astype(np.float32)
+            object.__setattr__(self, "_t32", t)
+        return t
 
 
 def _channel_share(sc) -> float:
@@ -490,14 +504,16 @@ def _looks(cx, cy, tracks, hearing: _Hearing):
             dy = xyz[None, :, 1] - cy[sl, None]
             d3 = np.sqrt(dx * dx + dy * dy + xyz[None, :, 2] ** 2)
             near = d3 <= hearing.max_range_m
-            for j, row in enumerate(near):
-                idx = np.flatnonzero(row)
-                if len(idx) == 0:
-                    continue
-                cut = np.flatnonzero(np.diff(idx) > 1) + 1
-                for run in np.split(idx, cut):
-                    w = hearing.p(d3[j, run]).T @ dt[run]  # (T,)
-                    per_cell[a + j].append((t[run[0]], t[run[-1]], w))
+            rows, cols = np.nonzero(near)  # row-major: runs of consecutive samples per cell
+            if len(rows) == 0:
+                continue
+            start = np.ones(len(rows), bool)
+            start[1:] = (rows[1:] != rows[:-1]) | (cols[1:] != cols[:-1] + 1)
+            first = np.flatnonzero(start)
+            last = np.append(first[1:], len(rows)) - 1
+            w = np.add.reduceat(hearing.p(d3[rows, cols]) * dt[cols, None], first, axis=0)  # (R, T)
+            for r, a0, a1, ww in zip(rows[first], t[cols[first]], t[cols[last]], w):
+                per_cell[a + r].append((a0, a1, ww))
     L = max(1, max((len(c) for c in per_cell), default=1))
     t0 = np.zeros((C, L))
     t1 = np.zeros((C, L))
@@ -534,10 +550,11 @@ def _merge(t0, t1, w, valid, gap_s: float):
     return np.where(mv, m0[:, :L], 0.0), np.where(mv, m1[:, :L], 0.0), mw[:, :L], mv
 
 
-def pod_from_tracks(sc, tracks, grid: PodGrid | None = None) -> PodGrid:
+def pod_from_tracks(sc, tracks, grid: PodGrid | None = None, *, coarse: bool = False) -> PodGrid:
     """POD of every cell of ``grid`` (default :func:`grid_for`) from ``tracks`` as flown: a list of
     (times (N,) [s], positions (N, 3) [m, local, z = height above the people]). See the module
-    docstring for the model."""
+    docstring for the model. ``coarse``: every second phone quantile and silence timeline (4x
+    faster, for comparing plans)."""
     grid = grid_for(sc) if grid is None else grid
     idx = np.flatnonzero(grid.inside)
     pod1 = np.zeros(len(grid.x_m))
@@ -553,7 +570,7 @@ def pod_from_tracks(sc, tracks, grid: PodGrid | None = None) -> PodGrid:
     else:
         start = min(float(t[0]) for t, _ in tracks)
         horizon = max(float(t[-1]) for t, _ in tracks) - start + 1.0
-        p1, p2 = _burst_pod(bt, t0 - start, t1 - start, w, valid, hearing.weights, horizon)
+        p1, p2 = _burst_pod(bt, t0 - start, t1 - start, w, valid, hearing.weights, horizon, 2 if coarse else 1)
     pod1[idx], pod2[idx] = p1, p2
     return grid.with_pod(pod1, pod2)
 
@@ -570,26 +587,27 @@ def _continuous_pod(t0, t1, w, valid, hearing, slot_s):
     return 1 - q0, 1 - q0 - q1
 
 
-def _burst_pod(bt: BurstTiming, t0, t1, w, valid, type_w, horizon):
+def _burst_pod(bt: BurstTiming, t0, t1, w, valid, type_w, horizon, stride: int = 1):
     C = len(t0)
+    type_w = np.asarray(type_w, np.float32)
     sil_all = bt.silences(horizon)
     gaps = bt.mean_active_gap_s()
     p1 = np.zeros(C)
     p2 = np.zeros(C)
-    for iu in range(N_QUANTILES):
+    quantiles = range(stride // 2, N_QUANTILES, stride)
+    for iu in quantiles:
         m0, m1, mw, mv = _merge(t0, t1, w, valid, MERGE_GAPS * gaps[iu])
-        sil = sil_all[iu]  # (D, M, 2)
+        sil = sil_all[iu][::stride]  # (D, M, 2)
         span = np.maximum(m1 - m0, 1e-9)
         alive = 1.0 - _overlap(m0, np.maximum(m1, m0 + 1e-9), sil) / span  # (D, C, L)
         alive = np.where(mv[None], alive, 0.0)
-        weff = alive[..., None] * mw[None]  # (D, C, L, T)
-        a1 = bt.p_active(1, weff, iu)
-        a2 = bt.p_active(2, weff, iu)
-        q0 = np.ones(weff.shape[:2] + weff.shape[3:])  # (D, C, T)
+        weff = alive[..., None].astype(np.float32) * mw[None].astype(np.float32)  # (D, C, L, T)
+        a1, a2 = bt.p_active_12(weff, iu)
+        q0 = np.ones(weff.shape[:2] + weff.shape[3:], np.float32)  # (D, C, T)
         q1 = np.zeros_like(q0)
         for j in range(weff.shape[2]):
             e0, e1 = 1.0 - a1[:, :, j], a1[:, :, j] - a2[:, :, j]
             q0, q1 = q0 * e0, q1 * e0 + q0 * e1
         p1 += ((1.0 - q0) @ type_w).mean(axis=0)
         p2 += ((1.0 - q0 - q1) @ type_w).mean(axis=0)
-    return p1 / N_QUANTILES, p2 / N_QUANTILES
+    return p1 / len(quantiles), p2 / len(quantiles)

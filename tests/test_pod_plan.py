@@ -1,0 +1,114 @@
+"""The scan planned for a probability of detection (uavloc_gcs/search/pod_plan.py, uavloc plan --pod)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from uavloc_gcs.cli import main
+from uavloc_gcs.errors import ConfigError, InfeasibleError
+from uavloc_gcs.scenario import load_scenario
+from uavloc_gcs.search import pod, pod_plan
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _small_field(tmp_path: Path, extra: str = "") -> Path:
+    """examples/field.toml over 500 x 300 m with 2 vehicles of 60 kJ."""
+    s = (ROOT / "examples" / "field.toml").read_text()
+    s = (s.replace("width_m = 1120.0", "width_m = 500.0").replace("height_m = 640.0", "height_m = 300.0")
+         .replace("vehicles = 4", "vehicles = 2")
+         .replace("energy_budget_j = 250000.0    # about 69 Wh of usable battery per vehicle", "energy_budget_j = 60000.0"))
+    p = tmp_path / "smallfield.toml"
+    p.write_text(s + extra)
+    return p
+
+
+@pytest.fixture(scope="module")
+def small(tmp_path_factory):
+    return load_scenario(_small_field(tmp_path_factory.mktemp("pod")))
+
+
+def test_more_passes_more_pod_and_balanced_vehicles(small):
+    radius = pod_plan.burst_radius_m(small)
+    assert 200 < radius < 320  # a burst of ~10 frames is heard well beyond the 150 m of one frame
+    one = pod_plan._layout(small, radius, radius)
+    grid = pod.grid_for(small, 40.0)
+    pods = []
+    for n in (1, 2, 4):
+        plan = pod_plan.with_passes(small, one, n, 12.0)
+        g = pod.pod_from_tracks(small, pod_plan.tracks_of(plan, 12.0, small.fleet.altitude_m), grid)
+        pods.append((g.overall(1), g.overall(2)))
+        # every vehicle ends no later than the longest, which flies n passes
+        plain = [pod_plan._repeat(small, v, n, 12.0) for v in one.vehicles]
+        assert plan.makespan_s == pytest.approx(max(v.duration_s for v in plain))
+        assert all(v.length_m >= p.length_m - 1e-6 for v, p in zip(plan.vehicles, plain))
+    assert pods[0][0] < pods[1][0] < pods[2][0] and pods[0][1] < pods[1][1] < pods[2][1]
+
+
+def test_reachable_target_is_met_in_the_least_time(small):
+    res = pod_plan.plan_for_pod(small, 0.5, speeds=(10.0, 15.0), spacing_factors=(1.0, 2.0))
+    assert res.met and res.grid.overall(1) >= 0.5 and res.grid.overall(2) >= 0.5
+    meeting = [o for o in res.options if o.meets(0.5)]
+    assert meeting and res.chosen.time_s <= min(o.time_s for o in meeting) + 1e-6
+    assert all(v.energy_j <= small.usable_energy_j for v in res.plan.vehicles)
+    assert res.scenario.fleet.speed_m_s == res.chosen.speed_m_s
+    assert "POD1" in res.table() and "Chosen:" in res.summary()
+
+
+def test_unreachable_target_says_what_is_reachable(small):
+    with pytest.raises(InfeasibleError) as err:
+        pod_plan.plan_for_pod(small, 0.95, speeds=(10.0,), spacing_factors=(1.0,))
+    msg = str(err.value)
+    assert "cannot reach POD 0.95" in msg and "short of the target" in msg and "--best-effort" in msg
+    best = pod_plan.plan_for_pod(small, 0.95, best_effort=True, speeds=(10.0,), spacing_factors=(1.0,))
+    assert not best.met
+    assert f"{best.grid.overall(1):.2f} for one heard burst and {best.grid.overall(2):.2f} for two" in msg
+    # the energy is what limits it: the chosen scan uses most of the budget
+    assert max(v.energy_j for v in best.plan.vehicles) > 0.8 * small.usable_energy_j
+
+
+def test_search_pod_target_key_is_checked(tmp_path):
+    for bad in ("0", "1.0", "-0.2"):
+        with pytest.raises(ConfigError, match="search.pod_target"):
+            load_scenario(_small_field(tmp_path, f"\n[search]\npod_target = {bad}\n"))
+    assert load_scenario(_small_field(tmp_path, "\n[search]\npod_target = 0.9\n")).search.pod_target == 0.9
+
+
+def _run(capsys, *args):
+    code = main([str(a) for a in args])
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+def test_cli_bad_pod_input(tmp_path, capsys):
+    sc = _small_field(tmp_path)
+    code, _, err = _run(capsys, "plan", sc, "--pod", "1.5", "--out", tmp_path / "o")
+    assert code == 2 and "--pod" in err
+    code, _, err = _run(capsys, "plan", sc, "--pod", "0.5", "--lane-spacing", "100", "--out", tmp_path / "o")
+    assert code == 2 and "--lane-spacing" in err
+    code, _, err = _run(capsys, "plan", sc, "--best-effort", "--out", tmp_path / "o")
+    assert code == 2 and "--best-effort" in err
+    assert not (tmp_path / "o").exists()
+
+
+def test_cli_pod_plan(tmp_path, capsys):
+    """From the scenario key: exit 2 with one sentence and nothing written when out of reach; with
+    --best-effort the missions, the POD map and the grid."""
+    sc = _small_field(tmp_path, "\n[search]\npod_target = 0.97\n")
+    out = tmp_path / "plans"
+    code, _, err = _run(capsys, "plan", sc, "--out", out)
+    assert code == 2 and "cannot reach POD 0.97" in err and len(err.strip().splitlines()) == 1
+    assert not out.exists()
+    code, text, err = _run(capsys, "plan", sc, "--best-effort", "--out", out)
+    assert code == 0, err
+    assert "Best effort:" in text and "spacing m" in text
+    assert (out / "pod.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    fc = json.loads((out / "pod.geojson").read_text())
+    assert fc["properties"]["met"] is False and fc["properties"]["target"] == 0.97
+    p1 = np.array([f["properties"]["pod1"] for f in fc["features"]])
+    assert len(p1) > 500 and fc["properties"]["pod1_overall"] == pytest.approx(p1.mean(), abs=0.002)
+    assert (out / "uav1.plan").exists() and (out / "uav2.plan").exists()
