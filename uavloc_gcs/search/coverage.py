@@ -584,3 +584,41 @@ def add_passes(policy, t_s: float, vehicles: list, plan):
         tasks.append(replace(task, waypoints_xy_m=route, eta_s=max(task.eta_s, eta), **extra))
     makespan = max((task.eta_s for task in tasks), default=t_s) - t_s
     return replace(plan, tasks=tuple(tasks), makespan_s=makespan)
+
+
+def scan_coverage(sc, step_s: float = 0.5) -> Coverage:
+    """The accumulator fed ``sc``'s planned scan as if flown exactly (every vehicle from the launch
+    point along its lanes at the fleet speed and altitude): the yardstick of what a scan reaches."""
+    from ..scan import plan_scan  # noqa: PLC0415
+
+    cov = Coverage(sc)
+    speed = sc.fleet.speed_m_s
+    for vs in plan_scan(sc).vehicles:
+        pts = np.vstack([np.zeros((1, 2)), vs.waypoints_xy_m])
+        cum = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(pts, axis=0), axis=1))])
+        t = np.arange(0.0, cum[-1] / speed + step_s, step_s)
+        s = np.minimum(t * speed, cum[-1])
+        xy = np.column_stack([np.interp(s, cum, pts[:, 0]), np.interp(s, cum, pts[:, 1])])
+        cov.add_track(vs.index + 1, t, np.column_stack([xy, np.full(len(t), sc.fleet.altitude_m)]))
+    return cov
+
+
+def main(argv=None) -> int:
+    """``python -m uavloc_gcs.search.coverage SCENARIO...``: the live and the final POD of each
+    scenario's scan flown as planned."""
+    import sys  # noqa: PLC0415
+
+    from ..scenario import load_scenario  # noqa: PLC0415
+
+    for path in (sys.argv[1:] if argv is None else argv):
+        sc = load_scenario(path)
+        cov = scan_coverage(sc)
+        final = final_summary(cov)
+        print(f"{path}: {len(cov.grid.xy_m)} cells; scan POD live {cov.overall(1):.2f} (two: {cov.overall(2):.2f}), "
+              f"final {final.overall1:.2f} (two: {final.overall2:.2f}); below target {final.target:.2f}: "
+              f"{final.below_target_m2 / 1e6:.3f} of {final.area_m2 / 1e6:.3f} km²")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
