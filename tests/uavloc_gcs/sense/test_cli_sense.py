@@ -131,3 +131,14 @@ def test_live_without_device_or_monitor_mode_is_one_sentence(tmp_path):
     pytest.importorskip("pcapy", reason="pcapy-ng (pip install 'uavloc[sense]') is the live binding")
     r = _cli("--interface", "nosuchwlan9", "--out", str(tmp_path / "o"))
     assert r.returncode == 2 and "cannot capture on nosuchwlan9" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_an_interface_not_in_monitor_mode_is_refused(tmp_path):
+    import os
+
+    pytest.importorskip("pcapy", reason="pcapy-ng (pip install 'uavloc[sense]') is the live binding")
+    if os.geteuid() != 0:
+        pytest.skip("opening the loopback interface for capture needs root (CAP_NET_RAW)")
+    r = _cli("--interface", "lo", "--out", str(tmp_path / "o"), "--duration-s", "1")
+    assert r.returncode == 2 and "lo is not in monitor mode" in r.stderr and "Traceback" not in r.stderr
+    assert not (tmp_path / "o").exists()
