@@ -101,6 +101,15 @@ def _worker(args):
     return task, run_task(cfg, task)
 
 
+def _quiet_worker() -> None:
+    """Workers leave Ctrl-C to the parent (which stops them) and die silently when terminated:
+    no "Process ForkPoolWorker-2:" traceback on the terminal."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
 def run_experiment(cfg: ExperimentConfig, *, jobs: int | None = None,
                    progress: Callable[[int, int, Task], None] | None = None) -> ExperimentResult:
     """Run every task, ``jobs`` in parallel (default: all cores). ``progress(done, total, task)``."""
@@ -112,13 +121,15 @@ def run_experiment(cfg: ExperimentConfig, *, jobs: int | None = None,
         it = map(_worker, [(cfg, t) for t in order])
         pool = None
     else:
-        pool = multiprocessing.get_context("fork").Pool(jobs)
+        pool = multiprocessing.get_context("fork").Pool(jobs, initializer=_quiet_worker)
         it = pool.imap_unordered(_worker, [(cfg, t) for t in order], chunksize=1)
     try:
         for k, (task, res) in enumerate(it, 1):
             out.results[(task.method, task.people, task.run)] = res
             if progress:
                 progress(k, len(tasks), task)
+        if pool is not None:
+            pool.close()  # every task is done: the workers end on their own
     finally:
         if pool is not None:
             pool.terminate()

@@ -17,6 +17,8 @@ from pathlib import Path
 
 from ..errors import ConfigError
 
+from ._inputs import number
+
 DEFAULT_SCENARIO = "paper"  # the shipped examples/paper.toml (uavloc_gcs.examples)
 
 
@@ -25,6 +27,8 @@ def _int_list(text: str) -> tuple[int, ...]:
         values = tuple(int(v) for v in text.split(",") if v.strip())
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected comma-separated whole numbers, got {text!r}") from None
+    if values and max(values) > 1000:
+        raise argparse.ArgumentTypeError(f"people counts above 1000 are not simulated, got {max(values)}")
     if not values or min(values) < 1:
         raise argparse.ArgumentTypeError(f"people counts must be positive whole numbers, got {text!r}")
     return values
@@ -37,16 +41,16 @@ def register(sub: argparse._SubParsersAction) -> None:
     pp = esub.add_parser("paper", help="MLE-EPSO vs PSO, GA and RL-NM, 5 to 50 people",
                          description="Figures (a) completion time, (b) run time vs people, (c) maximum "
                                      "error vs time for 10 people, with 95 %% confidence intervals.")
-    pp.add_argument("--runs", type=int, default=3, help="runs (random worlds) per point (default 3)")
+    pp.add_argument("--runs", type=number(int, min=1), default=3, help="runs (random worlds) per point (default 3)")
     pp.add_argument("--out", default="results/paper", help="output directory (default results/paper)")
-    pp.add_argument("--jobs", type=int, default=None, help="parallel processes (default: all cores)")
+    pp.add_argument("--jobs", type=number(int, min=1, max=256), default=None, help="parallel processes (default: all cores)")
     pp.add_argument("--people", type=_int_list, default=None,
                     help="comma-separated people counts (default 5,10,...,50)")
-    pp.add_argument("--seed", type=int, default=0, help="experiment seed (default 0)")
+    pp.add_argument("--seed", type=number(int, min=0), default=0, help="experiment seed (default 0)")
     pp.add_argument("--methods", default=None,
                     help="comma-separated subset of: MLE-EPSO (M), MLE-EPSO (NM), MLE-PSO, MLE-GA, RL-NM")
-    pp.add_argument("--iterations", type=int, default=40, help="planner iterations per replan (default 40)")
-    pp.add_argument("--error-people", type=int, default=10,
+    pp.add_argument("--iterations", type=number(int, min=1, max=100000), default=40, help="planner iterations per replan (default 40)")
+    pp.add_argument("--error-people", type=number(int, min=0, max=1000), default=10,
                     help="people in figure (c) (default 10; 0 to skip)")
     pp.add_argument("--scenario", default=DEFAULT_SCENARIO,
                     help="scenario TOML, or a shipped one by name: paper, small (default: paper)")
@@ -93,6 +97,7 @@ def run(args: argparse.Namespace) -> int:
 
     from ..examples import scenario_path
     from ..scenario import load_scenario
+    from ._inputs import override
     from ._output import atomic_output_dir
 
     if args.runs < 1:
@@ -109,7 +114,7 @@ def run(args: argparse.Namespace) -> int:
             raise ConfigError(f"--methods: unknown method {bad[0]!r}; choose from {', '.join(ALL_METHODS)}")
     sc = load_scenario(scenario_path(args.scenario))
     if args.coverage:
-        sc = sc.replace(scan={"coverage": args.coverage})
+        sc = override(sc, "--coverage", scan={"coverage": args.coverage})
     if args.plain:
         sc = sc.replace(planner={"local_search": False, "warm_start": False})
     cfg = ExperimentConfig(sc, people=args.people or DEFAULT_PEOPLE, runs=args.runs, seed=args.seed,

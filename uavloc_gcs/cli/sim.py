@@ -14,22 +14,24 @@ from __future__ import annotations
 import argparse
 
 from ..errors import ConfigError
+from ._inputs import number
 
 
 def register(sub) -> None:
     p = sub.add_parser("sim", help="run fake MAVLink vehicles (software in the loop) or the companion emulator",
                        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("scenario", help="scenario TOML (fleet, area, simulated people)")
-    p.add_argument("--speedup", type=float, default=None, help="simulated seconds per real second "
+    p.add_argument("scenario", help="scenario TOML (fleet, area, simulated people), or a shipped one by name: "
+                                    "paper, small, field")
+    p.add_argument("--speedup", type=number(float, above=0, max=1000), default=None, help="simulated seconds per real second "
                    "(default: simulation.speedup of the scenario)")
-    p.add_argument("--loss", type=float, default=0.0, help="packet loss probability, each direction (0-1)")
-    p.add_argument("--latency-ms", type=float, default=0.0, help="one-way link latency [ms]")
-    p.add_argument("--seed", type=int, default=None, help="world and fault seed (default: simulation.seed)")
+    p.add_argument("--loss", type=number(float, min=0, max=1), default=0.0, help="packet loss probability, each direction (0-1)")
+    p.add_argument("--latency-ms", type=number(float, min=0, max=60000), default=0.0, help="one-way link latency [ms]")
+    p.add_argument("--seed", type=number(int, min=0, max=2**32 - 1), default=None, help="world and fault seed (default: simulation.seed)")
     p.add_argument("--signing-key", default=None, metavar="HEX", help="MAVLink 2 signing key, 64 hex digits")
-    p.add_argument("--base-port", type=int, default=14560, help="vehicle i listens on base port + i (default 14560)")
+    p.add_argument("--base-port", type=number(int, min=0, max=65535), default=14560, help="vehicle i listens on base port + i (default 14560)")
     p.add_argument("--host", default="127.0.0.1", help="address to bind (default loopback)")
     p.add_argument("--gcs", default=None, metavar="HOST:PORT", help="also stream to this ground station address")
-    p.add_argument("--status-s", type=float, default=10.0, help="print a status line every N real seconds (0: off)")
+    p.add_argument("--status-s", type=number(float, min=0), default=10.0, help="print a status line every N real seconds (0: off)")
     p.add_argument("--no-rssi", action="store_true",
                    help="no onboard RSSI: an external companion (e.g. uavloc sim --companion) provides it; "
                         "the vehicles then forward messages between their peers as an autopilot routes them")
