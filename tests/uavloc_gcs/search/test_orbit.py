@@ -1,0 +1,88 @@
+"""Orbit looks (search/orbit.py): radius, dwell, mission items per autopilot, the path simulators fly,
+and the policy giving orbit looks in the burst world only."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from uavloc_gcs.examples import scenario_path
+from uavloc_gcs.mission import DO_CHANGE_SPEED, NAV_RETURN_TO_LAUNCH, NAV_WAYPOINT, to_wire
+from uavloc_gcs.scenario import load_scenario
+from uavloc_gcs.search import orbit
+from uavloc_gcs.search.pod import BurstTiming
+
+
+@pytest.fixture(scope="module")
+def field():
+    return load_scenario(scenario_path("field"))
+
+
+def test_radius_is_near_the_altitude_and_dwell_catches_the_bursts(field):
+    # range information about the horizontal position peaks at rho = altitude (100 m)
+    r = orbit.orbit_radius_m(field, 0.0)
+    assert 80.0 <= r <= 120.0
+    o = orbit.plan_orbit(field, (0.0, 0.0), 60.0)
+    w = BurstTiming.from_scenario(field).window_for(orbit.ORBIT_BURSTS, orbit.ORBIT_P)
+    ph = orbit.mean_p_heard(field, o.radius_m, 60.0)
+    assert 0.5 < ph < 1.0
+    assert o.dwell_s == pytest.approx(min(w / ph, orbit.MAX_DWELL_S))
+    assert o.flown_s >= o.dwell_s and o.flown_s - o.dwell_s < 2 * math.pi * o.radius_m / o.speed_m_s
+    # a wider estimate hears less of the bursts: a longer dwell
+    assert orbit.plan_orbit(field, (0.0, 0.0), 150.0).dwell_s > o.dwell_s
+
+
+def test_speed_models_follow_the_sitl_measurements():
+    assert orbit.orbit_speed_m_s("loiter-turns", 60.0, 25.0) == pytest.approx(7.9, abs=0.05)
+    assert orbit.orbit_speed_m_s("loiter-turns", 500.0, 10.0) == 10.0  # never above the cruise speed
+    assert 3.0 < orbit.orbit_speed_m_s("ring", 60.0, 25.0) < 6.5
+
+
+@pytest.mark.parametrize("autopilot", ["ardupilot", "px4"])
+def test_look_mission_items(field, autopilot):
+    o = orbit.OrbitLook((300.0, 200.0), 100.0, 200.0, orbit.orbit_speed_m_s(orbit.ORBIT_FORM[autopilot], 100.0, 25.0),
+                        orbit.ORBIT_FORM[autopilot])
+    lm = orbit.look_mission(field.frame, [[100.0, 0.0], [300.0, 100.0]], (5, 6), [None, o], alt_m=100.0,
+                            speed_m_s=25.0, autopilot=autopilot, home_latlon_deg=field.launch_latlon_deg,
+                            start_xy_m=(0.0, 0.0))
+    wire = to_wire(lm.plan, autopilot)
+    seqs = lm.look_seqs(autopilot == "ardupilot")
+    assert wire[-1].command == NAV_RETURN_TO_LAUNCH
+    assert wire[seqs[0]].command == NAV_WAYPOINT  # the fly-by
+    entry = lm.look_xy_m[1]
+    assert np.hypot(*(entry - np.array(o.centre_xy_m))) == pytest.approx(100.0)
+    # the entry is the circle's point nearest the previous look point
+    assert np.hypot(*(entry - np.array([100.0, 0.0]))) == pytest.approx(np.hypot(200.0, 200.0) - 100.0, abs=1e-6)
+    if autopilot == "ardupilot":
+        loiter = wire[seqs[1]]
+        assert loiter.command == orbit.NAV_LOITER_TURNS
+        assert loiter.param1 == o.turns and loiter.param3 == pytest.approx(100.0)
+    else:
+        ring = [w for w in wire if w.command == NAV_WAYPOINT][1:]
+        assert len(ring) == o.turns * orbit.RING_POINTS_PER_TURN + 1
+        lat_lon = np.array([[w.x / 1e7, w.y / 1e7] for w in ring])
+        d = np.hypot(*(field.frame.to_local_xy(lat_lon) - np.array(o.centre_xy_m)).T)
+        assert np.allclose(d, 100.0, atol=0.05)
+        speeds = [w.param2 for w in wire if w.command == DO_CHANGE_SPEED]
+        assert speeds == [25.0, pytest.approx(o.speed_m_s), 25.0]  # slow on the ring, cruise after
+
+
+def test_expand_path_inserts_whole_turns(field):
+    o = orbit.OrbitLook((0.0, 500.0), 100.0, 100.0, 8.0)
+    path, seg = orbit.expand_path([[0.0, 0.0], [0.0, 400.0]], [None, o], (0.0, -100.0))
+    on = np.r_[False, seg == 1]  # path points that end a circle segment
+    ring = path[on]
+    d = np.hypot(ring[:, 0], ring[:, 1] - 500.0)
+    assert np.allclose(d, 100.0)
+    length = np.linalg.norm(np.diff(path, axis=0), axis=1)[seg == 1].sum()
+    assert length == pytest.approx(o.turns * 2 * math.pi * 100.0, rel=0.01)
+    assert np.allclose(path[np.flatnonzero(on)[-1]], path[np.flatnonzero(seg == 1)[0]])  # back at the entry
+
+
+def test_no_orbits_in_the_paper_world():
+    from uavloc_gcs.search import SearchPolicy
+
+    paper = load_scenario(scenario_path("paper"))
+    assert orbit.orbit_targets(SearchPolicy(paper), 0.0, ["unchanged"]) == ["unchanged"]
