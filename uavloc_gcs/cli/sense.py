@@ -30,8 +30,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="monitor-mode interface to capture from (repeat for several; needs pcapy-ng and "
                         "capture permission)")
     p.add_argument("--channels", default=None, metavar="LIST",
-                   help="hop the (single) interface over these channels, e.g. 1,6,11 (uses 'iw'; default: "
-                        "stay on the channel it is set to)")
+                   help="hop the (single) interface over these channels, e.g. 1,6,11, or with a dwell per channel "
+                        "in ms, 1:400,6:200,11:200 (uses 'iw'; default: stay on the channel it is set to)")
     p.add_argument("--dwell-ms", type=float, default=250.0, help="time on each hopped channel [ms] (default 250)")
     p.add_argument("--duration-s", type=float, default=None, help="stop a live capture after this long")
     p.add_argument("--out", default=None, metavar="DIR", help="write frames.csv (and slots.csv with --tlog) here")
@@ -75,6 +75,12 @@ def run(args: argparse.Namespace) -> int:
     if args.tlog and (args.interface or args.mavlink):
         raise ConfigError("--tlog places a capture file's slots on a recorded flight: not with --interface or "
                           "--mavlink", key="--tlog")
+    if args.dwell_ms <= 0:
+        raise ConfigError(f"--dwell-ms must be positive, got {args.dwell_ms:g}", key="--dwell-ms")
+    if args.channels:
+        from ..sense.live import parse_channels
+
+        parse_channels(args.channels, args.dwell_ms / 1000.0)  # refused before anything starts
     if args.channels and len(args.interface) != 1:
         raise ConfigError("--channels hops one interface; give exactly one --interface (several interfaces stay "
                           "on their own fixed channels)", key="--channels")

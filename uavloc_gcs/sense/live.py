@@ -99,17 +99,15 @@ class LiveInterface:
 
 
 class ChannelHopper:
-    """Moves ONE interface over ``channels``, ``dwell_s`` on each, with ``iw`` (a thread)."""
+    """Moves ONE interface over ``plan`` [(channel, dwell_s), ...] in turn, with ``iw`` (a thread)."""
 
-    def __init__(self, iface: str, channels: list[int], dwell_s: float):
+    def __init__(self, iface: str, plan: list[tuple[int, float]]):
         self.iw = shutil.which("iw")
         if self.iw is None:
             raise ConfigError("--channels needs the 'iw' tool (apt install iw)", key="--channels")
-        if dwell_s <= 0:
-            raise ConfigError(f"--dwell-ms must be positive, got {dwell_s * 1000:g}", key="--dwell-ms")
-        self.iface, self.channels, self.dwell_s = iface, channels, dwell_s
+        self.iface, self.plan = iface, plan
         self._stop = threading.Event()
-        self._set(channels[0], check=True)
+        self._set(plan[0][0], check=True)
         self._thread = threading.Thread(target=self._hop, name=f"hop {iface}", daemon=True)
         self._thread.start()
 
@@ -121,9 +119,9 @@ class ChannelHopper:
 
     def _hop(self) -> None:
         k = 0
-        while not self._stop.wait(self.dwell_s):
-            k = (k + 1) % len(self.channels)
-            self._set(self.channels[k])
+        while not self._stop.wait(self.plan[k][1]):
+            k = (k + 1) % len(self.plan)
+            self._set(self.plan[k][0])
 
     def close(self) -> None:
         self._stop.set()
@@ -163,12 +161,17 @@ class ReplaySource:
         pass
 
 
-def parse_channels(text: str) -> list[int]:
-    try:
-        chans = [int(c) for c in text.split(",") if c.strip()]
-    except ValueError:
-        chans = []
-    if not chans or any(not 1 <= c <= 233 for c in chans):
-        raise ConfigError(f"--channels must be a comma-separated list of channel numbers, got {text!r}",
-                          key="--channels")
-    return chans
+def parse_channels(text: str, default_dwell_s: float) -> list[tuple[int, float]]:
+    """``1,6,11`` (each ``default_dwell_s``) or ``1:400,6:200,11:200`` (dwell in ms per channel)."""
+    plan = []
+    for item in text.split(","):
+        ch, _, dwell = item.strip().partition(":")
+        try:
+            plan.append((int(ch), float(dwell) / 1000.0 if dwell else default_dwell_s))
+        except ValueError:
+            plan = []
+            break
+    if not plan or any(not 1 <= c <= 233 or not 0 < d <= 60 for c, d in plan):
+        raise ConfigError(f"--channels must be channel numbers 1-233, each optionally with a dwell of up to 60000 ms "
+                          f"(1,6,11 or 1:400,6:200,11:200), got {text!r}", key="--channels")
+    return plan

@@ -47,11 +47,11 @@ async def _main(args, exclusion) -> StreamResult:
         if args.capture:
             replay = ReplaySource(args.capture, skips.read)  # read now: a broken file fails before linking
         else:
-            chans = parse_channels(args.channels) if args.channels else None
+            plan = parse_channels(args.channels, args.dwell_ms / 1000.0) if args.channels else None
             for name in args.interface:
                 sources.append(LiveInterface(name))
-            if chans:
-                hopper = ChannelHopper(args.interface[0], chans, args.dwell_ms / 1000.0)
+            if plan:
+                hopper = ChannelHopper(args.interface[0], plan)
         if args.mavlink:
             from .mavout import open_sender
 
