@@ -23,6 +23,7 @@ DEFAULT_INTERVALS_S = {
     mav.MAVLINK_MSG_ID_SYSTEM_TIME: 1.0,
     mav.MAVLINK_MSG_ID_MISSION_CURRENT: 1.0,
     mav.MAVLINK_MSG_ID_EXTENDED_SYS_STATE: 1.0,
+    mav.MAVLINK_MSG_ID_GPS_RAW_INT: math.inf,  # on request (SET_MESSAGE_INTERVAL), as the daemon asks
 }
 BATTERY_FULL_V, BATTERY_EMPTY_V = 16.8, 14.0  # 4S LiPo
 CAPABILITIES = (
@@ -45,6 +46,9 @@ class TelemetryMixin:
         self._next_due = {mid: self.t_s if iv < math.inf else math.inf for mid, iv in self.intervals_s.items()}
         self._mission_current_due = True
         self._last_yaw_cdeg = 0
+        if self.flavour.name == "ardupilot":  # ArduPilot's EKF says when it has a position
+            self.say_later(max(0.0, self.boot_t_s + self.cfg.position_after_boot_s - self.t_s), mav.MAV_SEVERITY_INFO,
+                           "EKF3 IMU0 is using GPS")
 
     def set_interval(self, msg_id: int, interval_us: float) -> bool:
         """MAV_CMD_SET_MESSAGE_INTERVAL: -1 disables, 0 restores the default, else microseconds."""
@@ -83,6 +87,7 @@ class TelemetryMixin:
         build = {
             mav.MAVLINK_MSG_ID_GLOBAL_POSITION_INT: self._global_position_int,
             mav.MAVLINK_MSG_ID_SYS_STATUS: self._sys_status,
+            mav.MAVLINK_MSG_ID_GPS_RAW_INT: self._gps_raw_int,
             mav.MAVLINK_MSG_ID_SYSTEM_TIME: self._system_time,
             mav.MAVLINK_MSG_ID_MISSION_CURRENT: lambda: self.mission_current_reply().msg,
             mav.MAVLINK_MSG_ID_EXTENDED_SYS_STATE: self._extended_sys_state,
@@ -152,10 +157,20 @@ class TelemetryMixin:
         frac = self.battery_remaining_fraction
         volts = BATTERY_EMPTY_V + (BATTERY_FULL_V - BATTERY_EMPTY_V) * frac
         power = 0.0 if self.landed else float(self.cfg.power.power_w(self.kin.ground_speed_m_s))
-        sensors = mav.MAV_SYS_STATUS_SENSOR_3D_GYRO | mav.MAV_SYS_STATUS_SENSOR_GPS
+        sensors = mav.MAV_SYS_STATUS_SENSOR_3D_GYRO | mav.MAV_SYS_STATUS_SENSOR_GPS | mav.MAV_SYS_STATUS_PREARM_CHECK
+        # the pre-arm check bit healthy once it would arm (both autopilots report it so)
+        health = sensors if self.ready_to_arm else sensors & ~mav.MAV_SYS_STATUS_PREARM_CHECK
         return mav.MAVLink_sys_status_message(
-            sensors, sensors, sensors, 100, int(volts * 1000), int(power / volts * 100),
+            sensors, sensors, health, 100, int(volts * 1000), int(power / volts * 100),
             int(round(frac * 100)), 0, 0, 0, 0, 0, 0)
+
+    def _gps_raw_int(self):
+        lat, lon = self.cfg.frame.to_wgs84(self.kin.pos[0], self.kin.pos[1])
+        fix = mav.GPS_FIX_TYPE_3D_FIX if self.position_ready else mav.GPS_FIX_TYPE_NO_FIX
+        return mav.MAVLink_gps_raw_int_message(
+            self.time_boot_ms * 1000, fix, int(round(float(lat) * 1e7)), int(round(float(lon) * 1e7)),
+            int(round((self.cfg.home_alt_amsl_m + self.kin.pos[2]) * 1000)), 80, 120,
+            int(round(self.kin.ground_speed_m_s * 100)), 65535, 12 if self.position_ready else 3)
 
     def _system_time(self):
         unix_us = int(round((self.cfg.epoch_unix_s + self.t_s) * 1e6))

@@ -184,6 +184,17 @@ class FakeVehicle(TelemetryMixin):
         wait = self.flavour.arm_refused_after_boot_s if wait is None else wait
         return self.flavour.arm_refusal if self.t_s - self.boot_t_s < wait else None
 
+    @property
+    def position_ready(self) -> bool:
+        """Its estimator has a position (ArduCopter: "EKF3 IMU0 is using GPS"; GPS_RAW_INT 3D fix)."""
+        return self.t_s - self.boot_t_s >= self.cfg.position_after_boot_s
+
+    @property
+    def ready_to_arm(self) -> bool:
+        """What SYS_STATUS's pre-arm check bit reports: it would arm now (in a mode that needs a
+        position it also needs one)."""
+        return self.arm_refusal() is None and self.position_ready
+
     def arm(self, force: bool = False) -> bool:
         if self.armed:
             return True

@@ -36,6 +36,7 @@ log = logging.getLogger(__name__)
 DEFAULT_STREAMS: dict[str, float] = {
     "SYSTEM_TIME": 1.0, "GLOBAL_POSITION_INT": 4.0, "MISSION_CURRENT": 2.0, "SYS_STATUS": 1.0,
     "HOME_POSITION": 0.5, "EXTENDED_SYS_STATE": 1.0,
+    "GPS_RAW_INT": 0.5,  # (the fix type: ready to arm, service/vehicle.py)
 }
 STREAM_COMMAND_RETRIES = 2
 ARM_READY_TIMEOUT_S = 90.0  # wall seconds to keep retrying a refused arm (EKF settling after boot)

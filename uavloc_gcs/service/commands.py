@@ -23,7 +23,8 @@ from ..search.orbit import look_mission, orbits_for
 from ..terrain_missions import point_seqs, terrain_safe
 from .lifecycle import persist
 from .missionstate import final_seq, hold_seq, same_stored_mission
-from .starting import CLIMB_WAIT_S, StartFailed, UnsafeStart, read_facts, refusal_in, start_guard, takeoff_seen
+from .starting import (CLIMB_WAIT_S, READY_WAIT_S, StartFailed, UnsafeStart, read_facts, refusal_in, start_guard,
+                       takeoff_seen)
 from .vehicle import VehicleAgent
 from .vehiclelife import HOMING_MODES
 from .vehiclelife import VehicleLife as _Vehicle
@@ -89,6 +90,11 @@ class VehicleCommands:
         self._event("unusable", f"vehicle {v.id} cannot be commanded ({err}); {where}; its people go to the others",
                     v.id)
 
+    def _save_counts(self) -> None:
+        """Each vehicle's plans, uploads and plans not uploaded, in the store as they change: a
+        restarted daemon goes on counting from them (issue 26: a restart reported "0/0/0")."""
+        self.store.set_meta("counts", {str(v.id): [v.plans, v.uploads, v.skipped] for v in self.vehicles.values()})
+
     async def _rewind_scan(self, v: _Vehicle, items: list) -> None:
         """Re-fly the part of the scan flown while the daemon was down (its RSSI never arrived):
         back to the leg the vehicle was on when the last telemetry was stored."""
@@ -115,9 +121,10 @@ class VehicleCommands:
         v.phase = "starting"
         a = v.agent
         guard = start_guard(a, v.mission, a.flavour.first_mission_seq, v.id)
-        alt0, began = self._ground_alt(a), self.wall()
         try:
             try:
+                await self._until_ready(v)
+                alt0, began = self._ground_alt(a), self.wall()  # (read after the wait)
                 await self._persist(v, "start", lambda: a.start(before_start=guard),
                                     lambda: a.tel.armed and a.in_mission_mode)
             except (LinkError, UnsafeStart) as exc:
@@ -132,6 +139,22 @@ class VehicleCommands:
         if v.phase == "starting":  # (the monitor may have seen it fly meanwhile)
             v.phase = "scanning"
         self._event("start", f"vehicle {v.id} started its scan", v.id)
+
+    async def _until_ready(self, v: _Vehicle) -> None:
+        """Wait until ``v`` says it is ready to arm (``VehicleAgent.not_ready``, read each time);
+        StartFailed with its reason after READY_WAIT_S. Nothing is sent meanwhile: it is never
+        armed, nor put in a mode that needs a position, before it has one."""
+        a = v.agent
+        not_ready = getattr(a, "not_ready", lambda: None)
+        deadline, said = self.wall() + READY_WAIT_S, False
+        while not a.tel.armed and (why := not_ready()) is not None:
+            if self.wall() >= deadline:
+                raise StartFailed(f"not ready to arm within {READY_WAIT_S:g} s: {why}", vehicle=str(v.id),
+                                  operation="start")
+            if not said:
+                self._event("start", f"vehicle {v.id} waits to be ready to arm: {why}", v.id)
+                said = True
+            await asyncio.sleep(0.1)
 
     @staticmethod
     def _ground_alt(a: VehicleAgent) -> float:
@@ -226,6 +249,7 @@ class VehicleCommands:
         v.uploads += 1
         self._adopt(v, purpose, items)
         self.store.add_mission(self.now_s(), v.id, purpose, items)
+        self._save_counts()
         if self.on_mission_acked is not None:
             self.on_mission_acked(v.id, purpose)
         self._event("upload", f"vehicle {v.id}: {purpose} mission of {len(items)} items acknowledged", v.id)

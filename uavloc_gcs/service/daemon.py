@@ -53,6 +53,9 @@ JOB_WAIT_S = 3.0  # wall seconds the brain waits for a vehicle's exchanges befor
 IDLE_END_S = 10.0  # mission seconds with every vehicle home and no look planned before the search ends
 
 
+PARTIAL_TEXT = "PARTIAL RESULTS: the search was stopped before its end."
+
+
 @dataclass(frozen=True)
 class DaemonOptions:
     store_path: Path
@@ -126,6 +129,7 @@ class Daemon(FleetPreparation, VehicleCommands):
         self.stop_report: list[str] = []  # what each vehicle does, when the daemon was stopped
         self._job_crash: BaseException | None = None  # a vehicle task's unexpected error, for the brain
         self._finish_wall = -math.inf  # wall time the fleet was sent home
+        self.partial_outcome: SearchOutcome | None = None  # the results so far, once stopped before the end
 
     # -- clock ---------------------------------------------------------------------------------
     def now_s(self) -> float:
@@ -181,6 +185,8 @@ class Daemon(FleetPreparation, VehicleCommands):
                         await monitor  # ends at the next tick (raises what broke it, if anything)
                 except asyncio.CancelledError:  # stopped by the operator (Ctrl-C, SIGTERM)
                     self.stop_report = await self._stopping()
+                    # the results so far, for the files (service/run.py): the store stays resumable
+                    self.partial_outcome = self._outcome(partial=PARTIAL_TEXT)
                     raise
                 return self._outcome()
             finally:
@@ -437,6 +443,7 @@ class Daemon(FleetPreparation, VehicleCommands):
             if decision.reason != "first look mission":  # it replaces looks in flight: a restarted leg
                 v.uploads_since_look += 1
             jobs.append((v, self._upload_look(v, pts, tuple(task.target_ids))))
+        self._save_counts()
         await self._jobs(jobs)
 
     async def _finish(self) -> bool:
@@ -464,7 +471,7 @@ class Daemon(FleetPreparation, VehicleCommands):
         return now - self._finishing_since > LAND_WAIT_S
 
     # -- the end ------------------------------------------------------------------------------------------
-    def _outcome(self) -> SearchOutcome:
+    def _outcome(self, partial: str = "") -> SearchOutcome:
         t = self.now_s()
         self.store.flush()
         with StoreReader(self.opt.store_path) as rd:
@@ -478,12 +485,16 @@ class Daemon(FleetPreparation, VehicleCommands):
         unflown = [v for v in self.vehicles.values() if v.start_failed and not v.scan_done]
         for v in unflown:  # a refused start is no scan flown: say so, whatever else is said
             text += f" Vehicle {v.id} did not fly its scan ({v.start_failed}); its part of the area was not searched."
+        if partial:
+            text = f"{partial} {text}"
         self._event("end", text)
-        self.store.set_meta("finished", True)
+        if not partial:  # a search stopped before its end can be resumed
+            self.store.set_meta("finished", True)
         self.store.flush()
         per_vehicle = tuple((v.id, v.plans, v.uploads, v.skipped) for v in self.vehicles.values())
         self.store.set_meta("uploads", [list(row) for row in per_vehicle])
         self._event("end", "replans " + str(self._replans) + "; per vehicle (plans for it, uploads incl. the scan, "
                     "plans not uploaded): " + ", ".join(f"{vid}: {pl}/{up}/{sk}" for vid, pl, up, sk in per_vehicle))
         return SearchOutcome(people, bool(people) and all(p.located for p in people), text, t, self._replans,
-                             tuple(v.id for v in self.vehicles.values() if v.home), lost, returning, per_vehicle)
+                             tuple(v.id for v in self.vehicles.values() if v.home), lost, returning, per_vehicle,
+                             partial=partial)

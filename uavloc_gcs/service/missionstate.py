@@ -7,7 +7,7 @@ from typing import Sequence
 
 import numpy as np
 
-from ..mission import (NAV_LOITER_TIME, NAV_RETURN_TO_LAUNCH, POSITIONAL_COMMANDS, MissionItem, MissionPlan, WireItem,
+from ..mission import (NAV_LOITER_TIME, NAV_WAYPOINT, NAV_RETURN_TO_LAUNCH, POSITIONAL_COMMANDS, MissionItem, MissionPlan, WireItem,
                        return_to_launch)
 
 
@@ -78,3 +78,14 @@ def hold_seq(items: Sequence[WireItem]) -> int:
     rtl = final_seq(items)
     holds = [it.seq for it in items if it.command == NAV_LOITER_TIME and it.seq < rtl]
     return holds[-1] if holds else 0
+
+
+def scan_rest(items: Sequence[WireItem], from_seq: int) -> list[WireItem]:
+    """The scan ``items`` flown again from item ``from_seq``: what comes before its first waypoint
+    (ArduPilot's home, the take-off, the speed) then everything from ``from_seq`` on, renumbered.
+    For a vehicle that landed mid-scan: it takes off and flies only the unflown rest."""
+    first_wp = next((it.seq for it in items if it.command == NAV_WAYPOINT and it.seq > 0), None)
+    if first_wp is None or from_seq <= first_wp:
+        return list(items)
+    kept = [it for it in items if it.seq < first_wp or it.seq >= from_seq]
+    return [dataclasses.replace(it, seq=i) for i, it in enumerate(kept)]

@@ -196,6 +196,8 @@ class SearchOutcome:
     # per vehicle: (id, replans that changed its looks, missions uploaded incl. the scan, new plans not
     # uploaded because not worth a restarted leg)
     uploads: tuple[tuple[int, int, int, int], ...] = ()
+    # why the results are partial (the search was stopped before its end); "" when it ended
+    partial: str = ""
     # what was searched (search.coverage.CoverageSummary), set once the results are written
     coverage: object = None
     # part of the area went unsearched because a vehicle was lost (or its scan never started) and

@@ -11,11 +11,12 @@ import time
 from pathlib import Path
 
 from ..errors import ConfigError, LinkError, UavlocError
-from ..mission import to_wire
-from .missionstate import same_stored_mission, with_hold_before_rtl
+from ..mission import NAV_WAYPOINT, to_wire
+from .missionstate import final_seq, hold_seq, same_stored_mission, scan_rest, with_hold_before_rtl
 from .store import StoreReader
 from .vehicle import VehicleAgent
 from .vehiclelife import VehicleLife as _Vehicle
+from .vehiclelife import read_facts as read_life_facts
 
 HOLD_WALL_S = 30.0  # a finished scan holds at least this many wall seconds for the next mission
 START_WAIT_S = 10.0  # wall seconds the brain waits for the scan starts before leaving them to each vehicle
@@ -55,6 +56,10 @@ class FleetPreparation:
             slots = rd.slots()
             missions = rd.latest_missions()
             self._seq_before_crash = rd.last_mission_seq()
+        for vid, (plans, uploads, skipped) in (meta.get("counts") or {}).items():
+            v = self.vehicles.get(int(vid))
+            if v is not None:  # the counts go on from the last run's
+                v.plans, v.uploads, v.skipped = int(plans), int(uploads), int(skipped)
         self.policy.ingest(slots)
         from ..search.coverage import add_stored  # noqa: PLC0415
 
@@ -181,6 +186,34 @@ class FleetPreparation:
             if hasattr(self.policy, "speed_m_s"):
                 self.policy.scenario, self.policy.speed_m_s = self.sc, self.sc.fleet.speed_m_s
 
+    async def _resume_landed_scan(self, v: _Vehicle, items: list, f) -> bool:
+        """After a restart: ``v`` has its scan on board but is on the ground, disarmed (it landed
+        by itself while no daemon listened: a failsafe, the scan's own RTL). The scan is flown on
+        only where it was not: from the leg it was on when the last telemetry was stored (what it
+        flew since then sent RSSI nobody heard). True when a start must follow."""
+        then = self._seq_before_crash.get(v.id)
+        hold = hold_seq(items) or final_seq(items)
+        waypoints = [it.seq for it in items if it.command == NAV_WAYPOINT and it.seq > 0]
+        if then is not None and waypoints and then >= hold:  # it had flown its whole scan
+            self._adopt(v, "scan", items)
+            v.scan_done, v.home, v.phase = True, True, "landed"
+            self._event("resume", f"vehicle {v.id} is on the ground, disarmed, its scan flown (item {then} of "
+                        f"{hold} reached): home", v.id)
+            return False
+        back = waypoints[0] if then is None or not waypoints else max(waypoints[0], min(then - 1, waypoints[-1]))
+        v.phase = "uploading scan"
+        if not waypoints or back <= waypoints[0]:
+            self._adopt(v, "scan", items)
+            self._event("resume", f"vehicle {v.id} is on the ground, disarmed, its scan not begun "
+                        f"(item {then}): resuming it from its start", v.id)
+            return True
+        rest = scan_rest(items, back)
+        left = sum(1 for it in rest if it.command == NAV_WAYPOINT and it.seq > 0)
+        self._event("resume", f"vehicle {v.id} is on the ground, disarmed, its scan flown to item {then} of {hold}: "
+                    f"resuming its scan from item {back} ({left} of {len(waypoints)} waypoints left)", v.id)
+        await self._upload(v, "scan", rest, first_seq=None)
+        return True
+
     async def _prepare_all(self, resumed: dict) -> None:
         """Upload every scan (or re-adopt the missions found after a restart), then start."""
         from ..scan import plan_scan, scan_missions  # noqa: PLC0415
@@ -209,18 +242,22 @@ class FleetPreparation:
                 on_board = await v.agent.download()
                 purpose, items = previous
                 if same_stored_mission(on_board, items, v.agent.flavour):
+                    f = read_life_facts(v.agent)  # read now, after the download's awaits
+                    if purpose == "scan" and not f.armed and f.on_ground:
+                        if await self._resume_landed_scan(v, items, f):
+                            to_start.append(v)
+                        return
                     self._adopt(v, purpose, items)
                     v.scan_done = purpose != "scan"
-                    if not v.agent.tel.armed and v.agent.on_ground() and purpose != "scan":
+                    if not f.armed and f.on_ground:
                         v.home, v.phase = True, "landed"
-                    self._event("resume", f"vehicle {v.id} still flies its {purpose} mission "
-                                f"(item {v.agent.tel.mission_seq})", v.id)
-                    if v.agent.tel.armed:
-                        if purpose == "scan":
-                            await self._rewind_scan(v, items)
+                        self._event("resume", f"vehicle {v.id} is on the ground, disarmed, with its {purpose} "
+                                    f"mission on board (item {f.mission_seq}): home", v.id)
                         return
-                    if purpose == "scan" and v.agent.on_ground():
-                        to_start.append(v)
+                    self._event("resume", f"vehicle {v.id} still flies its {purpose} mission "
+                                f"(item {f.mission_seq})", v.id)
+                    if purpose == "scan":
+                        await self._rewind_scan(v, items)
                     return
                 self._event("resume", f"vehicle {v.id}: mission on board differs from the stored one", v.id)
                 if purpose != "scan" or v.agent.tel.armed:

@@ -20,6 +20,7 @@ from .daemon import Daemon, DaemonOptions
 from .labels import PersonLabels
 from .liveview import LiveView
 from .outcome import SearchOutcome, coverage_statement, statement_for
+from .partial import TITLE_MARK, mark_partial
 from .results import PersonResult, results_table, write_results
 from .store import StoreReader
 
@@ -82,7 +83,7 @@ async def _run(daemon: Daemon, scenario: Scenario, options: DaemonOptions, web, 
         if on_web_url is not None:
             on_web_url(server.url)
     try:
-        outcome = await _until_stopped(daemon)  # Ctrl-C / SIGTERM: the fleet is told what to do first
+        outcome = await _until_stopped(daemon, finish)  # Ctrl-C / SIGTERM: the fleet is told what to do first
         result = await asyncio.to_thread(finish, outcome)  # the map keeps answering meanwhile
         if feed is not None:
             feed.set_final(result.people, result.outcome.coverage)  # the map then shows what the files say
@@ -154,7 +155,7 @@ def _results(outcome: SearchOutcome, daemon: Daemon, scenario: Scenario, connect
         statement += f" Vehicle {vid} did not fly its scan ({why}); its part of the area was not searched."
     searched, left = coverage_statement(summary, outcome.vehicles_lost, [vid for vid, _ in not_started],
                                         stopped=bool(getattr(outcome, "partial", "")))
-    outcome = dataclasses.replace(outcome, people=tuple(heard), statement=" ".join(filter(None, [statement, searched])),
+    outcome = dataclasses.replace(outcome, people=tuple(heard), statement=" ".join(filter(None, [outcome.partial, statement, searched])),
                                   coverage=summary, unsearched_after_loss=left)
     if summary is not None:
         people = [dataclasses.replace(p, pod_here=summary.pod_at((p.east_m, p.north_m))) for p in people]
@@ -164,8 +165,10 @@ def _results(outcome: SearchOutcome, daemon: Daemon, scenario: Scenario, connect
     frame = scenario.frame
     files = write_results(out_dir, people, frame=frame, area_latlon_deg=np.array(scenario.polygon_latlon_deg),
                           tracks_latlon_deg=tracks, required_accuracy_m=scenario.people.required_accuracy_m,
-                          truth_xy_m=truth_xy, name=scenario.name, epoch_unix_s=epoch, coverage=summary,
+                          truth_xy_m=truth_xy, name=scenario.name + (TITLE_MARK if outcome.partial else ""), epoch_unix_s=epoch, coverage=summary,
                           terrain=scenario.dem)
+    if outcome.partial:
+        mark_partial(files, outcome.partial)
     table = results_table(people, scenario.people.required_accuracy_m, truth_xy, epoch_unix_s=epoch,
                           coverage=summary)
     return RunResult(outcome, tuple(people), table, tuple(files))
@@ -187,9 +190,10 @@ def _coverage(daemon: Daemon):
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
 
-async def _until_stopped(daemon: Daemon) -> SearchOutcome:
-    """Run the daemon; on SIGINT/SIGTERM let it send the fleet home (or on), then raise
-    :class:`~uavloc_gcs.errors.Interrupted` saying what each vehicle does."""
+async def _until_stopped(daemon: Daemon, finish: Callable[[SearchOutcome], "RunResult"] | None = None) -> SearchOutcome:
+    """Run the daemon; on SIGINT/SIGTERM let it send the fleet home (or on), write the results so far
+    with ``finish`` (marked partial: service/partial.py), then raise
+    :class:`~uavloc_gcs.errors.Interrupted` saying what each vehicle does and what was written."""
     from ..errors import Interrupted  # noqa: PLC0415
 
     loop = asyncio.get_running_loop()
@@ -209,7 +213,16 @@ async def _until_stopped(daemon: Daemon) -> SearchOutcome:
             task.uncancel()
             name = signal.Signals(got[0]).name
             lines = daemon.stop_report or ["no vehicle was commanded yet"]
-            raise Interrupted(f"stopped by {name}: " + "; ".join(lines) + ".", signal=got[0]) from None
+            written = ""
+            partial = getattr(daemon, "partial_outcome", None)
+            if finish is not None and partial is not None:
+                try:
+                    result = await asyncio.to_thread(finish, partial)
+                    written = (f" {result.outcome.statement} Written so far: "
+                               + ", ".join(p.name for p in result.files) + ".")
+                except Exception as exc:  # noqa: BLE001 - the stop is reported whatever happens here
+                    written = f" The results so far could not be written ({exc})."
+            raise Interrupted(f"stopped by {name}: " + "; ".join(lines) + "." + written, signal=got[0]) from None
 
 
 @contextlib.contextmanager

@@ -13,6 +13,10 @@ Rules, each a function of facts read now (:func:`read_facts`, never kept across 
   with a take-off from the item it starts at; the check runs again right before every arm and
   every MISSION_START (the link layer's ``before_start``), so a vehicle that landed during any
   await before it is not started.
+* :func:`start_refusal` also refuses to arm a vehicle that reports it is not ready (SYS_STATUS
+  pre-arm check bit unhealthy, no 3D GPS fix, PX4's estimator without an absolute position:
+  ``VehicleAgent.not_ready``); the start first waits up to ``READY_WAIT_S`` for it to be ready,
+  and the link layer arms only in the mode the start needs (GUIDED / Hold), never a manual one.
 * :func:`takeoff_seen` -- a start from the ground is a start once the vehicle climbs; a
   refusal the vehicle states (:data:`REFUSALS`) or no climb within ``CLIMB_WAIT_S`` is a failed
   start (:class:`StartFailed`, with the vehicle's own words), never a scan flown.
@@ -28,6 +32,7 @@ from ..errors import LinkError, UavlocError
 from ..mission import NAV_RETURN_TO_LAUNCH, POSITIONAL_COMMANDS, TAKEOFF_COMMANDS, WireItem
 
 CLIMB_WAIT_S = 20.0  # wall seconds after a start from the ground for the vehicle to leave the ground
+READY_WAIT_S = 120.0  # wall seconds a start waits for the vehicle to be ready to arm (EKF, GPS, pre-arm)
 CLIMB_M = 2.0  # above LANDED_ALT_M: metres of relative altitude that count as "it left the ground"
 # What autopilots say when they refuse to start or to fly what they were told (lower case):
 # ArduCopter ModeAuto::init "Auto: Missing Takeoff Cmd"; Copter::set_mode "Mode change to Auto
@@ -58,12 +63,15 @@ class StartFacts:
     mode: str
     mission_seq: int | None
     rel_alt_m: float
+    not_ready: str | None = None  # why it is not ready to arm, as it reports it (None: ready, or nothing said)
 
 
 def read_facts(agent) -> StartFacts:
     """The facts now (``agent``: a :class:`~.vehicle.VehicleAgent`)."""
     t = agent.tel
-    return StartFacts(bool(t.armed), bool(agent.on_ground()), str(t.mode), t.mission_seq, float(t.rel_alt_m))
+    not_ready = getattr(agent, "not_ready", None)
+    return StartFacts(bool(t.armed), bool(agent.on_ground()), str(t.mode), t.mission_seq, float(t.rel_alt_m),
+                      not_ready() if not_ready is not None else None)
 
 
 def takeoff_first(items: Sequence[WireItem], first_seq: int) -> bool:
@@ -80,7 +88,11 @@ def takeoff_first(items: Sequence[WireItem], first_seq: int) -> bool:
 
 
 def start_refusal(facts: StartFacts, items: Sequence[WireItem], first_seq: int) -> str | None:
-    """Why ``items`` must not be started from ``first_seq`` now, or None when it may."""
+    """Why ``items`` must not be started from ``first_seq`` now, or None when it may: on the
+    ground only with a take-off, and armed only when the vehicle says it is ready (issue 26: an
+    ArduCopter armed before its EKF used GPS, then refused AUTO "requires position" x3)."""
+    if not facts.armed and facts.not_ready:
+        return f"it is not ready to arm: {facts.not_ready}"
     if facts.on_ground and not takeoff_first(items, first_seq):
         armed = "armed" if facts.armed else "disarmed"
         return f"it is on the ground ({armed}, {facts.mode}) and its mission has no take-off from item {first_seq}"

@@ -50,6 +50,13 @@ class Telemetry:
     unix_wall_s: float | None = None  # daemon wall clock when unix_s arrived
     mission_ours: bool = True  # MISSION_CURRENT describes the mission we uploaded last (see VehicleAgent)
     landed_state: int | None = None  # EXTENDED_SYS_STATE's MAV_LANDED_STATE, where the autopilot sends it
+    # Ready to arm, as each autopilot reports it (None: not reported): SYS_STATUS's pre-arm check
+    # health bit (MAV_SYS_STATUS_PREARM_CHECK, ArduPilot and PX4), GPS_RAW_INT's fix type,
+    # ESTIMATOR_STATUS's absolute horizontal position flag (PX4), ArduPilot's "EKF3 IMU0 is using GPS"
+    prearm_ok: bool | None = None
+    gps_fix_type: int | None = None
+    estimator_pos_ok: bool | None = None
+    using_gps_said: bool = False
     wall_s: float = -math.inf
     messages: int = 0
 
@@ -129,6 +136,13 @@ class VehicleAgent:
         elif kind == "SYS_STATUS":
             if msg.battery_remaining >= 0:
                 t.battery_pct = float(msg.battery_remaining)
+            bit = mavlink.MAV_SYS_STATUS_PREARM_CHECK
+            if msg.onboard_control_sensors_present & bit and msg.onboard_control_sensors_enabled & bit:
+                t.prearm_ok = bool(msg.onboard_control_sensors_health & bit)
+        elif kind == "GPS_RAW_INT":
+            t.gps_fix_type = int(msg.fix_type)
+        elif kind == "ESTIMATOR_STATUS":
+            t.estimator_pos_ok = bool(msg.flags & mavlink.ESTIMATOR_POS_HORIZ_ABS)
         elif kind == "MISSION_CURRENT":
             t.mission_seq = int(msg.seq)
             total = getattr(msg, "total", 0)
@@ -144,6 +158,8 @@ class VehicleAgent:
         elif kind == "STATUSTEXT":
             text = str(msg.text).rstrip("\x00")
             self.texts.append((t.wall_s, text))
+            if "is using gps" in text.lower():  # ArduPilot's EKF: "EKF3 IMU0 is using GPS"
+                t.using_gps_said = True
             if self._on_status_text is not None:
                 self._on_status_text(self.vehicle, text)
 
@@ -209,6 +225,21 @@ class VehicleAgent:
             return True
         alt = self.tel.rel_alt_m
         return math.isfinite(alt) and alt < LANDED_ALT_M and (not self.tel.armed or self.tel.ground_speed_m_s < 0.5)
+
+    def not_ready(self) -> str | None:
+        """Why the vehicle is not ready to arm, as it reports it now, or None (ready, or it reports
+        nothing that says otherwise: its own arming checks still apply)."""
+        t = self.tel
+        why = []
+        if t.prearm_ok is False:
+            said = next((text for _w, text in reversed(self.texts) if text.lower().startswith(("prearm", "preflight"))),
+                        None)
+            why.append("its pre-arm checks fail" + (f" (\"{said}\")" if said else ""))
+        if t.estimator_pos_ok is False:
+            why.append("its estimator has no absolute position yet")
+        if t.gps_fix_type is not None and t.gps_fix_type < 3 and not t.using_gps_said:
+            why.append(f"no 3D GPS fix (GPS_RAW_INT fix type {t.gps_fix_type})")
+        return "; ".join(why) or None
 
     # -- actions (the link layer's exchanges) -------------------------------------------------------
     @property

@@ -191,9 +191,11 @@ def test_a_second_search_on_the_same_vehicles_flies_its_scan(tmp_path):
 
 def test_a_vehicle_without_a_position_is_not_armed_in_a_manual_mode_waiting_for_it(tmp_path):
     """Issue 26 on ArduCopter SITL: it armed in a manual mode, then "Mode change to Auto failed:
-    requires position" x3, disarmed ~10 s later, retried (4 of 4 starts). The fake refuses the
-    modes that need a position for its first 60 s: the start waits in GUIDED's refusal, disarmed,
-    and arms only in GUIDED once the vehicle knows where it is."""
+    requires position" x3, disarmed ~10 s later, retried (4 of 4 starts). The fake has no position
+    for its first 60 s and says so as the autopilots do (SYS_STATUS pre-arm check bit unhealthy,
+    GPS_RAW_INT without a 3D fix, ArduPilot's "EKF3 IMU0 is using GPS" only then): the start waits,
+    disarmed, sends nothing (not even GUIDED, which it would refuse), and arms only in GUIDED once
+    the vehicle is ready."""
     sc = small_scenario("ardupilot", speedup=SPEEDUP).replace(fleet={"vehicles": 1})
     store_path = tmp_path / "s.sqlite"
 
@@ -203,10 +205,13 @@ def test_a_vehicle_without_a_position_is_not_armed_in_a_manual_mode_waiting_for_
             fake = fleet.vehicle(1)
             armed_in: set = set()
 
+            first_armed_t = []
+
             async def watch():
                 while True:
                     if fake.armed:
                         armed_in.add(fake.mode)
+                        first_armed_t.append(fake.t_s)
                     await asyncio.sleep(0.005)
 
             watcher = asyncio.ensure_future(watch())
@@ -222,14 +227,16 @@ def test_a_vehicle_without_a_position_is_not_armed_in_a_manual_mode_waiting_for_
                 assert fake.t_s < 60.0, "the start begins before the vehicle has a position"
                 await d._start(v)
                 watcher.cancel()
-                return armed_in, fake.t_s, _texts(store_path, store=d.store)
+                return armed_in, first_armed_t, _texts(store_path, store=d.store)
             finally:
                 await d._cancel_jobs()
                 await d._close_links()
                 d.store.close()
 
-    armed_in, t_s, events = asyncio.run(go())
-    assert any("requires position" in e for e in events), events  # the vehicle did refuse for a while
+    armed_in, armed_t, events = asyncio.run(go())
+    assert any("waits to be ready to arm" in e and "GPS" in e for e in events), events
+    assert not any("requires position" in e for e in events), events  # nothing asked before it was ready
+    assert min(armed_t) >= 60.0, min(armed_t)  # armed only once it had a position
     assert armed_in and armed_in <= {"GUIDED", "AUTO"}, f"armed in {armed_in}"
     assert any(e == "start: vehicle 1 started its scan" for e in events), events
 
