@@ -11,6 +11,8 @@ take it over (the statement says how much and where; docs/readme/daemon.md).
 
 from __future__ import annotations
 
+from ._inputs import number
+
 import argparse
 import sys
 from pathlib import Path
@@ -24,9 +26,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--fresh", action="store_true", help="start a new search even if DIR holds one")
     p.add_argument("--start", choices=("auto", "operator"), help="override [link] start")
     p.add_argument("--signing-key", metavar="HEX", help="override [link] signing_key_hex (64 hex digits)")
-    p.add_argument("--connect-timeout", type=float, default=15.0, metavar="S",
+    p.add_argument("--connect-timeout", type=number(float, above=0, max=3600, unit="s"), default=15.0, metavar="S",
                    help="seconds to wait for each vehicle's heartbeat (default 15)")
-    p.add_argument("--planner-time-limit", type=float, metavar="S",
+    p.add_argument("--planner-time-limit", type=number(float, above=0, max=600, unit="s"), metavar="S",
                    help="planner time per replan (default: the config's, capped to ~2 s of mission time)")
     add_web_options(p)
     p.set_defaults(func=run)
@@ -39,7 +41,7 @@ def add_web_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--web-host", default="127.0.0.1", metavar="ADDR",
                    help="address to serve it on (default 127.0.0.1, this machine only; 0.0.0.0 = the LAN, "
                         "with a token)")
-    g.add_argument("--web-port", type=int, metavar="PORT",
+    g.add_argument("--web-port", type=number(int, min=0, max=65535), metavar="PORT",
                    help="TCP port (default 8765, or any free one if that is busy; 0 = any free port)")
     g.add_argument("--web-token", metavar="TOKEN",
                    help="token the page needs (default: a random one when not on 127.0.0.1)")

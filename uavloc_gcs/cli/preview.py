@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from ._inputs import number
+
 import argparse
 import math
 from pathlib import Path
@@ -13,7 +15,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("preview", help=HELP, description=HELP + ".")
     p.add_argument("file", metavar="FILE", help="a QGroundControl .plan or a QGC WPL 110 .waypoints file")
     p.add_argument("--png", metavar="OUT", help="also draw the mission to OUT (.png or .svg)")
-    p.add_argument("--width", type=int, default=72, help="width of the terminal picture in columns (default 72)")
+    p.add_argument("--width", type=number(int, min=20, max=1000), default=72, help="width of the terminal picture in columns (default 72)")
     p.add_argument("--no-table", action="store_true", help="omit the item table")
     p.set_defaults(func=run)
 
