@@ -88,3 +88,35 @@ def test_every_bench_runs_from_anywhere(installed, bench):
     r = _run(installed, "bench", *bench)
     assert "done in" in r.stderr, r.stderr[-1000:]  # the progress report
     assert "--scenario" in _run(installed, "bench", bench[0], "--help").stdout
+
+
+def test_every_command_finds_the_shipped_files_by_name(installed):
+    """Issue 29 item 4: plan, localize, route and sim know the shipped scenarios and route file by
+    name from any directory, as demo, bench and experiment do."""
+    import signal
+    import time
+
+    exe, cwd = installed
+    _run(installed, "plan", "small", "--out", "p1")
+    _run(installed, "plan", "paper.toml", "--out", "p2")
+    assert (cwd / "p1" / "uav1.plan").is_file() and (cwd / "p2" / "uav4.plan").is_file()
+    from uavloc_gcs.examples import example_path
+
+    r = _run(installed, "localize", str(example_path("slots_small.csv")), "--scenario", "small", "--out", "loc")
+    assert (cwd / "loc" / "estimates.csv").is_file(), r.stdout
+    _run(installed, "route", "route_paper.json", "--time-limit", "0.1", "--out", "r.json")
+    _run(installed, "route", "route_paper", "--time-limit", "0.1", "--out", "r2.json")
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME")}
+    sim = subprocess.Popen([str(exe), "sim", "small", "--base-port", "0", "--status-s", "0"], cwd=cwd, env=env,
+                           stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        line = sim.stdout.readline()  # the first line names the vehicles: the scenario was found
+        assert "not found" not in line and line.strip(), (line, sim.stderr.read() if sim.poll() is not None else "")
+        time.sleep(0.5)
+        assert sim.poll() is None
+    finally:
+        sim.send_signal(signal.SIGINT)
+        sim.wait(timeout=60)
+    r = subprocess.run([str(exe), "plan", "no-such-scenario", "--out", "p3"], capture_output=True, text=True,
+                       cwd=cwd, env=env, timeout=300)
+    assert r.returncode == 2 and "shipped scenarios, usable by name: " in r.stderr and "small" in r.stderr
