@@ -16,8 +16,9 @@ they are heard. What each autopilot flies was measured on SITL (docs/readme/orbi
   ring of pass-through waypoints; it slows at every corner (4.9 m/s mean on a 12-point, 60 m ring
   asked for 10 m/s).
 
-The form per autopilot is :data:`ORBIT_FORM`; both forms start and end at the entry point (whole
-turns), so the router may treat an orbit as an access point on the circle plus a service time.
+The form per autopilot is :data:`ORBIT_FORM` (a ring for both: see there); both forms start and end
+at the entry point (whole turns), so the router may treat an orbit as an access point on the circle
+plus a service time.
 
 Radius: the horizontal distance that gives the most position information per burst, averaged over
 where the person may be (the estimate's spread) and where on the circle the vehicle is when the
@@ -38,8 +39,12 @@ from ..mission import (FRAME_GLOBAL_RELATIVE_ALT, MissionItem, MissionPlan, chan
 
 NAV_LOITER_TURNS = 18
 
-# How each autopilot flies an orbit (measured, docs/readme/orbits.md).
-ORBIT_FORM = {"ardupilot": "loiter-turns", "px4": "ring"}
+# How each autopilot flies an orbit (measured, docs/readme/orbits.md). A ring of waypoints is what
+# both fly (PX4 refuses NAV_LOITER_TURNS); ArduCopter flies NAV_LOITER_TURNS better (a true circle,
+# faster) and ``"loiter-turns"`` selects it, but uavloc's own fake ArduPilot-like vehicles (the demo,
+# the e2e tests: sim_link/vehicles/executor.py) hover at a LOITER_TURNS item's centre forever, so the
+# ring is the shipped form for both.
+ORBIT_FORM = {"ardupilot": "ring", "px4": "ring"}
 RING_POINTS_PER_TURN = 12
 # Speeds measured on SITL around a 60 m circle with 10 m/s asked (docs/readme/orbits.md): the
 # planner's orbit speed is min(cruise, this, sqrt(a_c * r)) with a_c the centripetal acceleration

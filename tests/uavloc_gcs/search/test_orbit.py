@@ -40,10 +40,9 @@ def test_speed_models_follow_the_sitl_measurements():
     assert 3.0 < orbit.orbit_speed_m_s("ring", 60.0, 25.0) < 6.5
 
 
-@pytest.mark.parametrize("autopilot", ["ardupilot", "px4"])
-def test_look_mission_items(field, autopilot):
-    o = orbit.OrbitLook((300.0, 200.0), 100.0, 200.0, orbit.orbit_speed_m_s(orbit.ORBIT_FORM[autopilot], 100.0, 25.0),
-                        orbit.ORBIT_FORM[autopilot])
+@pytest.mark.parametrize("autopilot, form", [("ardupilot", "ring"), ("px4", "ring"), ("ardupilot", "loiter-turns")])
+def test_look_mission_items(field, autopilot, form):
+    o = orbit.OrbitLook((300.0, 200.0), 100.0, 200.0, orbit.orbit_speed_m_s(form, 100.0, 25.0), form)
     lm = orbit.look_mission(field.frame, [[100.0, 0.0], [300.0, 100.0]], (5, 6), [None, o], alt_m=100.0,
                             speed_m_s=25.0, autopilot=autopilot, home_latlon_deg=field.launch_latlon_deg,
                             start_xy_m=(0.0, 0.0))
@@ -55,12 +54,12 @@ def test_look_mission_items(field, autopilot):
     assert np.hypot(*(entry - np.array(o.centre_xy_m))) == pytest.approx(100.0)
     # the entry is the circle's point nearest the previous look point
     assert np.hypot(*(entry - np.array([100.0, 0.0]))) == pytest.approx(np.hypot(200.0, 200.0) - 100.0, abs=1e-6)
-    if autopilot == "ardupilot":
+    if form == "loiter-turns":
         loiter = wire[seqs[1]]
         assert loiter.command == orbit.NAV_LOITER_TURNS
         assert loiter.param1 == o.turns and loiter.param3 == pytest.approx(100.0)
     else:
-        ring = [w for w in wire if w.command == NAV_WAYPOINT][1:]
+        ring = [w for w in wire if w.command == NAV_WAYPOINT and w.seq >= seqs[1]]
         assert len(ring) == o.turns * orbit.RING_POINTS_PER_TURN + 1
         lat_lon = np.array([[w.x / 1e7, w.y / 1e7] for w in ring])
         d = np.hypot(*(field.frame.to_local_xy(lat_lon) - np.array(o.centre_xy_m)).T)
