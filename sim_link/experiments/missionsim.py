@@ -101,6 +101,8 @@ class Flight:
 
     @property
     def end_t_s(self) -> float:
+        if self.seg_speeds is None:  # as before orbits, to the last bit (the paper's reproduction)
+            return self.t0_s + self.length_m / self.speed
         return self.t0_s + float(self.cum_t[-1])
 
     def flown_m(self, t_s) -> np.ndarray:
