@@ -48,9 +48,14 @@ def heard_bursts(world, tracks) -> np.ndarray:
     f = world.emission.frames(all_t[0] - 1.0, all_t[-1] + 1.0)
     slot = all_t[np.maximum(np.searchsorted(all_t, f.t_s, side="right") - 1, 0)]
     burst_of = {(int(p), int(a), round(float(s), 6)): int(b) for p, a, s, b in zip(f.person, f.address, slot, f.burst)}
-    b = np.array([burst_of[(int(p), int(a), round(float(t), 6))]
+    b = np.array([burst_of.get((int(p), int(a), round(float(t), 6)), -1)
                   for p, a, t in zip(person, heard.address, heard.t_s)], dtype=int)
-    return np.array([len(np.unique(b[person == i])) for i in range(len(world))])
+    out = np.zeros(len(world), dtype=int)
+    for i in range(len(world)):
+        mine = person == i
+        runs = np.sort(heard.t_s[mine & (b < 0)])  # elicited frames: runs more than 10 s apart
+        out[i] = len(np.unique(b[mine & (b >= 0)])) + (0 if runs.size == 0 else 1 + int(np.sum(np.diff(runs) > 10.0)))
+    return out
 
 
 def main(argv=None) -> int:
@@ -61,12 +66,19 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python -m benchmarks.pod_world", description=__doc__.splitlines()[0])
     ap.add_argument("--people", type=int, default=400)
     ap.add_argument("--seeds", type=int, default=5)
+    ap.add_argument("--elicitation", type=float, default=0.0, help="emission.elicitation_rate_hz [Hz]")
+    ap.add_argument("--cases", default="steady,cold", help="steady, cold or both (default)")
     args = ap.parse_args(argv)
     sc = _strip(load_scenario("examples/field.toml"))
+    if args.elicitation:
+        sc = sc.replace(emission={"elicitation_rate_hz": args.elicitation})
     slot = sc.channel.slot_s
-    print(f"{args.people} static phones x {args.seeds} worlds, field.toml, one vehicle at 25 m/s, 100 m")
+    print(f"{args.people} static phones x {args.seeds} worlds, field.toml, one vehicle at 25 m/s, 100 m"
+          + (f", elicitation {args.elicitation:g} Hz" if args.elicitation else ""))
     print(f"{'case':<34} {'POD1 model':>10} {'heard>=1':>14} {'POD2 model':>10} {'heard>=2':>14}")
     for start_name, t0 in (("steady", 3 * 3600.0), ("cold", 0.0)):
+        if start_name not in args.cases.split(","):
+            continue
         for passes, sep in ((1, 0.0), (2, 30.0), (2, 600.0), (3, 600.0)):
             tracks = [_pass(t0, -1500.0, 1500.0, slot)]
             for k in range(1, passes):

@@ -281,12 +281,21 @@ class _Hearing:
     table: np.ndarray  # (G, T)
     weights: np.ndarray  # (T,)
     max_range_m: float  # beyond this no type's burst is heard with more than P_EPS
+    elicit: np.ndarray | None = None  # (G, T) heard elicited frames per second (None: no elicitation)
 
     def p(self, d3_m) -> np.ndarray:
         """(..., T) per type (the table's nearest distance, 1 m away at most)."""
         step = self.d_grid[1] - self.d_grid[0]
         i = np.minimum(np.rint(np.asarray(d3_m, float) / step).astype(np.int32), len(self.d_grid) - 1)
         return self.table32[i]
+
+    def rate(self, d3_m) -> np.ndarray:
+        """(..., T) heard elicited frames per second per type (zeros without elicitation)."""
+        step = self.d_grid[1] - self.d_grid[0]
+        i = np.minimum(np.rint(np.asarray(d3_m, float) / step).astype(np.int32), len(self.d_grid) - 1)
+        if self.elicit is None:
+            return np.zeros(i.shape + (self.table.shape[1],), np.float32)
+        return self.elicit[i]
 
     @property
     def table32(self) -> np.ndarray:
@@ -379,16 +388,43 @@ def _hearing_table(sc) -> _Hearing:
         wm = np.full(N_FRAMES, 1.0 / N_FRAMES)
     step = 2.0
     d = np.arange(0.0, 5000.0 + step, step)
-    cols, weights = [], []
+    cols, weights, rates = [], [], []
+    elicit = em.model != "continuous" and em.elicitation_rate_hz > 0 and channel.receiver_sensitivity_dbm is not None
     for t, wt in zip(tx, wtx):
         for m, wmm in zip(med, wm):
             cols.append(p_burst_heard(sc, d, 0.0, tx_offset_db=float(t), frames_median=m))
             weights.append(wt * wmm)
+            if elicit:
+                rates.append(elicited_rate_hz(sc, d, tx_offset_db=float(t)))
     table = np.column_stack(cols)
     reach = d[np.max(table, axis=1) > P_EPS]
     max_range = float(reach.max()) + step if len(reach) else 0.0
     keep = d <= max_range + step
-    return _Hearing(d[keep], table[keep], np.asarray(weights), max_range)
+    el = np.column_stack(rates)[keep].astype(np.float32) if elicit else None
+    return _Hearing(d[keep], table[keep], np.asarray(weights), max_range, el)
+
+
+def elicitation_range_m(sc) -> float:
+    """3-D distance within which a phone hears the on-board access point and answers: where one
+    frame of a phone with no transmit offset is heard with probability 1/2 (a symmetric link; as
+    sim_link's World.elicitation_range_m)."""
+    ch = sc.channel
+    if ch.receiver_sensitivity_dbm is None:
+        return float(sc.fleet.comm_range_m)
+    margin = ch.reference_power_dbm - ch.receiver_sensitivity_dbm
+    return float(ch.reference_distance_m * 10.0 ** (margin / (10.0 * ch.path_loss_exponent)))
+
+
+def elicited_rate_hz(sc, d3_m, *, tx_offset_db=0.0) -> np.ndarray:
+    """Elicited frames heard per second from a phone at 3-D distance ``d3_m``: the phone answers
+    at ``emission.elicitation_rate_hz`` within :func:`elicitation_range_m`, on the access point's
+    (listened) channel, each frame heard above the sensitivity."""
+    ch = sc.channel
+    d = np.asarray(d3_m, float)
+    mu = ch.reference_power_dbm - 10.0 * ch.path_loss_exponent * np.log10(
+        np.maximum(d, 1e-3) / ch.reference_distance_m) + tx_offset_db
+    q = _ndtr((mu - ch.receiver_sensitivity_dbm) / ch.shadowing_sigma_db)
+    return sc.emission.elicitation_rate_hz * q * (d <= elicitation_range_m(sc))
 
 
 # ---------------------------------------------------------------------------------------------
@@ -490,7 +526,7 @@ def _resample(t_s, xyz_m) -> tuple[np.ndarray, np.ndarray]:
 def _looks(cx, cy, tracks, hearing: _Hearing):
     """Per cell: looks (t0, t1, w[T]) over all tracks. Returns padded arrays t0, t1 (C, L), w (C, L, T)
     and a validity mask (C, L)."""
-    C, T = len(cx), hearing.table.shape[1]
+    C, T = len(cx), hearing.table.shape[1] * (2 if hearing.elicit is not None else 1)
     per_cell = [[] for _ in range(C)]
     for t_s, xyz_m in tracks:
         t, xyz = _resample(t_s, xyz_m)
@@ -511,7 +547,11 @@ def _looks(cx, cy, tracks, hearing: _Hearing):
             start[1:] = (rows[1:] != rows[:-1]) | (cols[1:] != cols[:-1] + 1)
             first = np.flatnonzero(start)
             last = np.append(first[1:], len(rows)) - 1
-            w = np.add.reduceat(hearing.p(d3[rows, cols]) * dt[cols, None], first, axis=0)  # (R, T)
+            dd = d3[rows, cols]
+            per = hearing.p(dd)
+            if hearing.elicit is not None:  # elicited frames heard: their expected number, per type
+                per = np.concatenate([per, hearing.rate(dd)], axis=1)
+            w = np.add.reduceat(per * dt[cols, None], first, axis=0)  # (R, T) or (R, 2T)
             for r, a0, a1, ww in zip(rows[first], t[cols[first]], t[cols[last]], w):
                 per_cell[a + r].append((a0, a1, ww))
     L = max(1, max((len(c) for c in per_cell), default=1))
@@ -597,6 +637,10 @@ def _burst_pod(bt: BurstTiming, t0, t1, w, valid, type_w, horizon, stride: int =
     quantiles = range(stride // 2, N_QUANTILES, stride)
     for iu in quantiles:
         m0, m1, mw, mv = _merge(t0, t1, w, valid, MERGE_GAPS * gaps[iu])
+        nt = len(type_w)
+        # elicited frames (columns nt..2nt-1): one detection per window, whatever the burst process
+        pe = (1.0 - np.exp(-mw[..., nt:])).astype(np.float32) if mw.shape[2] > nt else None
+        mw = mw[..., :nt]
         sil = sil_all[iu][::stride]  # (D, M, 2)
         span = np.maximum(m1 - m0, 1e-9)
         alive = 1.0 - _overlap(m0, np.maximum(m1, m0 + 1e-9), sil) / span  # (D, C, L)
@@ -607,6 +651,8 @@ def _burst_pod(bt: BurstTiming, t0, t1, w, valid, type_w, horizon, stride: int =
         q1 = np.zeros_like(q0)
         for j in range(weff.shape[2]):
             e0, e1 = 1.0 - a1[:, :, j], a1[:, :, j] - a2[:, :, j]
+            if pe is not None:
+                e0, e1 = e0 * (1.0 - pe[None, :, j]), e1 * (1.0 - pe[None, :, j]) + e0 * pe[None, :, j]
             q0, q1 = q0 * e0, q1 * e0 + q0 * e1
         p1 += ((1.0 - q0) @ type_w).mean(axis=0)
         p2 += ((1.0 - q0 - q1) @ type_w).mean(axis=0)
