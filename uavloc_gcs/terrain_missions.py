@@ -39,6 +39,7 @@ import numpy as np
 from .errors import InfeasibleError
 from .mission import (
     DO_CHANGE_SPEED,
+    DO_JUMP,
     FRAME_GLOBAL,
     FRAME_GLOBAL_RELATIVE_ALT,
     NAV_RETURN_TO_LAUNCH,
@@ -179,6 +180,10 @@ def terrain_safe(plan: MissionPlan, scenario, *, name: str = "vehicle",
     frame = scenario.frame
     t = scenario.terrain
     items = list(plan.items)
+    if any(it.command == DO_JUMP for it in items):
+        raise TerrainRefused(f"{name}: the mission has a DO_JUMP, so its legs do not follow one another and their "
+                             "clearance over the terrain cannot be planned leg by leg; remove the jump (uavloc's "
+                             "own missions have none)")
     has_takeoff = any(it.command in TAKEOFF_COMMANDS for it in items)
     returns_home = bool(items) and items[-1].command == NAV_RETURN_TO_LAUNCH
     route_idx = [k for k, it in enumerate(items) if it.command in ROUTE_COMMANDS and it.has_position]
@@ -211,7 +216,6 @@ def terrain_safe(plan: MissionPlan, scenario, *, name: str = "vehicle",
     out: list[MissionItem] = []
     ground: list[float] = []
     route_pos = {k: j + 1 for j, k in enumerate(route_idx)}  # item index -> route point index in ``full``
-    first_route = route_idx[0]
     for k, it in enumerate(items):
         if it.command in TAKEOFF_COMMANDS:
             out.append(dataclasses.replace(it, alt_m=round(float(prof.z[0] - home_g), 2)))
@@ -219,10 +223,9 @@ def terrain_safe(plan: MissionPlan, scenario, *, name: str = "vehicle",
             continue
         if k in route_pos:
             v = route_pos[k]
-            if k == first_route or v - 1 >= 0:
-                for c in inner.get(v - 1, []):
-                    out.append(wp_at(c))
-                    ground.append(float(prof.ground[c]))
+            for c in inner.get(v - 1, []):  # the waypoints added on the leg arriving here
+                out.append(wp_at(c))
+                ground.append(float(prof.ground[c]))
             i = vertex[v]
             out.append(dataclasses.replace(it, frame=fr, alt_m=alt_of(prof.z[i])))
             ground.append(float(prof.ground[i]))

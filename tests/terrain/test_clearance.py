@@ -161,3 +161,14 @@ def test_look_points_are_found_among_the_waypoints_terrain_added(tmp_path):
         assert abs(wire[s].x - round(lat * 1e7)) <= 0 and abs(wire[s].y - round(lon * 1e7)) <= 0
     # flat: the look points are consecutive, as the daemon's count of passed looks assumes
     assert point_seqs(to_wire(flat, "ardupilot"), looks) == (2, 3, 4)
+
+
+def test_a_mission_with_a_jump_is_refused_rather_than_checked_wrongly(tmp_path):
+    import dataclasses
+    from uavloc_gcs.mission import DO_JUMP, FRAME_MISSION, MissionItem
+    sc = ridge_scenario(tmp_path)
+    m = east_west_mission(sc)
+    jump = MissionItem(DO_JUMP, FRAME_MISSION, (3.0, 2.0, 0.0, 0.0))
+    looped = dataclasses.replace(m, items=m.items[:-1] + (jump,) + m.items[-1:])
+    with pytest.raises(InfeasibleError, match=r"^uav1: the mission has a DO_JUMP"):
+        terrain_safe(looped, sc, name="uav1")
