@@ -100,3 +100,27 @@ def test_clairvoyant_yardstick_and_recorded_silences(small):
     plain = simulate_mission(small, World(small, seed=3, people=3, motion="random_waypoint"), "MLE-EPSO (M)",
                              seed=3, time_limit_s=20.0, max_iter=15)
     assert math.isnan(plain.oracle_completion_time_s)
+
+
+def test_an_orbit_is_flown_at_its_speed_and_charged_at_its_power(small):
+    """A task with an orbit look (search/orbit.py): the circle's whole turns at the orbit speed,
+    its energy at that speed's power, the legs at cruise speed."""
+    from types import SimpleNamespace
+
+    from sim_link.experiments.missionsim import _orbit_path
+    from uavloc_gcs.search.orbit import OrbitLook
+
+    cruise = small.fleet.speed_m_s
+    orb = OrbitLook((0.0, 300.0), 100.0, 120.0, 8.0)
+    task = SimpleNamespace(waypoints_xy_m=np.array([[0.0, 200.0], [0.0, 0.0]]), orbits=(orb,))
+    path, speeds = _orbit_path(task, np.zeros(2), cruise)
+    v = Vehicle(1, small)
+    v.fly(path, 0.0, speeds)
+    t_end = 200.0 / cruise + orb.flown_s + 200.0 / cruise
+    assert v.flight.end_t_s == pytest.approx(t_end, rel=0.01)  # 36-gon: the circle within 1 %
+    v.account(t_end)
+    pw = small.power_model
+    expect = 2 * pw.leg_energy_j(200.0, cruise) + float(pw.power_w(8.0)) * orb.flown_s
+    assert v.energy_j == pytest.approx(expect, rel=0.01)
+    mid = v.flight.position(200.0 / cruise + 0.5 * orb.flown_s)
+    assert math.hypot(mid[0], mid[1] - 300.0) == pytest.approx(100.0, rel=0.01)
