@@ -30,10 +30,12 @@ from __future__ import annotations
 
 import json
 import math
+import time
 from dataclasses import dataclass, replace
 
 import numpy as np
 
+POD_CACHE_S = 1.0  # wall seconds a POD asked for by the policy's every tick is reused
 MIN_STEP_S = 1.0  # telemetry positions are taken at most this often [mission s]
 MAX_GAP_S = 5.0  # mission seconds between two positions of a vehicle beyond which the gap is not flown
 DEFAULT_POD_TARGET = 0.9  # when the scenario gives none (search.pod_target)
@@ -62,17 +64,19 @@ class _Windows:
     last 30-90 min), so classes end weighted by their active share (:meth:`weights`)."""
 
     def __init__(self, sc):
-        from .pod import BurstTiming  # noqa: PLC0415
+        from .pod import BurstTiming, _active_tables  # noqa: PLC0415
 
         self.bt = BurstTiming.from_scenario(sc)
         self.continuous = self.bt.continuous or sc.emission.elicitation_rate_hz > 0
         self.slot_s = sc.channel.slot_s
         self.classes = 1 if self.continuous else len(self.bt.quantiles)
+        if not self.continuous:
+            # built once, here (seconds on a loaded machine), never in the daemon's event loop
+            self._grid, self._cdf, _ = _active_tables(self.bt)
+            self._weights = (1.0 - self.bt.silence_share()) / self.classes
 
     def weights(self) -> np.ndarray:
-        if self.continuous:
-            return np.ones(1)
-        return (1.0 - self.bt.silence_share()) / self.classes
+        return np.ones(1) if self.continuous else self._weights
 
     def probs(self, w_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """P(>= 1), P(>= 2) per window (n,) and class: (n, classes) each."""
@@ -80,8 +84,8 @@ class _Windows:
         if self.continuous:
             heard = (w >= self.slot_s).astype(float)[:, None]
             return heard, np.zeros_like(heard)
-        a1 = np.column_stack([self.bt.p_active(1, w, iu) for iu in range(self.classes)])
-        a2 = np.column_stack([self.bt.p_active(2, w, iu) for iu in range(self.classes)])
+        a1 = np.column_stack([np.interp(w, self._grid, row, right=row[-1]) for row in self._cdf[0]])
+        a2 = np.column_stack([np.interp(w, self._grid, row, right=row[-1]) for row in self._cdf[1]])
         return np.clip(a1, 0.0, 1.0), np.clip(np.minimum(a2, a1), 0.0, 1.0)
 
 
@@ -168,6 +172,7 @@ class Coverage:
         self.pass_rounds = 0  # replans that added passes (add_passes)
         self.passes_exhausted = False  # the last round found no vehicle with the energy for a lane
         self.last_passes: "PassPlan | None" = None
+        self._pod_cache: tuple[float, np.ndarray] | None = None
         self.positions = 0
 
     # -- data in ---------------------------------------------------------------------------------
@@ -267,6 +272,13 @@ class Coverage:
             if len(idx):
                 self._fold(idx, open_[idx], p0, p1)
         return p0, p1
+
+    def pod_recent(self, max_age_s: float = POD_CACHE_S) -> np.ndarray:
+        """``pod(1)``, recomputed at most every ``max_age_s`` wall seconds (the policy asks every tick)."""
+        now = time.monotonic()
+        if self._pod_cache is None or now - self._pod_cache[0] > max_age_s:
+            self._pod_cache = (now, self.pod(1))
+        return self._pod_cache[1]
 
     def pod(self, k: int = 1) -> np.ndarray:
         """Achieved POD per cell (N,): P(at least ``k`` emissions heard), k = 1 or 2."""
@@ -548,7 +560,7 @@ def passes_wanted(policy) -> bool:
     cov = getattr(policy, "coverage", None)
     if cov is None or cov.passes_exhausted or cov.pass_rounds >= MAX_PASS_ROUNDS:
         return False
-    return bool(np.any(cov.pod(1) < pod_target(cov.sc)))
+    return bool(np.any(cov.pod_recent() < pod_target(cov.sc)))
 
 
 def add_passes(policy, t_s: float, vehicles: list, plan):
