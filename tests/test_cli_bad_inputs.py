@@ -196,3 +196,39 @@ def test_localize_t_ref_far_from_the_slots_is_refused(tmp_path, capsys, value, n
                 "--out", tmp_path / "o")
     one_sentence(r, needle)
     assert list(tmp_path.iterdir()) == []
+
+
+# ---------------------------------------------------------------------------------------------
+# item 5: what the pictures say
+
+def test_result_map_labels_give_the_located_their_lat_lon_and_radius():
+    from types import SimpleNamespace as P
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import numpy as np
+
+    from uavloc_gcs.render.estimates import result_figure
+
+    area = np.array([[0, 0], [1120, 0], [1120, 640], [0, 640]], float)
+    people = [P(emitter_id=1, label="P01", state="located", east_m=300, north_m=200, radius95_m=6,
+                lat_deg=42.625311, lon_deg=13.283122),
+              P(emitter_id=2, label="P02", state="given up", east_m=600, north_m=500, radius95_m=120,
+                lat_deg=42.628, lon_deg=13.29)]
+    fig = result_figure(people, area_xy_m=area, tracks_xy_m={}, truth_xy_m={1: np.array([300.0, 200.0])})
+    texts = [t.get_text() for t in fig.axes[0].texts]
+    assert "P01 (6 m)\n42.625311, 13.283122" in texts and "P02" in texts
+    ax = fig.axes[0]
+    truth = [c for c in ax.collections if c.get_label() == "true position (simulation)"]
+    located = [c for c in ax.collections if c.get_label().startswith("located")]
+    assert truth[0].get_zorder() > located[0].get_zorder()  # the cross is not hidden under the truth
+    rings = [c for c in ax.collections if c.get_zorder() == 5.5]
+    assert len(rings) == 1  # the 6 m circle, invisible at 1 km, has its ring
+
+
+def test_localize_picture_labels_are_short_and_match_the_table(tmp_path, capsys):
+    r = _inproc(capsys, "localize", EXAMPLES / "slots_small.csv", "--scenario", "small", "--out", tmp_path / "o")
+    assert r.returncode == 0
+    rows = [ln.split() for ln in r.stdout.splitlines() if ln[:1] == "E"]
+    assert [row[0] for row in rows] == ["E1", "E2", "E3"]

@@ -74,7 +74,7 @@ def run(args: argparse.Namespace) -> int:
     from ..estimation.identity import UNKNOWN_TX_MARGIN_DB, format_address, link
     from ..geo import polygon_area_m2
     from ..render.maps import origin_caption, save_figure
-    from ..render.estimates import estimates_figure
+    from ..render.estimates import estimate_labels, estimates_figure
     from ..render.terminal import format_table
     from ..scenario import load_scenario
     from ._output import atomic_output_dir
@@ -110,13 +110,14 @@ def run(args: argparse.Namespace) -> int:
                                subtitle=origin_caption(*sc.launch_latlon_deg))
         save_figure(fig, tmp / "estimates.png")
     rows = []
+    on_map = iter(estimate_labels(estimates))  # the labels of estimates.png
     for eid, e in sorted(estimates.items()):
         lat, lon = sc.frame.to_wgs84(*e.position_xy_m) if e.ok else (math.nan, math.nan)
-        rows.append([eid, e.status, f"{lat:.6f}" if e.ok else "", f"{lon:.6f}" if e.ok else "",
+        rows.append([next(on_map) if e.ok else "", eid, e.status, f"{lat:.6f}" if e.ok else "", f"{lon:.6f}" if e.ok else "",
                      f"{np.hypot(*e.velocity_m_s):.2f}" if e.ok else "", _r(e.radius95_m), _r(e.annulus_bound_m),
                      "yes" if e.ambiguous else "", e.n_slots, _addresses_cell(linking.addresses(eid), format_address),
                      "uncertain" if linking.uncertain(eid) else ""])
-    print(format_table(["emitter", "status", "lat", "lon", "speed m/s", "r95 m", "annulus m", "mirror?", "slots",
+    print(format_table(["map", "emitter", "status", "lat", "lon", "speed m/s", "r95 m", "annulus m", "mirror?", "slots",
                         "addresses", "link"],
                        rows, title=f"{len(slots)} slots, {len(estimates)} emitter(s)" + (
                            f" ({low} slots heard below {MIN_ALTITUDE_FRACTION * sc.fleet.altitude_m:g} m, taking off "

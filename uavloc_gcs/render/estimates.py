@@ -27,8 +27,7 @@ def estimates_figure(estimates: Mapping, *, area_xy_m: np.ndarray | None = None,
     if ok:
         xy = np.array([e.position_xy_m for e in ok])
         maps.draw_circles(ax, xy, [e.radius95_m for e in ok], "95 % radius", color="#d62728")
-        maps.draw_points(ax, xy, "estimate", color="#d62728", marker="P", size=60,
-                         annotations=[str(e.emitter_id) for e in ok])
+        maps.draw_points(ax, xy, "estimate", color="#d62728", marker="P", size=60)
         mirrors = [e for e in ok if e.ambiguous and e.mirror is not None]
         if mirrors:
             mxy = np.array([e.mirror.position_xy_m for e in mirrors])
@@ -41,7 +40,15 @@ def estimates_figure(estimates: Mapping, *, area_xy_m: np.ndarray | None = None,
     maps.add_scale_bar(ax)
     maps.add_north_arrow(ax)
     maps.add_legend(ax)
+    if ok:  # short, non-overlapping labels (E1, E2, ... as in the table's 'map' column), not 10-digit ids
+        maps.place_labels(ax, np.array([e.position_xy_m for e in ok]), estimate_labels(estimates),
+                          "#d62728")
     return fig
+
+
+def estimate_labels(estimates: Mapping) -> list[str]:
+    """Map labels of the located estimates, in emitter order: E1, E2, ..."""
+    return [f"E{k}" for k, (_, e) in enumerate(((i, e) for i, e in sorted(estimates.items()) if e.ok), start=1)]
 
 
 # One colour per person state, shared by result.png and the live map.
@@ -91,11 +98,20 @@ def result_figure(people, *, area_xy_m: np.ndarray, tracks_xy_m: Mapping[int, np
             continue
         xy = np.array([[p.east_m, p.north_m] for p in group])
         maps.draw_circles(ax, xy, [p.radius95_m for p in group], color=STATE_COLORS[state], alpha=0.12)
-        maps.draw_points(ax, xy, label, color=STATE_COLORS[state], marker="P", size=55)
+        # a circle of a few metres on a kilometre map is smaller than its marker: a ring of fixed
+        # size shows where it is (its radius is in the label)
+        small = np.array([p.radius95_m < SMALL_CIRCLE_FRACTION * max(span) for p in group])
+        if small.any():
+            ax.scatter(xy[small, 0], xy[small, 1], s=230, facecolors="none", edgecolors=STATE_COLORS[state],
+                       linewidths=1.2, zorder=5.5)
+        maps.draw_points(ax, xy, label, color=STATE_COLORS[state], marker="P", size=55, zorder=6)
     truth = None
     if truth_xy_m:
         truth = np.array([truth_xy_m[k][:2] for k in sorted(truth_xy_m)], dtype=float)
-        maps.draw_points(ax, truth, "true position (simulation)", color="#111111", marker="X", size=40)
+        # a thin cross above the estimates: both stay visible where they coincide
+        ax.scatter(truth[:, 0], truth[:, 1], s=36, c="#111111", marker="x", linewidths=1.3, zorder=7,
+                   label="true position (simulation)")
+        ax.update_datalim(truth)
         for p in est:
             if p.emitter_id in truth_xy_m:
                 tx, ty = truth_xy_m[p.emitter_id][:2]
@@ -105,9 +121,24 @@ def result_figure(people, *, area_xy_m: np.ndarray, tracks_xy_m: Mapping[int, np
     maps.add_legend(ax)
     if est:
         maps.place_labels(ax, np.array([[p.east_m, p.north_m] for p in est]),
-                          [p.label or f"#{p.emitter_id}" for p in est],
+                          [person_label(p) for p in est],
                           [STATE_COLORS.get(p.state, "#222222") for p in est], avoid_xy=truth)
     return fig
+
+
+SMALL_CIRCLE_FRACTION = 1 / 60  # 95 % circles under this share of the map's span get a ring
+
+
+def person_label(p) -> str:
+    """A person's map label: the name, and for the located their 95 % radius and lat/lon (the
+    numbers a rescuer goes to)."""
+    import math  # noqa: PLC0415
+
+    name = p.label or f"#{p.emitter_id}"
+    lat, lon = getattr(p, "lat_deg", math.nan), getattr(p, "lon_deg", math.nan)
+    if p.state != "located" or not (math.isfinite(lat) and math.isfinite(lon)):
+        return name
+    return f"{name} ({p.radius95_m:.0f} m)\n{lat:.6f}, {lon:.6f}"
 
 
 def draw_pod(fig, ax, coverage) -> None:
