@@ -294,7 +294,9 @@ def main() -> int:
         which = " (scenario default)" if limit == sc.planner.time_limit_s else ""
         print(f"replan latency, 50 people, planner limit {limit:g} s{which}: median {lat.median_s * 1000:.0f} ms, "
               f"max {lat.max_s * 1000:.0f} ms (estimate {p['estimate'] * 1000:.1f} ms, plan {p['plan'] * 1000:.0f} ms, "
-              f"upload+verify {p['upload'] * 1000:.0f} ms for {lat.uploads_per_run:.1f} missions) (target < 300 ms)")
+              f"upload+verify {p['upload'] * 1000:.0f} ms for {lat.uploads_per_run:.1f} missions) "
+              + (f"(target < 300 ms: {'met' if lat.median_s < 0.3 else 'missed'})" if which else
+                 f"(no target: the planner alone may take its {limit:g} s)"))
     return 0
 
 

@@ -82,7 +82,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--scenario", default="paper",
                         help="scenario file, or a shipped one by name: paper, field, small (default paper; field: "
                              "the same area with phones that send probe bursts)")
-    parser.add_argument("--variants", default=",".join(VARIANTS), help=f"comma-separated, of {', '.join(VARIANTS)}")
+    parser.add_argument("--variants", default="default",
+                        help=f"comma-separated, of {', '.join(VARIANTS)}; 'all' for every one (default: default, "
+                             "the shipped rules; each variant costs about one default run)")
     parser.add_argument("--jobs", type=number(int, min=1, max=64), default=2, help="worker processes (default 2)")
 
 
@@ -145,6 +147,11 @@ def _fly(job):
             why, len(res.persons))
 
 
+def _pm(ci: float) -> str:
+    """'' for no interval (one run), else ' ± x.x'."""
+    return f" ± {ci:5.1f}" if math.isfinite(ci) else ""
+
+
 def _kind(reason: str) -> str:
     """A policy statement without its numbers and details: "given up: not heard on N looks"."""
     return re.sub(r"\d+(\.\d+)?", "N", reason.split(" (")[0]).strip() or "no statement"
@@ -155,6 +162,8 @@ def main(args: argparse.Namespace) -> int:
     from uavloc_gcs.examples import scenario_path
 
     variants = [v.strip() for v in args.variants.split(",") if v.strip()]
+    if variants == ["all"]:
+        variants = list(VARIANTS)
     bad = [v for v in variants if v not in VARIANTS]
     if bad:
         print(f"uavloc bench looks: unknown variant {bad[0]!r}; expected one of {', '.join(VARIANTS)}",
@@ -169,8 +178,9 @@ def main(args: argparse.Namespace) -> int:
             rows.append(row)
             bar.step(f"{row[0]} run {row[1]}")
     print(f"look rules on '{args.scenario}', MLE-EPSO (M), {args.people} people, {args.runs} paired worlds (seed {args.seed})")
-    head = (f"{'variant':14s} {'heard/present':>14s} {'located/heard':>14s} {'inside r95':>11s} {'completion s':>15s} "
-            f"{'/ clairvoyant':>13s} {'vs default s':>14s}")
+    w = max(14, *(len(v) for v in variants))
+    head = (f"{'variant':{w}s} {'heard/present':>14s} {'located/heard':>14s} {'inside r95':>11s} {'completion s':>16s} "
+            f"{'/ clairvoyant':>13s} {'vs default s':>15s}")
     print(head)
     print("-" * len(head))
     by = {v: sorted((r for r in rows if r[0] == v), key=lambda r: r[1]) for v in variants}
@@ -183,9 +193,11 @@ def main(args: argparse.Namespace) -> int:
         paired = ""
         if v != "default" and "default" in by:
             d, dci, _ = mean_ci95([a[5] - b[5] for a, b in zip(rs, by["default"])])
-            paired = f"{d:+7.1f} ± {dci:4.1f}"
-        print(f"{v:14s} {heard:6d}/{present:<7d} {located:6d}/{heard:<7d} {inside / max(located, 1):11.3f} {m:8.1f} ± {ci:4.1f} "
-              f"{ratio:13.3f} {paired:>14s}")
+            paired = f"{d:+7.1f}" + _pm(dci)
+        print(f"{v:{w}s} {f'{heard}/{present}':>14s} {f'{located}/{heard}':>14s} {inside / max(located, 1):11.3f} "
+              f"{f'{m:8.1f}' + _pm(ci):>16s} {ratio:13.3f} {paired:>15s}")
+    if args.runs < 2:
+        print("(one run per variant: no confidence interval; --runs 2 or more gives one)")
     for v in variants:
         why = Counter(k for r in by[v] for k in r[7])
         if why:

@@ -232,3 +232,14 @@ def test_localize_picture_labels_are_short_and_match_the_table(tmp_path, capsys)
     assert r.returncode == 0
     rows = [ln.split() for ln in r.stdout.splitlines() if ln[:1] == "E"]
     assert [row[0] for row in rows] == ["E1", "E2", "E3"]
+
+
+def test_bench_looks_runs_the_shipped_rules_by_default_and_all_on_request():
+    import argparse
+
+    from benchmarks.looks import VARIANTS, add_arguments
+
+    p = argparse.ArgumentParser()
+    add_arguments(p)
+    assert p.parse_args([]).variants == "default"  # was all 23 variants: 331 s for one run
+    assert "all" in p.format_help() and len(VARIANTS) > 2
