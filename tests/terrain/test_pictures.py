@@ -42,3 +42,26 @@ def test_the_preview_and_the_result_show_the_ground_only_with_a_dem(tmp_path):
     flat = load_scenario(EXAMPLES / "small.toml")
     assert not any("contours" in t for t in _legend_texts(scan_figure(flat, plan_scan(flat))))
     assert not any("contours" in t for t in _legend_texts(result_figure([], area_xy_m=area, tracks_xy_m=track)))
+
+
+def test_the_live_map_gets_contour_lines_only_with_a_dem(tmp_path):
+    from uavloc_gcs.service.store import Store
+    from uavloc_gcs.service.web import MapFeed
+
+    sc = load_scenario(EXAMPLES / "mountains.toml")
+    s = Store(tmp_path / "search.sqlite", commit_interval_s=0.01)
+    s.flush()
+    try:
+        terrain = MapFeed(sc, s.path).static()["terrain"]
+        flat = MapFeed(load_scenario(EXAMPLES / "small.toml"), s.path).static()["terrain"]
+    finally:
+        s.close()
+    assert flat is None
+    assert terrain["interval_m"] in (50.0, 100.0) and len(terrain["lines"]) >= 5
+    levels = {c["level_m"] for c in terrain["lines"]}
+    assert {1100.0, 1200.0, 1300.0, 1400.0, 1500.0} <= levels
+    assert sum(len(c["xy_m"]) for c in terrain["lines"]) <= 4000 + len(terrain["lines"])
+    # a contour's vertices lie on its level: the DEM there reads the level to a metre or two
+    c = next(c for c in terrain["lines"] if c["level_m"] == 1300.0)
+    z = sc.dem.height_xy(np.array(c["xy_m"]))
+    assert np.nanmax(np.abs(z - 1300.0)) < 5.0

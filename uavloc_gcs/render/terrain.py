@@ -44,3 +44,29 @@ def draw_terrain(ax: Axes, dem, points_xy_m: np.ndarray, *, margin_m: float = 60
                     label=f"ground, {interval:g} m contours above sea level")
     ax.set_xlim(extent[0], extent[1])
     ax.set_ylim(extent[2], extent[3])
+
+
+def contour_lines(dem, points_xy_m: np.ndarray, *, margin_m: float = 200.0, max_points: int = 4000) -> dict:
+    """Contour polylines of ``dem`` around ``points_xy_m`` for the live map: {"interval_m",
+    "lines": [{"level_m", "xy_m": [[e, n], ...]}, ...]}, rounded to 0.1 m, at most ``max_points``
+    vertices in all (every line thinned alike beyond that)."""
+    import contourpy
+
+    pts = np.asarray(points_xy_m, dtype=float).reshape(-1, 2)
+    lo, hi = pts.min(axis=0) - margin_m, pts.max(axis=0) + margin_m
+    step = max(dem.resolution_m / 2.0, float(np.max(hi - lo)) / 200.0)
+    xs, ys, z = dem.grid_xy(lo, hi, step)
+    relief = float(np.nanmax(z) - np.nanmin(z))
+    if not relief > 0:
+        return {"interval_m": None, "lines": []}
+    interval = contour_interval_m(relief)
+    gen = contourpy.contour_generator(xs, ys, z)
+    lines = []
+    for level in np.arange(np.ceil(np.nanmin(z) / interval) * interval, np.nanmax(z) + 1e-9, interval):
+        for seg in gen.lines(float(level)):
+            if len(seg) >= 2:
+                lines.append((float(level), np.asarray(seg, dtype=float)))
+    total = sum(len(s) for _, s in lines)
+    keep = max(1, int(np.ceil(total / max_points)))
+    out = [{"level_m": lv, "xy_m": np.round(np.vstack([s[::keep], s[-1:]]), 1).tolist()} for lv, s in lines]
+    return {"interval_m": interval, "lines": out}

@@ -178,7 +178,13 @@ class MapFeed:
 
             g = grid_for(self.sc)  # the daemon's accumulator's cells, in the same order as its POD
             cells = {"cell_m": g.cell_m, "xy_m": np.round(g.xy_m, 1).tolist()}
+        terrain = None
+        if self.sc.dem is not None:  # contour lines of terrain.dem under the map
+            from ...render.terrain import contour_lines  # noqa: PLC0415
+
+            terrain = contour_lines(self.sc.dem, np.vstack([area, np.zeros((1, 2))]))
         return {"name": self.sc.name, "origin_lat_deg": lat0, "origin_lon_deg": lon0, "pod_cells": cells,
+                "terrain": terrain,
                 "area_xy_m": np.round(np.asarray(area, dtype=float), 1).tolist(),
                 "required_accuracy_m": self.sc.people.required_accuracy_m, "state_colors": STATE_COLORS,
                 "vehicles": self.sc.fleet.vehicles}

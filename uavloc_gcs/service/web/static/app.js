@@ -109,6 +109,14 @@
     while (svg.firstChild) svg.removeChild(svg.firstChild);
     const gTiles = el("g", { class: "tiles" }, svg);
     tiles(gTiles);
+    const terrain = S.static.terrain;
+    if (terrain && terrain.lines.length) {  // contour lines of the scenario's DEM
+      const gTerrain = el("g", { class: "terrain" }, svg);
+      for (const c of terrain.lines) {
+        el("polyline", { points: poly(c.xy_m), fill: "none", stroke: "#8c6d46", "stroke-width": 0.8,
+                         "stroke-opacity": 0.6, class: "contour", "data-level": c.level_m }, gTerrain);
+      }
+    }
     const area = S.static.area_xy_m;
     el("polygon", { points: poly(area), fill: "rgba(68,68,68,0.06)", stroke: "#444", "stroke-width": 2, class: "area" }, svg);
     podLayer();
