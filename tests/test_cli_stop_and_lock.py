@@ -71,6 +71,15 @@ def test_stopping_the_daemon_says_what_each_vehicle_does(tmp_path, on_stop, sig)
         assert modes == ["AUTO", "AUTO"], modes
         for vid in (1, 2):
             assert f"vehicle {vid}: airborne, continues its scan mission" in stderr and "ends in RTL" in stderr
+    # the results so far are written, marked partial in the files and the final sentence (issue 26)
+    assert "PARTIAL RESULTS" in stderr and "people.csv" in stderr, stderr
+    csv_text = (out / "people.csv").read_text()
+    assert csv_text.startswith("# PARTIAL RESULTS"), csv_text[:200]
+    assert "PARTIAL" in (out / "results.txt").read_text().splitlines()[0]
+    import json
+
+    assert "PARTIAL" in json.loads((out / "people.geojson").read_text())["partial"]
+    assert (out / "result.png").stat().st_size > 1000
     # the lock died with the process: the same store can be used again at once
     again = subprocess.run([*cmd[:-2], "--out", str(out), "--connect-timeout", "0.5"], capture_output=True,
                            text=True, env=_env(), cwd=tmp_path, timeout=60)

@@ -88,6 +88,10 @@ def main(argv: list[str] | None = None) -> int:
         args = parser.parse_args(argv)
     except SystemExit as done:  # --help, --version, or a bad flag (its sentence is printed)
         return done.code if isinstance(done.code, int) else 0
+    if getattr(args, "command", None) in ("daemon", "demo"):  # a closed or stalled console never stops a search
+        from ..console import install  # noqa: PLC0415
+
+        install()
     level = logging.WARNING - 10 * min(args.verbose, 2)
     logging.basicConfig(level=level, format="%(asctime)s %(levelname)s %(name)s: %(message)s")
     if not getattr(args, "func", None):
@@ -109,6 +113,10 @@ def main(argv: list[str] | None = None) -> int:
         with contextlib.suppress(OSError):
             sys.stdout = open(os.devnull, "w")  # noqa: SIM115 - silence the flush at exit
         return 0
+    finally:
+        from ..console import drain  # noqa: PLC0415
+
+        drain()  # the last lines (the results table) are written before the process ends
 
 
 if __name__ == "__main__":  # pragma: no cover

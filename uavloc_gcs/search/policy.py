@@ -62,7 +62,7 @@ FLYBY_LOOKS_FOR_BURSTS: int | None = 2
 LOOK_AREA_MARGIN: float | None = 1.0
 MAX_MISSES = 2  # looks that heard nothing before giving up (with a mirror ambiguity: one at each candidate)
 MATERIAL_SHIFT_FRACTION = 0.5  # estimate moved > this x required accuracy => replan
-LOOK_LATE_S = 180.0  # with look reports: an unreported look counts only this long after its (re-based) time
+LOOK_LATE_S = 180.0  # with look reports: an unreported look is dropped (not a miss) this long after its time
 ACCESS_TIME_QUANTUM_S = 2.0  # access radii are computed for pass times rounded up to this
 RADIUS_RECHECK_FRACTION = 0.85  # replan once more if a planned radius shrinks below this fraction
 # A repeated look whose vehicle is already inside the look radius would be planned at the
@@ -830,6 +830,13 @@ class SearchPolicy:
             del book[eid]
             p = self._people[eid]
             if p.fix_t_s is not None or p.gave_up:
+                continue
+            if self.look_reports and book is self._awaiting:
+                # Never reported flown: no evidence that the phone is gone (issue 26: under load a
+                # look's upload stalled for minutes of mission time, the look was judged missed
+                # unflown and people were given up "not heard on 2 looks"). It is planned again.
+                log.info("emitter %s: look not flown %g s after its time; planned again", eid, LOOK_LATE_S)
+                changed.add(eid)
                 continue
             p.looks += 1
             heard = p.last_slot_t_s >= t_access - 2.0 * grace_s

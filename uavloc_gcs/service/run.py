@@ -6,6 +6,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import dataclasses
+import logging
 import math
 import signal
 import threading
@@ -126,7 +127,25 @@ def run_search(scenario: Scenario, connections: Sequence[tuple[int, str]], optio
     def finish(outcome: SearchOutcome) -> RunResult:
         return _results(outcome, daemon, scenario, connections, options, out_dir, labels, truth)
 
-    return asyncio.run(_run(daemon, scenario, options, web, on_web_url, finish, on_result))
+    # the log goes on to a file whatever becomes of the console (a closed pipe: uavloc_gcs/console.py)
+    Path(out_dir).mkdir(parents=True, exist_ok=True)
+    log_file = logging.FileHandler(Path(out_dir) / "uavloc.log", encoding="utf-8")
+    log_file.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(name)s: %(message)s"))
+    log_file.setLevel(logging.INFO)
+    root = logging.getLogger()
+    level = root.level
+    root.addHandler(log_file)
+    if root.level > logging.INFO:  # the file gets the daemon's events; the console keeps its own level
+        for handler in root.handlers:
+            if handler is not log_file and handler.level == logging.NOTSET:
+                handler.setLevel(level)
+        root.setLevel(logging.INFO)
+    try:
+        return asyncio.run(_run(daemon, scenario, options, web, on_web_url, finish, on_result))
+    finally:
+        root.removeHandler(log_file)
+        root.setLevel(level)
+        log_file.close()
 
 
 def _results(outcome: SearchOutcome, daemon: Daemon, scenario: Scenario, connections, options: DaemonOptions,

@@ -211,11 +211,13 @@ def test_reported_looks_are_judged_from_when_they_were_flown(small):
     st = policy.people(0.0)[0]
     assert st.looks == 1 and "not heard" not in st.reason  # heard on the real pass: no miss
 
-    policy, t_plan = fresh(True)  # never reported: counted LOOK_LATE_S after the planned time
+    policy, t_plan = fresh(True)  # never reported: dropped LOOK_LATE_S after its time, not a miss (issue 26)
     policy.update(t_plan + grace + LOOK_LATE_S - 1.0)
-    assert policy.people(0.0)[0].looks == 0
+    assert policy.people(0.0)[0].looks == 0 and 77 in policy._awaiting
     policy.update(t_plan + grace + LOOK_LATE_S + 1.0)
-    assert policy.people(0.0)[0].looks == 1
+    st = policy.people(0.0)[0]
+    assert st.looks == 0 and not st.located and "given up" not in st.reason and 77 not in policy._awaiting
+    assert 77 in policy.pending_ids()  # planned again
 
 
 def test_a_flown_look_is_still_judged_after_a_replan_and_later_looks_are_re_based(small):
