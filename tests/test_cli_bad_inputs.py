@@ -243,3 +243,36 @@ def test_bench_looks_runs_the_shipped_rules_by_default_and_all_on_request():
     add_arguments(p)
     assert p.parse_args([]).variants == "default"  # was all 23 variants: 331 s for one run
     assert "all" in p.format_help() and len(VARIANTS) > 2
+
+
+def test_experiment_figures_with_one_people_count_and_no_figure_c(tmp_path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from sim_link.experiments.plots import plot_all
+
+    rows = [{"method": m, "people": 5, "completion_time_mean_s": v, "completion_time_ci95_s": float("nan"),
+             "runtime_mean_s": rt, "runtime_ci95_s": float("nan"), "oracle_completion_time_mean_s": 160.0}
+            for m, v, rt in [("MLE-EPSO (M)", 173.0, 2.8), ("MLE-EPSO (NM)", 162.0, 0.0), ("RL-NM", 195.0, 20.0)]]
+    import matplotlib.pyplot as plt
+
+    made = []
+    real_savefig = plt.Figure.savefig
+
+    def keep(fig, path, *a, **k):
+        made.append(fig)
+        return real_savefig(fig, path, *a, **k)
+
+    plt.Figure.savefig = keep
+    try:
+        paths = plot_all(rows, rows, [], tmp_path, 15.0)
+    finally:
+        plt.Figure.savefig = real_savefig
+    assert [p.name for p in paths] == ["fig_a_completion_time.png", "fig_b_runtime.png"]
+    ax_a, ax_b = made[0].axes[0], made[1].axes[0]
+    assert list(ax_a.get_xticks()) == [5]  # not 4.8 ... 5.2
+    assert ax_a.get_ylim()[1] > 195.0 * 1.05  # RL-NM's marker is not on the frame
+    assert "MLE-EPSO (NM)" not in [t.get_text() for t in ax_b.get_legend().get_texts()]  # 0 s: no point on a log axis
+    made[1].canvas.draw()
+    labels = [t.get_text() for t in ax_b.get_yticklabels() + ax_b.get_yticklabels(minor=True) if t.get_text()]
+    assert labels and not any("10^" in s or "times" in s for s in labels), labels

@@ -313,6 +313,8 @@ def write_outputs(er: ExperimentResult, out_dir: Path, command: str = "") -> lis
         "fig_c_error_vs_time.csv": _csv(table_c(er)),
         "summary.md": summary_text(er, command),
     }
+    if not table_c(er):  # --error-people 0: no figure (c), so no empty CSV announcing one
+        del files["fig_c_error_vs_time.csv"]
     written = []
     for name, text in files.items():
         (out_dir / name).write_text(text, encoding="utf-8")

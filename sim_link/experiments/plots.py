@@ -25,12 +25,19 @@ def _series(rows, key_x, key_y, key_ci):
 
 def _plot(ax, series, *, bars: bool, log: bool) -> None:
     # the reference method last and thickest: PSO/GA often coincide with it and would hide it
-    order = sorted(series, key=lambda m: m == "MLE-EPSO (M)")
-    for m in order:
+    # a method with no value to draw (none finite; on a log axis none positive) gets no legend entry
+    order = [m for m in sorted(series, key=lambda m: m == "MLE-EPSO (M)")
+             if (np.isfinite(series[m][:, 1]) & ((series[m][:, 1] > 0) if log else True)).any()]
+    xs = np.unique(np.concatenate([series[m][:, 0] for m in order])) if order else np.array([])
+    # error bars of the methods side by side at each x, not on top of each other
+    step = (np.min(np.diff(xs)) if len(xs) > 1 else 1.0) * 0.06
+    for k, m in enumerate(order):
         a = series[m]
         color, marker, ls = STYLE.get(m, ("k", ".", "-"))
         lw = 2.6 if m == "MLE-EPSO (M)" else 1.4
         x, y, ci = a[:, 0], a[:, 1], np.nan_to_num(a[:, 2], nan=0.0)
+        if bars:
+            x = x + (k - (len(order) - 1) / 2) * step
         lo = np.maximum(y - ci, y / 10.0) if log else np.maximum(y - ci, 0.0)
         if bars:
             ax.errorbar(x, y, yerr=[y - lo, ci], color=color, marker=marker, ls=ls, lw=lw, capsize=3, label=m)
@@ -62,12 +69,27 @@ def plot_all(rows_a, rows_b, rows_c, out_dir: Path, required_m: float | None = N
         ax.set_xlabel(xl)
         ax.set_ylabel(yl)
         ax.set_title(title)
+        ax.margins(y=0.08)  # no marker on the frame
         if logy:
             vals = [r[ky] for r in rows if r[ky] is not None and math.isfinite(r[ky]) and r[ky] > 0]
             if vals:
                 ax.set_yscale("log")
+                # plain numbers (0.5, 4, 30), not 4x10^0
+                from matplotlib.ticker import FuncFormatter, LogLocator
+
+                plain = FuncFormatter(lambda v, _: f"{v:g}")
+                ax.yaxis.set_major_formatter(plain)
+                ax.yaxis.set_minor_locator(LogLocator(subs=(2.0, 5.0)))
+                ax.yaxis.set_minor_formatter(plain)
         else:
-            ax.set_ylim(bottom=0.0)
+            tops = [r[ky] + (r[kci] if r[kci] is not None and math.isfinite(r[kci]) else 0.0) for r in rows
+                    if r[ky] is not None and math.isfinite(r[ky])]
+            ax.set_ylim(0.0, max(tops) * 1.1 if tops and max(tops) > 0 else None)
+        if kx == "people":  # the people counts run, as whole numbers, with room on both sides
+            xs = sorted({r[kx] for r in rows})
+            ax.set_xticks(xs)
+            pad = (xs[-1] - xs[0]) * 0.06 if len(xs) > 1 else 1.0
+            ax.set_xlim(xs[0] - pad, xs[-1] + pad)
         if name.startswith("fig_a"):  # the clairvoyant yardstick of the reference method
             ref = sorted((r["people"], r.get("oracle_completion_time_mean_s", math.nan)) for r in rows
                          if r["method"] == "MLE-EPSO (M)")

@@ -123,7 +123,7 @@ def run(args: argparse.Namespace) -> int:
         "uavloc experiment paper"
     result = run_experiment(cfg, jobs=args.jobs, progress=_Bar(not args.no_progress))
     with atomic_output_dir(args.out) as tmp:
-        write_outputs(result, tmp, command)
+        written = [Path(p).name for p in write_outputs(result, tmp, command)]
     print(summary_text(result, command))
-    print(f"wrote {Path(args.out)}/: runs.csv, fig_a/b/c CSV + PNG, summary.md")
+    print(f"wrote {Path(args.out)}/: {', '.join(written)}")
     return 0
