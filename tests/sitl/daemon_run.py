@@ -183,6 +183,7 @@ def truth_check(scenario, people: list[dict]) -> list[tuple[int, float, float, b
 async def _vehicle_state(connection: str, sysid: int, seconds: float) -> tuple[bool, float, float, float, int | None]:
     """(armed, relative altitude m, lat, lon, MAV_LANDED_STATE or None) of a vehicle, heard on its
     ground-station link."""
+    from uavloc_gcs.dialect import mavlink
     from uavloc_gcs.link import open_link, set_message_interval
 
     async with await open_link(connection, source_system=246) as link:
@@ -192,7 +193,9 @@ async def _vehicle_state(connection: str, sysid: int, seconds: float) -> tuple[b
         except Exception:  # noqa: BLE001 - it streams it anyway after the daemon asked
             pass
         pos = await link.recv_match(types="GLOBAL_POSITION_INT", source_system=sysid, timeout_s=seconds)
-        hb = await link.recv_match(types="HEARTBEAT", source_system=sysid, timeout_s=seconds) or hb
+        # the autopilot's own (a companion's forwarded HEARTBEAT has the same system id, no autopilot)
+        hb = await link.recv_match(lambda m: m.autopilot != mavlink.MAV_AUTOPILOT_INVALID, types="HEARTBEAT",
+                                   source_system=sysid, timeout_s=seconds) or hb
         ext = await link.recv_match(types="EXTENDED_SYS_STATE", source_system=sysid, timeout_s=3.0)
         return (bool(hb.base_mode & 128), pos.relative_alt / 1000.0, pos.lat / 1e7, pos.lon / 1e7,
                 None if ext is None else int(ext.landed_state))
