@@ -1,0 +1,70 @@
+"""The vehicle's state machine (service/vehiclelife.py) on facts alone: each step reads the facts
+it is given, and the moves are the table's."""
+
+import math
+
+from uavloc_gcs.service.vehiclelife import NEXT, STATES, Facts, VehicleLife, allowed
+
+
+def _facts(**kw) -> Facts:
+    base = dict(armed=False, on_ground=True, mode="STABILIZE", in_mission_mode=False, mission_seq=None,
+                mission_state=None, mission_ours=True, rel_alt_m=0.0, ground_speed_m_s=0.0, silent_s=0.0)
+    base.update(kw)
+    return Facts(**base)
+
+
+def _scanning() -> VehicleLife:
+    v = VehicleLife(1, "udpout:x:1")
+    v.phase = "connected"
+    v.phase = "uploading scan"
+    v.phase = "starting"
+    v.purpose, v.hold_seq, v.end_seq = "scan", 10, 11
+    return v
+
+
+def _home_by(_v) -> float:
+    return 100.0
+
+
+def test_every_move_leads_to_a_state():
+    assert all(new in STATES for moves in NEXT.values() for new in moves)
+    assert allowed("landed", "starting") and not allowed("scanning", "starting")
+
+
+def test_a_refused_start_never_finishes_its_scan():
+    """'Auto: Missing Takeoff Cmd': AUTO refused, the vehicle on the ground with a stale item at the
+    scan's end from the last search; never seen airborne, so never 'finished its scan'."""
+    v = _scanning()
+    for _ in range(3):
+        events = v.observe(_facts(armed=True, mode="AUTO", in_mission_mode=True, mission_seq=10), 0.0, 5.0, _home_by)
+        assert not any(k == "scan" for k, _ in events)
+    assert not v.scan_done and v.phase == "starting"
+
+
+def test_a_scan_flown_to_its_hold_is_done():
+    v = _scanning()
+    v.observe(_facts(armed=True, on_ground=False, mode="AUTO", in_mission_mode=True, mission_seq=4, rel_alt_m=60.0),
+              0.0, 5.0, _home_by)
+    assert v.phase == "scanning" and v.flew
+    events = v.observe(_facts(armed=True, on_ground=False, mode="AUTO", in_mission_mode=True, mission_seq=10,
+                              rel_alt_m=60.0), 0.0, 5.0, _home_by)
+    assert ("scan", "vehicle 1 finished its scan") in events and v.scan_done and not v.landed_mid_scan
+
+
+def test_landing_by_itself_mid_scan_is_said_and_kept():
+    v = _scanning()
+    v.observe(_facts(armed=True, on_ground=False, mode="AUTO", in_mission_mode=True, mission_seq=6, rel_alt_m=60.0),
+              0.0, 5.0, _home_by)
+    events = v.observe(_facts(armed=False, on_ground=True, mode="RTL", mission_seq=6), 0.0, 5.0, _home_by)
+    assert v.landed_mid_scan and v.scan_reached_seq == 6
+    assert any("landed by itself during its scan, at item 6 of 10" in text for _k, text in events), events
+    assert v.phase == "landed" and v.home and v.odd_moves == []
+
+
+def test_silence_marks_lost_and_freezes_the_phase():
+    v = _scanning()
+    events = v.observe(_facts(silent_s=6.0), 0.0, 5.0, _home_by)
+    assert v.lost and events[0][0] == "lost" and v.phase == "starting"
+    events = v.observe(_facts(silent_s=0.1), 0.0, 5.0, _home_by)
+    assert not v.lost and events[0][0] == "found"
+    assert math.isinf(VehicleLife(2, "c").home_by_s)
