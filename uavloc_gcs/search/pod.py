@@ -634,13 +634,19 @@ def _burst_pod(bt: BurstTiming, t0, t1, w, valid, type_w, horizon, stride: int =
     gaps = bt.mean_active_gap_s()
     p1 = np.zeros(C)
     p2 = np.zeros(C)
+    nt = len(type_w)
+    # elicited frames (columns nt..2nt-1 of w): each look (an in-range run of one track) is one
+    # detection with probability 1 - exp(-m), whatever the burst process and its silences
+    el0 = np.ones((C, nt), np.float32)  # P(no elicited detection), P(exactly one)
+    el1 = np.zeros((C, nt), np.float32)
+    if w.shape[2] > nt:
+        pe = np.where(valid[..., None], 1.0 - np.exp(-w[..., nt:]), 0.0).astype(np.float32)
+        for j in range(pe.shape[1]):
+            el0, el1 = el0 * (1.0 - pe[:, j]), el1 * (1.0 - pe[:, j]) + el0 * pe[:, j]
+        w = w[..., :nt]
     quantiles = range(stride // 2, N_QUANTILES, stride)
     for iu in quantiles:
         m0, m1, mw, mv = _merge(t0, t1, w, valid, MERGE_GAPS * gaps[iu])
-        nt = len(type_w)
-        # elicited frames (columns nt..2nt-1): one detection per window, whatever the burst process
-        pe = (1.0 - np.exp(-mw[..., nt:])).astype(np.float32) if mw.shape[2] > nt else None
-        mw = mw[..., :nt]
         sil = sil_all[iu][::stride]  # (D, M, 2)
         span = np.maximum(m1 - m0, 1e-9)
         alive = 1.0 - _overlap(m0, np.maximum(m1, m0 + 1e-9), sil) / span  # (D, C, L)
@@ -651,9 +657,8 @@ def _burst_pod(bt: BurstTiming, t0, t1, w, valid, type_w, horizon, stride: int =
         q1 = np.zeros_like(q0)
         for j in range(weff.shape[2]):
             e0, e1 = 1.0 - a1[:, :, j], a1[:, :, j] - a2[:, :, j]
-            if pe is not None:
-                e0, e1 = e0 * (1.0 - pe[None, :, j]), e1 * (1.0 - pe[None, :, j]) + e0 * pe[None, :, j]
             q0, q1 = q0 * e0, q1 * e0 + q0 * e1
+        q0, q1 = q0 * el0[None], q1 * el0[None] + q0 * el1[None]
         p1 += ((1.0 - q0) @ type_w).mean(axis=0)
         p2 += ((1.0 - q0 - q1) @ type_w).mean(axis=0)
     return p1 / len(quantiles), p2 / len(quantiles)
