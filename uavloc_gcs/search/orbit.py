@@ -238,8 +238,9 @@ class LookMission:
 
 def look_mission(frame, points_xy_m, targets, orbits, *, alt_m: float, speed_m_s: float, autopilot: str,
                  home_latlon_deg, start_xy_m=None, include_takeoff: bool = True) -> LookMission:
-    """The mission for looks at ``points_xy_m`` (access points, local metres of ``frame``) with
-    ``orbits`` (None or an OrbitLook per point): takeoff (``include_takeoff``), speed, per look a
+    """The mission for looks at ``points_xy_m`` (access points, local metres of ``frame``; points
+    after the looks, e.g. coverage passes' lanes, are flown through) with ``orbits`` (None or an
+    OrbitLook per look): takeoff (``include_takeoff``), speed, per look a
     pass-through waypoint or the orbit in the autopilot's form, RTL. ``start_xy_m``: where the
     vehicle is (an orbit's entry is the circle point nearest the previous point)."""
     pts = np.asarray(points_xy_m, float).reshape(-1, 2)
@@ -255,7 +256,9 @@ def look_mission(frame, points_xy_m, targets, orbits, *, alt_m: float, speed_m_s
         lat, lon = frame.to_wgs84_latlon(np.asarray(xy, float).reshape(-1, 2))[0]
         return float(lat), float(lon)
 
-    for q, tid, orb in zip(pts, targets, orbits):
+    targets = tuple(targets)
+    for k, q in enumerate(pts):  # points beyond the looks (coverage passes' lanes) are fly-throughs
+        orb = orbits[k] if k < len(orbits) else None
         if orb is None:
             idx_out.append(len(items))
             items.append(pass_through_waypoint(*ll(q), alt_m))

@@ -85,3 +85,15 @@ def test_no_orbits_in_the_paper_world():
 
     paper = load_scenario(scenario_path("paper"))
     assert orbit.orbit_targets(SearchPolicy(paper), 0.0, ["unchanged"]) == ["unchanged"]
+
+
+def test_points_after_the_looks_are_flown_through(field):
+    """A task whose looks are followed by a coverage pass's lane points (search/coverage.py)."""
+    o = orbit.OrbitLook((300.0, 200.0), 100.0, 100.0, 6.0)
+    lm = orbit.look_mission(field.frame, [[300.0, 100.0], [600.0, 0.0], [600.0, 300.0]], (6,), [o], alt_m=100.0,
+                            speed_m_s=25.0, autopilot="px4", home_latlon_deg=field.launch_latlon_deg,
+                            start_xy_m=(0.0, 0.0))
+    assert len(lm.look_xy_m) == 3 and np.allclose(lm.look_xy_m[1:], [[600.0, 0.0], [600.0, 300.0]])
+    wire = to_wire(lm.plan, "px4")
+    assert [wire[k].command for k in lm.look_seqs(False)] == [NAV_WAYPOINT] * 3
+    assert lm.look_seqs(False)[2] == len(wire) - 2  # the last lane point, then the return
