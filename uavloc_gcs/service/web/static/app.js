@@ -270,6 +270,11 @@
       const b = document.createElement("b"); b.textContent = p.label || "";
       const id = document.createElement("span"); id.className = "eid"; id.textContent = ` #${p.id}`;
       nm.appendChild(b); nm.appendChild(id);
+      if (p.state === "located" && ok(p.lat_deg) && ok(p.lon_deg)) {  // where a rescuer goes
+        const ll = document.createElement("div"); ll.className = "latlon";
+        ll.textContent = `${p.lat_deg.toFixed(6)}, ${p.lon_deg.toFixed(6)}`;
+        nm.appendChild(ll);
+      }
       row(pb, [nm, st, ok(p.radius95_m) ? `${fmt(p.radius95_m, 1)} m` : "-", utc(p.t_ref_s) || "-"], { "data-id": p.id });
       if (p.reason && p.state !== "located") {
         const tr = row(pb, [""]); tr.firstChild.colSpan = 4; tr.firstChild.className = "reason"; tr.firstChild.textContent = p.reason;
@@ -288,11 +293,17 @@
   function addEvents(list) {
     const ol = document.getElementById("events");
     for (const ev of list) {
-      const li = document.createElement("li");
+      // a run of the same event with other numbers ("Reached command #5", "#6", ...) is one line
+      // that keeps the latest text and counts, not a flood
+      const key = `${ev.kind}|${ev.vehicle}|${String(ev.text).replace(/[0-9.]+/g, "#")}`;
+      const top = ol.firstChild;
+      const li = top && top.dataset.key === key ? top : document.createElement("li");
+      const n = li === top ? Number(li.dataset.n || 1) + 1 : 1;
+      li.textContent = ""; li.dataset.key = key; li.dataset.n = n;
       const t = document.createElement("span"); t.className = "t"; t.textContent = ok(ev.t_s) ? `${ev.t_s.toFixed(1)} s` : "";
       const k = document.createElement("span"); k.className = "k"; k.textContent = ev.kind;
-      li.appendChild(t); li.appendChild(k); li.appendChild(document.createTextNode(ev.text));
-      ol.insertBefore(li, ol.firstChild);
+      li.appendChild(t); li.appendChild(k); li.appendChild(document.createTextNode(ev.text + (n > 1 ? ` (${n}x)` : "")));
+      if (li !== top) ol.insertBefore(li, ol.firstChild);
     }
     while (ol.children.length > 300) ol.removeChild(ol.lastChild);
   }
@@ -315,6 +326,10 @@
       S.events.push(...d.events_append);
       addEvents(d.events_append);
       for (const k of ["t_s", "epoch_unix_s", "slots", "replans", "finished", "vehicles", "people", "plan", "coverage"]) S[k] = d[k];
+      if (S.finished) {  // the search's clock stops at its end (--web-keep serves on afterwards)
+        if (S.t_end == null) S.t_end = S.t_s;
+        S.t_s = S.t_end;
+      }
       link(S.finished ? "search finished" : "live", S.finished ? "done" : "up");
       panels(); draw();
     });
