@@ -526,7 +526,7 @@ def _resample(t_s, xyz_m) -> tuple[np.ndarray, np.ndarray]:
 def _looks(cx, cy, tracks, hearing: _Hearing):
     """Per cell: looks (t0, t1, w[T]) over all tracks. Returns padded arrays t0, t1 (C, L), w (C, L, T)
     and a validity mask (C, L)."""
-    C, T = len(cx), hearing.table.shape[1] * (2 if hearing.elicit is not None else 1)
+    C, T = len(cx), hearing.table.shape[1]
     per_cell = [[] for _ in range(C)]
     for t_s, xyz_m in tracks:
         t, xyz = _resample(t_s, xyz_m)
@@ -547,11 +547,7 @@ def _looks(cx, cy, tracks, hearing: _Hearing):
             start[1:] = (rows[1:] != rows[:-1]) | (cols[1:] != cols[:-1] + 1)
             first = np.flatnonzero(start)
             last = np.append(first[1:], len(rows)) - 1
-            dd = d3[rows, cols]
-            per = hearing.p(dd)
-            if hearing.elicit is not None:  # elicited frames heard: their expected number, per type
-                per = np.concatenate([per, hearing.rate(dd)], axis=1)
-            w = np.add.reduceat(per * dt[cols, None], first, axis=0)  # (R, T) or (R, 2T)
+            w = np.add.reduceat(hearing.p(d3[rows, cols]) * dt[cols, None], first, axis=0)  # (R, T)
             for r, a0, a1, ww in zip(rows[first], t[cols[first]], t[cols[last]], w):
                 per_cell[a + r].append((a0, a1, ww))
     L = max(1, max((len(c) for c in per_cell), default=1))
@@ -564,6 +560,33 @@ def _looks(cx, cy, tracks, hearing: _Hearing):
         for j, (a, b, ww) in enumerate(looks):
             t0[i, j], t1[i, j], w[i, j], valid[i, j] = a, b, ww, True
     return t0, t1, w, valid
+
+
+def _elicited(cx, cy, tracks, hearing: _Hearing, reach_m: float):
+    """Elicited detections per cell and type: every run of a track within ``reach_m`` (where the
+    phone hears the access point) is one detection with probability 1 - exp(-m), m its elicited
+    frames expected to be heard. Returns P(none) and P(exactly one), (C, T) each."""
+    C, T = len(cx), hearing.table.shape[1]
+    el0 = np.ones((C, T))
+    el1 = np.zeros((C, T))
+    for t_s, xyz_m in tracks:
+        t, xyz = _resample(t_s, xyz_m)
+        if len(t) < 2:
+            continue
+        dt = np.diff(np.concatenate([[t[0]], 0.5 * (t[1:] + t[:-1]), [t[-1]]]))
+        d3 = np.sqrt((xyz[None, :, 0] - cx[:, None]) ** 2 + (xyz[None, :, 1] - cy[:, None]) ** 2
+                     + xyz[None, :, 2] ** 2)
+        rows, cols = np.nonzero(d3 <= reach_m)
+        if len(rows) == 0:
+            continue
+        start = np.ones(len(rows), bool)
+        start[1:] = (rows[1:] != rows[:-1]) | (cols[1:] != cols[:-1] + 1)
+        first = np.flatnonzero(start)
+        m = np.add.reduceat(hearing.rate(d3[rows, cols]) * dt[cols, None], first, axis=0)  # (R, T)
+        pe = 1.0 - np.exp(-m)
+        for r, p in zip(rows[first], pe):
+            el0[r], el1[r] = el0[r] * (1.0 - p), el1[r] * (1.0 - p) + el0[r] * p
+    return el0.astype(np.float32), el1.astype(np.float32)
 
 
 def _merge(t0, t1, w, valid, gap_s: float):
@@ -610,7 +633,10 @@ def pod_from_tracks(sc, tracks, grid: PodGrid | None = None, *, coarse: bool = F
     else:
         start = min(float(t[0]) for t, _ in tracks)
         horizon = max(float(t[-1]) for t, _ in tracks) - start + 1.0
-        p1, p2 = _burst_pod(bt, t0 - start, t1 - start, w, valid, hearing.weights, horizon, 2 if coarse else 1)
+        el = None
+        if hearing.elicit is not None:
+            el = _elicited(grid.x_m[idx], grid.y_m[idx], tracks, hearing, elicitation_range_m(sc))
+        p1, p2 = _burst_pod(bt, t0 - start, t1 - start, w, valid, hearing.weights, horizon, 2 if coarse else 1, el)
     pod1[idx], pod2[idx] = p1, p2
     return grid.with_pod(pod1, pod2)
 
@@ -627,7 +653,7 @@ def _continuous_pod(t0, t1, w, valid, hearing, slot_s):
     return 1 - q0, 1 - q0 - q1
 
 
-def _burst_pod(bt: BurstTiming, t0, t1, w, valid, type_w, horizon, stride: int = 1):
+def _burst_pod(bt: BurstTiming, t0, t1, w, valid, type_w, horizon, stride: int = 1, elicited=None):
     C = len(t0)
     type_w = np.asarray(type_w, np.float32)
     sil_all = bt.silences(horizon)
@@ -635,15 +661,8 @@ def _burst_pod(bt: BurstTiming, t0, t1, w, valid, type_w, horizon, stride: int =
     p1 = np.zeros(C)
     p2 = np.zeros(C)
     nt = len(type_w)
-    # elicited frames (columns nt..2nt-1 of w): each look (an in-range run of one track) is one
-    # detection with probability 1 - exp(-m), whatever the burst process and its silences
-    el0 = np.ones((C, nt), np.float32)  # P(no elicited detection), P(exactly one)
-    el1 = np.zeros((C, nt), np.float32)
-    if w.shape[2] > nt:
-        pe = np.where(valid[..., None], 1.0 - np.exp(-w[..., nt:]), 0.0).astype(np.float32)
-        for j in range(pe.shape[1]):
-            el0, el1 = el0 * (1.0 - pe[:, j]), el1 * (1.0 - pe[:, j]) + el0 * pe[:, j]
-        w = w[..., :nt]
+    # elicited detections (:func:`_elicited`), independent of the burst process and its silences
+    el0, el1 = elicited if elicited is not None else (np.ones((C, nt), np.float32), np.zeros((C, nt), np.float32))
     quantiles = range(stride // 2, N_QUANTILES, stride)
     for iu in quantiles:
         m0, m1, mw, mv = _merge(t0, t1, w, valid, MERGE_GAPS * gaps[iu])
