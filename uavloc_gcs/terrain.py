@@ -168,11 +168,13 @@ def check_spec(sc, base_dir: Path | None) -> str:
             raise ConfigError(msg, source=sc.source, key=f"terrain.{key}")
 
     need(t.min_clearance_m > 0, f"must be positive, got {t.min_clearance_m} m", "min_clearance_m")
-    need(t.min_clearance_m <= sc.fleet.altitude_m,
-         f"{t.min_clearance_m} m is more than the scan height fleet.altitude_m = {sc.fleet.altitude_m} m", "min_clearance_m")
+    if t.dem is not None:  # without a DEM the clearance is never used (a low flat scan stays valid)
+        need(t.min_clearance_m <= sc.fleet.altitude_m,
+             f"{t.min_clearance_m} m is more than the scan height fleet.altitude_m = {sc.fleet.altitude_m} m",
+             "min_clearance_m")
     need(t.max_climb_m_s > 0, f"must be positive, got {t.max_climb_m_s} m/s", "max_climb_m_s")
     need(t.max_descent_m_s > 0, f"must be positive, got {t.max_descent_m_s} m/s", "max_descent_m_s")
-    if t.max_height_above_launch_m is not None:
+    if t.max_height_above_launch_m is not None and t.dem is not None:
         need(t.max_height_above_launch_m >= sc.fleet.altitude_m,
              f"{t.max_height_above_launch_m} m is below the scan height fleet.altitude_m = {sc.fleet.altitude_m} m",
              "max_height_above_launch_m")

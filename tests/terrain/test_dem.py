@@ -135,3 +135,8 @@ def test_the_synthetic_ridge_is_higher_than_the_flight_altitude(tmp_path):
     dem = load_dem(ridge_dem(tmp_path / "ridge.tif", frame), frame)
     assert dem.height_at(0.0, 0.0) == pytest.approx(500.0, abs=1.0)
     assert dem.height_at(400.0, 0.0) - dem.height_at(0.0, 0.0) > 250.0  # above a 100 m scan
+
+
+def test_a_low_flat_scan_without_a_dem_is_not_refused_for_the_default_clearance():
+    sc = loads_scenario(AREA.format(lat=42.63, lon=13.29) + "\n[fleet]\naltitude_m = 20\ncomm_range_m = 100\n")
+    assert sc.dem is None and sc.fleet.altitude_m < sc.terrain.min_clearance_m
