@@ -39,7 +39,9 @@ def register(sub) -> None:
     p.add_argument("--speedup", type=float, default=None, help="simulated seconds per wall second (default 5)")
     p.add_argument("--base-port", type=int, default=None, metavar="PORT",
                    help="vehicle i's ground link on PORT+i-1 (default: free ports)")
-    p.add_argument("--home-alt", type=float, default=0.0, metavar="M", help="home altitude above sea level [m]")
+    p.add_argument("--home-alt", type=float, default=None, metavar="M",
+                   help="home altitude above sea level [m] (default: the DEM's at the launch point with "
+                        "terrain.dem, absolute missions being planned from it; else 0)")
     p.add_argument("--seed", type=int, default=None, help="simulated world seed (default: simulation.seed)")
     p.add_argument("--no-companion", action="store_true", help="no simulated companions (no RSSI)")
     p.add_argument("--ready-timeout", type=float, default=None, metavar="S",
@@ -62,7 +64,7 @@ def _check_args(args, scenario):
         raise ConfigError(f"{args.speedup} is not a speed-up in (0, 100]", key="--speedup")
     if args.base_port is not None and not 1024 <= args.base_port <= 65535 - n + 1:
         raise ConfigError(f"{args.base_port} leaves no room for {n} port(s) in 1024-65535", key="--base-port")
-    if not (math.isfinite(args.home_alt) and -500 <= args.home_alt <= 9000):
+    if args.home_alt is not None and not (math.isfinite(args.home_alt) and -500 <= args.home_alt <= 9000):
         raise ConfigError(f"{args.home_alt} is not an altitude in -500..9000 m", key="--home-alt")
     timeout = sitl.READY_TIMEOUT_S if args.ready_timeout is None else args.ready_timeout
     if not (math.isfinite(timeout) and timeout > 0):
@@ -90,7 +92,9 @@ def run(args) -> int:
     if kind == "ardupilot":
         sitl.copter_parm(build)
     lat, lon = scenario.launch_latlon_deg
-    home = (lat, lon, args.home_alt, 0.0)
+    home_alt = args.home_alt if args.home_alt is not None else (
+        scenario.dem.height_at(0.0, 0.0) if scenario.dem is not None else 0.0)
+    home = (lat, lon, home_alt, 0.0)
 
     def on_term(signum, frame):
         raise KeyboardInterrupt
