@@ -37,8 +37,8 @@ def pytest_terminal_summary(terminalreporter, exitstatus, config):
     people cannot show (each search only bounds it; see test_daemon_search.py)."""
     from . import daemon_run
 
-    for line in daemon_run.FIELD_RESULTS:  # the field-world searches' figures (daemon_run.field_check)
-        terminalreporter.write_line(f"SITL field search, {line}")
+    for line in daemon_run.FIELD_RESULTS:  # the searches' figures (daemon_run.field_check)
+        terminalreporter.write_line(f"SITL search, {line}")
     rows = daemon_run.COVERAGE
     if rows:
         inside = sum(1 for err, r95 in rows if err <= r95)

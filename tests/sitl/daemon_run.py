@@ -229,7 +229,7 @@ def load(text: str, path: Path):
 # -- the field world: what a search claims against what its telemetry holds ----------------------
 
 TRUTH_MARGIN = 1.5  # as tests/test_e2e_field.py: a calibrated 95 % radius is this far off once in a thousand
-FIELD_RESULTS: list[str] = []  # one line per field search of the run, printed at its end (conftest.py)
+FIELD_RESULTS: list[str] = []  # one line per search field_check saw in the run, printed at its end (conftest.py)
 _MAC = re.compile(r"[0-9a-fA-F]{2}(?::[0-9a-fA-F]{2}){5}")
 
 
