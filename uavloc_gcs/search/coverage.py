@@ -173,6 +173,7 @@ class Coverage:
         self.passes_exhausted = False  # the last round found no vehicle with the energy for a lane
         self.last_passes: "PassPlan | None" = None
         self._pod_cache: tuple[float, np.ndarray] | None = None
+        self._round_pod: float | None = None  # the area's POD when the last round of passes was planned
         self.positions = 0
 
     # -- data in ---------------------------------------------------------------------------------
@@ -470,6 +471,7 @@ def attach(sc, policy=None) -> Coverage:
 # -- the adaptive loop: another pass over the cells below the target ----------------------------------
 MAX_PASS_ROUNDS = 3  # replans that may add passes; a pass at the scan's speed raises a burst world's
 # POD by a fraction each time, and the energy left, not the target, would otherwise end the search
+ROUND_GAIN = 0.005  # the area's POD must rise this much for a new round of passes to count
 LANE_FILL = 0.9  # pass lanes are this fraction of two hearing ranges apart
 
 
@@ -578,7 +580,12 @@ def add_passes(policy, t_s: float, vehicles: list, plan):
     if not pp.waypoints:
         cov.passes_exhausted = pp.lanes > 0
         return plan
-    cov.pass_rounds += 1
+    # a round counts once its passes were flown (the area's POD rose since the last round was
+    # planned): replans in quick succession re-plan the same round instead of using up the cap
+    now = cov.overall()
+    if cov._round_pod is None or now > cov._round_pod + ROUND_GAIN:
+        cov.pass_rounds += 1
+        cov._round_pod = now
     tasks = []
     for task in plan.tasks:
         lanes = pp.waypoints.get(str(task.vehicle_id))
