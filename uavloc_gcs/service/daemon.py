@@ -106,6 +106,9 @@ class Daemon(FleetPreparation, VehicleCommands):
             # under a receiver threshold (the field world) from its telemetry (_on_position): a
             # silence is evidence there only while some vehicle heard a burst, and bursts are sparse
             policy.tracks_from_slots = scenario.channel.receiver_sensitivity_dbm is None
+        from ..search.coverage import attach  # noqa: PLC0415
+
+        self.coverage = attach(scenario, policy)  # what was flown within hearing (search/coverage.py)
         self.store: Store | None = None
         self.epoch_unix_s: float | None = None
         self._slots_in: list[SlotBatch] = []
@@ -258,6 +261,7 @@ class Daemon(FleetPreparation, VehicleCommands):
 
     def _on_position(self, vehicle: int, tel) -> None:
         self._rate.observe(tel)
+        self.coverage.add_telemetry(vehicle, self.now_s(), tel.lat_deg, tel.lon_deg, tel.rel_alt_m)
         w = self.wall()
         if w - self._last_tel_store.get(vehicle, -math.inf) < 0.1:
             return
@@ -345,7 +349,7 @@ class Daemon(FleetPreparation, VehicleCommands):
             if passed < len(v.look_xy_m) and xy is not None and \
                     math.dist(xy, v.look_xy_m[passed]) <= WAYPOINT_TOLERANCE_M:
                 passed += 1
-            while v.looks_reported < passed:
+            while v.looks_reported < min(passed, len(v.targets)):  # (then passes: search/coverage.py)
                 if report is not None:
                     report(v.targets[v.looks_reported], t)
                 v.looks_reported += 1
