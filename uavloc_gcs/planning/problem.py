@@ -204,6 +204,9 @@ def check_reachable(problem: RoutingProblem) -> None:
     direct = np.linalg.norm(homes - starts, axis=1)
     for v, d, cap in zip(problem.vehicles, direct, max_len):
         if d > cap * (1 + 1e-9):
+            if d < 1.0:  # at home already: nothing left to fly with
+                raise InfeasibleError(f"vehicle {v.id} cannot reach home: its usable energy is spent "
+                                      f"({v.energy_j:.0f} J left beyond its reserve)")
             raise InfeasibleError(
                 f"vehicle {v.id} cannot reach home: {d:.1f} m need {d * e_per_m:.0f} J, "
                 f"it has {v.energy_j:.0f} J")

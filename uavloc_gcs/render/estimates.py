@@ -116,6 +116,8 @@ def result_figure(people, *, area_xy_m: np.ndarray, tracks_xy_m: Mapping[int, np
             if p.emitter_id in truth_xy_m:
                 tx, ty = truth_xy_m[p.emitter_id][:2]
                 ax.plot([p.east_m, tx], [p.north_m, ty], color="#111111", linewidth=0.7, zorder=4)
+    _fit_view(ax, [area, np.zeros((1, 2))] + [np.asarray(t, dtype=float).reshape(-1, 2) for t in tracks_xy_m.values()]
+              + ([truth] if truth is not None else []) + [np.array([[p.east_m, p.north_m]]) for p in est])
     maps.add_scale_bar(ax)
     maps.add_north_arrow(ax)
     maps.add_legend(ax)
@@ -124,6 +126,18 @@ def result_figure(people, *, area_xy_m: np.ndarray, tracks_xy_m: Mapping[int, np
                           [person_label(p) for p in est],
                           [STATE_COLORS.get(p.state, "#222222") for p in est], avoid_xy=truth)
     return fig
+
+
+def _fit_view(ax, pieces) -> None:
+    """Show the area, the tracks, the launch point and every person's centre, with a margin; a 95 %
+    circle wider than that (a person heard once or twice can have one of kilometres) runs off the
+    map instead of shrinking the search area to a dot (its radius is in the tables)."""
+    pts = np.vstack([p for p in pieces if len(p)])
+    pts = pts[np.isfinite(pts).all(axis=1)]
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    pad = 0.08 * max(float((hi - lo).max()), 50.0)
+    ax.set_xlim(lo[0] - pad, hi[0] + pad)
+    ax.set_ylim(lo[1] - pad, hi[1] + pad)
 
 
 SMALL_CIRCLE_FRACTION = 1 / 60  # 95 % circles under this share of the map's span get a ring
