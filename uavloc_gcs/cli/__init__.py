@@ -88,6 +88,7 @@ def main(argv: list[str] | None = None) -> int:
         args = parser.parse_args(argv)
     except SystemExit as done:  # --help, --version, or a bad flag (its sentence is printed)
         return done.code if isinstance(done.code, int) else 0
+    previous = (sys.stdout, sys.stderr)
     if getattr(args, "command", None) in ("daemon", "demo"):  # a closed or stalled console never stops a search
         from ..console import install  # noqa: PLC0415
 
@@ -117,6 +118,8 @@ def main(argv: list[str] | None = None) -> int:
         from ..console import drain  # noqa: PLC0415
 
         drain()  # the last lines (the results table) are written before the process ends
+        # main() called in-process (tests, a host program) leaves the caller's streams as it found them
+        sys.stdout, sys.stderr = previous
 
 
 if __name__ == "__main__":  # pragma: no cover
