@@ -57,7 +57,10 @@ def test_sim_bad_input_is_one_sentence_and_exit_2():
     from uavloc_gcs.cli import build_parser
     from uavloc_gcs.errors import ConfigError
 
-    for argv, key in ((["--companion"], "--autopilot"), (["--loss", "1.5"], "--loss"),
+    r = subprocess.run([sys.executable, "-m", "uavloc_gcs", "sim", "examples/small.toml", "--loss", "1.5"],
+                       capture_output=True, text=True, timeout=30)  # refused by the flag's own range check
+    assert r.returncode == 2 and r.stderr.strip().count("\n") == 0 and "--loss" in r.stderr
+    for argv, key in ((["--companion"], "--autopilot"),
                       (["--companion", "--autopilot", "serial:/dev/x"], "autopilot")):
         args = build_parser().parse_args(["sim", "examples/small.toml", *argv])
         with pytest.raises(ConfigError) as err:
