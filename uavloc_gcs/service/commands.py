@@ -123,10 +123,21 @@ class VehicleCommands:
         guard = start_guard(a, v.mission, a.flavour.first_mission_seq, v.id)
         try:
             try:
-                await self._until_ready(v)
-                alt0, began = self._ground_alt(a), self.wall()  # (read after the wait)
-                await self._persist(v, "start", lambda: a.start(before_start=guard),
-                                    lambda: a.tel.armed and a.in_mission_mode)
+                ready_by = self.wall() + READY_WAIT_S
+                while True:
+                    await self._until_ready(v)
+                    alt0, began = self._ground_alt(a), self.wall()  # (read after the wait)
+                    try:
+                        await self._persist(v, "start", lambda: a.start(before_start=guard),
+                                            lambda: a.tel.armed and a.in_mission_mode)
+                        break
+                    except UnsafeStart:
+                        # a freshly booted vehicle whose first SYS_STATUS says "not ready" only after
+                        # the wait above saw nothing against it: wait again, within READY_WAIT_S
+                        facts = read_facts(a)
+                        if facts.armed or not facts.not_ready or self.wall() >= ready_by:
+                            raise
+                        await asyncio.sleep(0.5)
             except (LinkError, UnsafeStart) as exc:
                 await self._disarm_on_ground(v)
                 if isinstance(exc, UnsafeStart):  # a failed start like any other: the vehicle is unusable
