@@ -65,3 +65,14 @@ def world_ids(scenario) -> set[int]:
 def write_config(path: Path, text: str) -> Path:
     path.write_text(text)
     return path
+
+
+# The field world's channel and phones (examples/field.toml) as a small_scenario(extra=...) override.
+FIELD = """
+[channel]
+path_loss_exponent = 2.3
+reference_power_dbm = -40.0
+receiver_sensitivity_dbm = -90.0
+[emission]
+model = "probe-bursts"
+"""

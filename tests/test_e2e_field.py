@@ -7,20 +7,12 @@ import math
 
 import numpy as np
 
-from tests.e2e_helpers import small_scenario
+from tests.e2e_helpers import FIELD, small_scenario
 from uavloc_gcs.cli._fleet import start_fleet_process
 from uavloc_gcs.service.daemon import DaemonOptions
 from uavloc_gcs.service.run import run_search
 from uavloc_gcs.service.store import StoreReader
 
-FIELD = """
-[channel]
-path_loss_exponent = 2.3
-reference_power_dbm = -40.0
-receiver_sensitivity_dbm = -90.0
-[emission]
-model = "probe-bursts"
-"""
 TRUTH_MARGIN = 1.5  # as tests/test_e2e_daemon.py: a calibrated radius is this far off once in a thousand
 
 

@@ -3,17 +3,9 @@
 import numpy as np
 import pytest
 
-from tests.e2e_helpers import small_scenario
+from tests.e2e_helpers import FIELD, small_scenario
 from uavloc_gcs.search.coverage import Coverage, final_summary, summarize, window_probs
 
-FIELD = """
-[channel]
-path_loss_exponent = 2.3
-reference_power_dbm = -40.0
-receiver_sensitivity_dbm = -90.0
-[emission]
-model = "probe-bursts"
-"""
 
 
 def _lane(cov, vehicle, y, x0, x1, t0=0.0, speed=15.0, alt=60.0, dt=0.5):
