@@ -173,7 +173,7 @@ class Coverage:
         self.passes_exhausted = False  # the last round found no vehicle with the energy for a lane
         self.last_passes: "PassPlan | None" = None
         self._pod_cache: tuple[float, np.ndarray] | None = None
-        self._round_pod: float | None = None  # the area's POD when the last round of passes was planned
+        self._round_end_s: float | None = None  # when the last round's passes should have been flown (ETA)
         self.positions = 0
 
     # -- data in ---------------------------------------------------------------------------------
@@ -314,6 +314,8 @@ class CoverageSummary:
     expected_missed: float | None  # people expected in the area but not heard (needs a density)
     density_per_km2: float | None
     flown_s: float = 0.0
+    # why the passes over the cells below the target ended ('' when none were wanted or planned)
+    passes_end: str = ""
 
     @property
     def nothing_flown(self) -> bool:
@@ -409,10 +411,25 @@ def final_summary(cov: Coverage, target: float | None = None) -> CoverageSummary
     tracks = cov.tracks()
     g = pod_from_tracks(cov.sc, tracks, pod_grid(cov.sc)) if tracks else None
     if g is None:
-        return summarize(cov.grid, np.zeros(len(cov.grid.xy_m)), np.zeros(len(cov.grid.xy_m)), target, density,
-                         cov.flown_s)
-    inside = np.asarray(g.inside, bool)
-    return summarize(cov.grid, np.asarray(g.pod1)[inside], np.asarray(g.pod2)[inside], target, density, cov.flown_s)
+        out = summarize(cov.grid, np.zeros(len(cov.grid.xy_m)), np.zeros(len(cov.grid.xy_m)), target, density,
+                        cov.flown_s)
+    else:
+        inside = np.asarray(g.inside, bool)
+        out = summarize(cov.grid, np.asarray(g.pod1)[inside], np.asarray(g.pod2)[inside], target, density,
+                        cov.flown_s)
+    return replace(out, passes_end=passes_end(cov))
+
+
+def passes_end(cov: Coverage) -> str:
+    """Why no more passes were flown over the cells below the target, as a clause ('' when no
+    round of passes ended for a reason: none wanted, or the search ended otherwise)."""
+    if cov.passes_exhausted:
+        return "no other vehicle had the energy to take it over"
+    if MAX_PASS_ROUNDS <= 0:
+        return "the search allows no extra passes"
+    if cov.pass_rounds >= MAX_PASS_ROUNDS:
+        return f"the {MAX_PASS_ROUNDS} rounds of extra passes a search allows were flown"
+    return ""
 
 
 def add_stored(cov: Coverage, store_path) -> int:
@@ -471,7 +488,6 @@ def attach(sc, policy=None) -> Coverage:
 # -- the adaptive loop: another pass over the cells below the target ----------------------------------
 MAX_PASS_ROUNDS = 3  # replans that may add passes; a pass at the scan's speed raises a burst world's
 # POD by a fraction each time, and the energy left, not the target, would otherwise end the search
-ROUND_GAIN = 0.005  # the area's POD must rise this much for a new round of passes to count
 LANE_FILL = 0.9  # pass lanes are this fraction of two hearing ranges apart
 
 
@@ -580,12 +596,12 @@ def add_passes(policy, t_s: float, vehicles: list, plan):
     if not pp.waypoints:
         cov.passes_exhausted = pp.lanes > 0
         return plan
-    # a round counts once its passes were flown (the area's POD rose since the last round was
-    # planned): replans in quick succession re-plan the same round instead of using up the cap
-    now = cov.overall()
-    if cov._round_pod is None or now > cov._round_pod + ROUND_GAIN:
+    # a round counts once its passes should have been flown (the last round's ETA is past): the
+    # replans while a vehicle flies its passes (a report, a look done, a late upload) re-plan the
+    # same round instead of using up the cap -- under load there are many of them
+    new_round = cov._round_end_s is None or t_s >= cov._round_end_s
+    if new_round:
         cov.pass_rounds += 1
-        cov._round_pod = now
     tasks = []
     for task in plan.tasks:
         lanes = pp.waypoints.get(str(task.vehicle_id))
@@ -601,6 +617,8 @@ def add_passes(policy, t_s: float, vehicles: list, plan):
         if getattr(task, "orbits", None) is not None:  # one per look point (search/orbit.py): passes fly none
             extra["orbits"] = tuple(task.orbits) + (None,) * len(lanes)
         tasks.append(replace(task, waypoints_xy_m=route, eta_s=max(task.eta_s, eta), **extra))
+    pass_eta = max((task.eta_s for task in tasks if str(task.vehicle_id) in pp.waypoints), default=t_s)
+    cov._round_end_s = pass_eta if new_round else max(cov._round_end_s, pass_eta)
     makespan = max((task.eta_s for task in tasks), default=t_s) - t_s
     return replace(plan, tasks=tuple(tasks), makespan_s=makespan)
 

@@ -225,7 +225,8 @@ def coverage_statement(summary, lost: Sequence[int] = (), not_started: Sequence[
     left = bool(gone) and summary.unsearched_m2 > 0 and not summary.nothing_flown
     if left:
         text += (f" Part of the area ({summary.unsearched_m2 / 1e6:.3f} km²) was not searched: vehicle(s) "
-                 f"{', '.join(map(str, gone))} could not fly it and no other vehicle had the energy to take it over.")
+                 f"{', '.join(map(str, gone))} could not fly it and "
+                 f"{getattr(summary, 'passes_end', '') or 'no other vehicle took it over'}.")
     elif gone and summary.nothing_flown:
         left = True
     return text, left

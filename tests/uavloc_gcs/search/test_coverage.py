@@ -96,3 +96,48 @@ def test_a_restarted_daemon_gets_back_what_was_flown_from_the_store(tmp_path):
     assert add_stored(resumed, tmp_path / "s.sqlite") == 60
     assert resumed.overall() > 0.5
     assert np.allclose(resumed.pod(1), fresh.pod(1), atol=0.02)
+
+
+def _half_flown(sc):
+    """Coverage of the small scenario with only its southern half flown by vehicle 1."""
+    cov = Coverage(sc)
+    t = 0.0
+    for i, y in enumerate(range(10, 130, 40)):
+        a, b = (0.0, 400.0) if i % 2 == 0 else (400.0, 0.0)
+        t = _lane(cov, 1, float(y), a, b, t0=t)
+    return cov, t
+
+
+def test_replans_while_passes_are_flown_do_not_use_up_the_rounds():
+    """The CI failure of 2026-11-26: every replan while vehicle 1 flew its passes counted as a new
+    round (the area's POD had risen), the cap of rounds was reached with the lanes unflown and the
+    search ended with part of the area unsearched. A round now counts once its ETA is past."""
+    from types import SimpleNamespace
+
+    from uavloc_gcs.planning.problem import VehicleState
+    from uavloc_gcs.search import coverage as cm
+    from uavloc_gcs.search.policy import SearchPlan, VehicleTask
+
+    sc = small_scenario()
+    cov, t = _half_flown(sc)
+    policy = SimpleNamespace(coverage=cov, scenario=sc, speed_m_s=15.0)
+    vehicles = [VehicleState("1", (200.0, 120.0), (0.0, 0.0), 1e6)]
+    plan = SearchPlan((VehicleTask("1", np.array([[0.0, 0.0]]), (), t),), 0.0, 0.0)
+    first = cm.add_passes(policy, t, vehicles, plan)
+    assert cov.pass_rounds == 1 and len(first.tasks[0].waypoints_xy_m) > 2  # lanes, then home
+    end = cov._round_end_s
+    assert end > t
+    # replans before the passes' ETA (the POD rises as they are flown) stay in round 1
+    for k in range(1, 6):
+        _lane(cov, 1, 160.0 + 10 * k, 0.0, 50.0, t0=t + 5 * k)
+        cm.add_passes(policy, t + 5 * k, vehicles, plan)
+    assert cov.pass_rounds == 1
+    assert cm.passes_wanted(policy)
+    cm.add_passes(policy, end + 1.0, vehicles, plan)  # the round is over: a new one
+    assert cov.pass_rounds == 2
+    # the reason the passes ended is said as it was
+    assert final_summary(cov).passes_end == ""
+    cov.pass_rounds = cm.MAX_PASS_ROUNDS
+    assert "rounds of extra passes" in final_summary(cov).passes_end
+    cov.passes_exhausted = True
+    assert "energy" in final_summary(cov).passes_end
