@@ -112,3 +112,35 @@ def test_cli_pod_plan(tmp_path, capsys):
     p1 = np.array([f["properties"]["pod1"] for f in fc["features"]])
     assert len(p1) > 500 and fc["properties"]["pod1_overall"] == pytest.approx(p1.mean(), abs=0.002)
     assert (out / "uav1.plan").exists() and (out / "uav2.plan").exists()
+
+
+def test_a_search_flies_the_scan_planned_for_its_pod_target(tmp_path, small):
+    """search.pod_target: the daemon and the simulator fly the POD scan at its speed, within
+    SEARCH_SCAN_SHARE of the energy (the rest is for the looks); without it, [scan]'s layout."""
+    from uavloc_gcs.scan import plan_scan
+    from uavloc_gcs.service.daemon import Daemon, DaemonOptions
+
+    flown, plan = pod_plan.scan_for(small)
+    assert flown is small
+    assert [v.waypoints_xy_m.tolist() for v in plan.vehicles] == [v.waypoints_xy_m.tolist() for v in plan_scan(small).vehicles]
+    sc = small.replace(search={"pod_target": 0.9})
+    flown, plan = pod_plan.scan_for(sc)
+    pp = pod_plan.scan_pod_plan(sc)
+    assert pp is not None and pod_plan.scan_for(sc)[1] is plan  # one plan per scenario
+    assert flown.fleet.speed_m_s == pp.chosen.speed_m_s < small.fleet.speed_m_s
+    assert pp.chosen.passes >= 2
+    assert max(v.energy_j for v in plan.vehicles) <= pod_plan.SEARCH_SCAN_SHARE * sc.usable_energy_j + 1.0
+    # the seed of the simulated world does not change the plan
+    assert pod_plan.scan_for(sc.replace(simulation={"seed": 99}))[1] is plan
+    d = Daemon(sc, [(1, "udpin:127.0.0.1:0")], DaemonOptions(store_path=tmp_path / "s.sqlite", tlog_dir=tmp_path))
+    assert d.sc.fleet.speed_m_s == pp.chosen.speed_m_s and d._scan_plan is plan
+    assert d.policy.scenario.fleet.speed_m_s == pp.chosen.speed_m_s
+
+
+def test_plan_from_the_scenario_key_is_the_scan_the_daemon_flies(tmp_path, capsys):
+    sc = _small_field(tmp_path, "\n[search]\npod_target = 0.9\n")
+    code, text, err = _run(capsys, "plan", sc, "--best-effort", "--out", tmp_path / "o")
+    assert code == 0, err
+    assert "As `uavloc daemon` flies it" in text
+    chosen = pod_plan.scan_pod_plan(load_scenario(sc)).chosen
+    assert f"{chosen.passes} pass" in text and f"at {chosen.speed_m_s:g} m/s" in text

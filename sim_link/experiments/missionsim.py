@@ -7,8 +7,8 @@ vehicles are idealized: each flies its current path as a polyline at the constan
 (``World.hear_track``), and hovers when it has nothing to do. Energy is the scenario's power model
 (flight at cruise speed, hovering at P(0)).
 
-Timeline: every vehicle flies its part of the initial scan (``uavloc_gcs.scan.plan_scan``) from
-the launch point, waits (hovering) for the others, then the adaptive phase starts: every ``dt_s``
+Timeline: every vehicle flies its part of the initial scan (``uavloc_gcs.search.pod_plan.scan_for``:
+planned for the POD target when the scenario gives one) from the launch point, waits (hovering) for the others, then the adaptive phase starts: every ``dt_s``
 the slots heard are given to the policy, which re-estimates and, when it asks, replans from the
 vehicles' current positions and remaining energy. The mission ends when every person heard is
 located (or given up) and every vehicle is home; the completion time is the moment the last
@@ -22,7 +22,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from uavloc_gcs.scan import plan_scan
+from uavloc_gcs.search.pod_plan import scan_for
 from uavloc_gcs.scenario import Scenario
 from uavloc_gcs.search import SearchPolicy
 
@@ -310,11 +310,16 @@ def simulate_mission(
     oracle: bool = False,
     hearing_evidence: bool = True,
     coverage: bool = True,
+    adaptive: bool = True,
 ) -> MissionResult:
-    """Fly one mission with one of :data:`METHODS` and report completion time, run times, errors."""
+    """Fly one mission with one of :data:`METHODS` and report completion time, run times, errors.
+    ``adaptive=False``: the scan alone (a conventional search): every vehicle flies home after its
+    scan, and the people are what the estimator makes of the scan's data."""
     if method not in METHODS:
         raise ValueError(f"unknown method {method!r}; expected one of {', '.join(METHODS)}")
     model_motion, optimizer = METHODS[method]
+    # the scan the scenario asks for: planned for its POD target (at the speed chosen for it), else [scan]'s
+    scenario, scan = scan_for(scenario)
     policy = SearchPolicy(scenario, model_motion=model_motion, optimizer=optimizer,
                           local_search=scenario.planner.local_search, seed=seed, time_limit_s=time_limit_s,
                           max_iter=max_iter)
@@ -324,7 +329,6 @@ def simulate_mission(
         from uavloc_gcs.search.coverage import attach
 
         attach(scenario, policy)  # cells below the POD target get another pass, as in the daemon
-    scan = plan_scan(scenario)
     m = scenario.fleet.vehicles
     vehicles = [Vehicle(i + 1, scenario) for i in range(m)]
     for vs in scan.vehicles:
@@ -344,16 +348,19 @@ def simulate_mission(
     replans = 0
     changed = policy.update(t)
     t_oracle = oracle_completion_time_s(policy, world, vehicles, t) if oracle else math.nan
+    if not adaptive:
+        for v in vehicles:
+            v.fly(np.vstack([v.flight.position(t).reshape(1, 2), np.zeros((1, 2))]), t)
     while True:
         for v in vehicles:
             v.land_if_home(t)
         all_home = all(v.home_t_s is not None for v in vehicles)
-        if policy.done(t) and all_home:
+        if (policy.done(t) or not adaptive) and all_home:
             break
         force = all(v.home_t_s is not None or v.flight.end_t_s <= t for v in vehicles) and not policy.done(t)
         if t >= max_time_s:
             break
-        if force or policy.needs_replan(t, changed) or (policy.done(t) and policy.current_plan is None):
+        if adaptive and (force or policy.needs_replan(t, changed) or (policy.done(t) and policy.current_plan is None)):
             plan = policy.replan(t, [v.state(t) for v in vehicles])
             replans += 1
             for task, v in zip(plan.tasks, vehicles):

@@ -56,11 +56,13 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError("--best-effort applies only to a scan planned for a POD (--pod or search.pod_target)")
     if target is not None:  # the scan planned for a probability of detection (search/pod_plan.py)
         from ..errors import ConfigError
-        from ..search.pod_plan import plan_for_pod
+        from ..search.pod_plan import SEARCH_SCAN_SHARE, plan_for_pod
         if args.lane_spacing is not None or args.coverage:
             raise ConfigError("a scan planned for a POD chooses its own lanes: drop --lane-spacing and --coverage, "
                               "or plan without --pod / search.pod_target")
-        podplan = plan_for_pod(sc, target, best_effort=args.best_effort)
+        # from the scenario key: the scan `uavloc daemon` flies, which keeps energy for the looks
+        share = 1.0 if args.pod is not None else SEARCH_SCAN_SHARE
+        podplan = plan_for_pod(sc, target, best_effort=args.best_effort, energy_share=share)
         sc, plan = podplan.scenario, podplan.plan
     elif args.lane_spacing is not None:
         sc = override(sc, "--lane-spacing", scan={"lane_spacing_m": args.lane_spacing})
@@ -92,6 +94,10 @@ def run(args: argparse.Namespace) -> int:
     print(summary(sc, plan, missions))
     if podplan is not None:
         print("\n" + podplan.summary())
+        if args.pod is None:
+            print(f"As `uavloc daemon` flies it (search.pod_target): the scan uses at most {SEARCH_SCAN_SHARE:.0%} of "
+                  f"each vehicle's usable energy and keeps the rest for the looks at the people it hears "
+                  f"(--pod plans with all of it).")
         if not podplan.met:
             print("Best effort: " + podplan.shortfall_sentence().replace(" (use --best-effort to plan it anyway)", ""))
     if note := fleet_note(sc):

@@ -626,11 +626,12 @@ def add_passes(policy, t_s: float, vehicles: list, plan):
 def scan_coverage(sc, step_s: float = 0.5) -> Coverage:
     """The accumulator fed ``sc``'s planned scan as if flown exactly (every vehicle from the launch
     point along its lanes at the fleet speed and altitude): the yardstick of what a scan reaches."""
-    from ..scan import plan_scan  # noqa: PLC0415
+    from .pod_plan import scan_for  # noqa: PLC0415
 
+    flown, plan = scan_for(sc)
     cov = Coverage(sc)
-    speed = sc.fleet.speed_m_s
-    for vs in plan_scan(sc).vehicles:
+    speed = flown.fleet.speed_m_s
+    for vs in plan.vehicles:
         pts = np.vstack([np.zeros((1, 2)), vs.waypoints_xy_m])
         cum = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(pts, axis=0), axis=1))])
         t = np.arange(0.0, cum[-1] / speed + step_s, step_s)

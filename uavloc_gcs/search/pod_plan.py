@@ -185,14 +185,16 @@ def _evaluate(sc, one_pass, spacing, speed, passes, grid) -> PodOption:
                      max(v.energy_j for v in plan.vehicles))
 
 
-def plan_for_pod(sc, target: float, *, best_effort: bool = False, speeds=None, spacing_factors=None) -> PodPlan:
+def plan_for_pod(sc, target: float, *, best_effort: bool = False, speeds=None, spacing_factors=None,
+                 energy_share: float = 1.0) -> PodPlan:
     """Choose lane spacing, speed and passes for ``target`` (see the module docstring). Raises
     InfeasibleError (one sentence) when the target is out of reach and ``best_effort`` is False, or
-    when not even one pass fits in the energy."""
+    when not even one pass fits in the energy. ``energy_share``: the part of every vehicle's usable
+    energy the scan may use (the rest is kept for the looks after it)."""
     if not 0.0 < target < 1.0:
         raise InfeasibleError(f"--pod must be a probability between 0 and 1 (exclusive), got {target:g}")
     radius = burst_radius_m(sc)
-    usable = sc.usable_energy_j
+    usable = sc.usable_energy_j * float(energy_share)
     speeds = sorted(set(PLAN_SPEEDS_M_S if speeds is None else speeds) | {float(sc.fleet.speed_m_s)})
     speeds = [v for v in speeds if v > sc.people.max_speed_m_s]
     area = abs(pod.grid_for(sc, 10.0).inside.sum()) * 100.0
@@ -248,6 +250,48 @@ def plan_for_pod(sc, target: float, *, best_effort: bool = False, speeds=None, s
     if not met and not best_effort:
         raise InfeasibleError(result.shortfall_sentence())
     return result
+
+
+# A search that flies the scan planned for its POD target (``search.pod_target``) keeps this part of
+# every vehicle's usable energy for the looks at the people the scan hears: a best-effort scan
+# would otherwise spend it all on passes and nobody heard could be looked at
+SEARCH_SCAN_SHARE = 0.6
+_SCANS: dict = {}
+
+
+def scan_for(sc):
+    """``(scenario as flown, scan.ScanPlan)`` of a search: the scan planned for ``search.pod_target``
+    (best effort within SEARCH_SCAN_SHARE of the energy; the scenario's ``fleet.speed_m_s`` is the
+    chosen speed) when the scenario gives one, else ``[scan]``'s layout at the scenario's speed.
+    The same scenario gets the same plan (cached: the daemon, the simulator and the coverage all
+    ask)."""
+    from ..scan import plan_scan
+
+    target = getattr(getattr(sc, "search", None), "pod_target", None)
+    if target is None:
+        return sc, plan_scan(sc)
+    key = _key(sc)
+    hit = _SCANS.get(key)
+    if hit is None:
+        pp = plan_for_pod(sc, float(target), best_effort=True, energy_share=SEARCH_SCAN_SHARE)
+        hit = _SCANS[key] = (pp.scenario, pp.plan, pp)
+        if len(_SCANS) > 16:
+            _SCANS.pop(next(iter(_SCANS)))
+    return hit[0], hit[1]
+
+
+def scan_pod_plan(sc) -> "PodPlan | None":
+    """The PodPlan :func:`scan_for` flies for ``sc`` (None without a POD target)."""
+    if getattr(getattr(sc, "search", None), "pod_target", None) is None:
+        return None
+    scan_for(sc)
+    return _SCANS[_key(sc)][2]
+
+
+def _key(sc) -> str:
+    # the plan depends on the area, fleet, radio and emission, not on the simulated world's seed
+    sim = getattr(sc, "simulation", None)
+    return f"{SEARCH_SCAN_SHARE}:" + repr(sc.replace(simulation={"seed": 0}) if sim is not None and hasattr(sim, "seed") else sc)
 
 
 def _rank(o: PodOption, target: float):

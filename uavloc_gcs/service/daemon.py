@@ -87,6 +87,12 @@ class Daemon(FleetPreparation, VehicleCommands):
 
     def __init__(self, scenario: Scenario, connections: Sequence[tuple[int, str]], options: DaemonOptions,
                  *, view: LiveView | None = None, policy=None, wall: Callable[[], float] = time.monotonic):
+        from ..search.pod_plan import scan_for, scan_pod_plan  # noqa: PLC0415
+
+        # the scan it flies: planned for search.pod_target (at the speed chosen for it) when the
+        # scenario gives one, else [scan]'s; everything after plans with that speed
+        self._scan_pod = scan_pod_plan(scenario)
+        scenario, self._scan_plan = scan_for(scenario)
         self.sc = scenario
         self.opt = options
         self.view = view

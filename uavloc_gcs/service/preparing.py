@@ -222,7 +222,13 @@ class FleetPreparation:
         # there, as the experiments model it, and the next mission is uploaded while the vehicle
         # holds; a vehicle the daemon no longer talks to comes home by itself after the hold.
         # The hold lasts until the longest scan is over, plus scan_hold_s.
-        plan = plan_scan(self.sc)
+        plan = getattr(self, "_scan_plan", None) or plan_scan(self.sc)  # Daemon: search.pod_plan.scan_for's
+        pp = getattr(self, "_scan_pod", None)
+        if pp is not None:
+            c = pp.chosen
+            self._event("plan", f"scan planned for POD {pp.target:g}: {c.spacing_m:.0f} m lanes at {c.speed_m_s:g} m/s, "
+                        f"{c.passes} pass{'es' if c.passes > 1 else ''}, POD {pp.grid.overall(1):.2f} for one heard burst "
+                        f"and {pp.grid.overall(2):.2f} for two" + ("" if pp.met else " (best the energy allows)"))
         longest = max((p.duration_s for p in plan.vehicles), default=0.0)
         # at least HOLD_WALL_S of the daemon's own time, whatever the clock rate (a simulator speed-up)
         hold_s = max(self.opt.scan_hold_s, HOLD_WALL_S * self._rate.rate)

@@ -124,3 +124,19 @@ def test_an_orbit_is_flown_at_its_speed_and_charged_at_its_power(small):
     assert v.energy_j == pytest.approx(expect, rel=0.01)
     mid = v.flight.position(200.0 / cruise + 0.5 * orb.flown_s)
     assert math.hypot(mid[0], mid[1] - 300.0) == pytest.approx(100.0, rel=0.01)
+
+
+def test_a_scan_alone_flies_home_after_it_and_plans_no_look(small):
+    """adaptive=False (the conventional search of `uavloc bench field`): no replans, every vehicle
+    home after its scan, the people what the scan's data gives; the adaptive mission on the same
+    world locates at least as many."""
+    world = World(small, seed=11, people=3, motion="static")
+    alone = simulate_mission(small, world, seed=1, time_limit_s=5.0, max_iter=15, adaptive=False)
+    full = simulate_mission(small, World(small, seed=11, people=3, motion="static"), seed=1, time_limit_s=5.0,
+                            max_iter=15)
+    assert alone.replans == 0
+    assert alone.scan_time_s < alone.completion_time_s
+    # home straight from the scan's end: at most the longest way home at cruise speed after it
+    far = math.hypot(small.area.width_m, small.area.height_m)
+    assert alone.completion_time_s <= alone.scan_time_s + far / small.fleet.speed_m_s + 2.0
+    assert sum(p.located for p in full.persons) >= sum(p.located for p in alone.persons)
