@@ -19,6 +19,7 @@ BENCHMARKS = {
     "looks": "look-planning rules on and off on paired worlds (located, inside radius, time vs clairvoyant)",
     "identity": "linking addresses into people vs truth (people reported, bursts on the wrong person, splits, merges)",
     "sense": "Wi-Fi capture parser vs dpkt and scapy dissectors (frames/s on one core, fields agreeing)",
+    "field": "the search for real phones vs the paper's plan, a lawnmower and the clairvoyant (located, time, energy, POD)",
 }
 
 

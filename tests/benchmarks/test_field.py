@@ -1,0 +1,34 @@
+"""`uavloc bench field`: what each plan flies and how the table reads (the missions themselves run
+in the benchmark, not here: minutes per world)."""
+
+import math
+
+from benchmarks import field
+from uavloc_gcs.examples import scenario_path
+from uavloc_gcs.scenario import load_scenario
+
+
+def test_each_plan_flies_its_own_scenario():
+    sc = load_scenario(scenario_path("field"))
+    assert field.scenario_for("paper", sc, 0.95).search.pod_target is None
+    assert field.scenario_for("uavloc", sc, 0.95).search.pod_target == 0.95
+    assert field.scenario_for("lawnmower", sc, 0.9).search.pod_target == 0.9
+
+
+def _row(plan, seed, located, time_s, oracle=math.nan):
+    return {"plan": plan, "seed": seed, "present": 10, "heard": 8, "located": located, "inside": located,
+            "time_s": time_s, "oracle_s": oracle, "energy_kj": 100.0, "pod": 0.8, "why": []}
+
+
+def test_the_table_reads_located_of_present_and_time_against_the_clairvoyant():
+    rows = [_row("uavloc", 0, 5, 1200.0, 600.0), _row("uavloc", 1, 3, 1000.0, 400.0),
+            _row("paper", 0, 0, 160.0), _row("paper", 1, 1, 180.0),
+            _row("lawnmower", 0, 2, 1500.0), _row("lawnmower", 1, 2, 1700.0)]
+    lines = field.table(rows, runs=2)
+    by = {ln.split()[0]: ln for ln in lines[2:]}
+    assert set(by) == {"uavloc", "paper", "lawnmower", "clairvoyant"}
+    assert "8/20" in by["uavloc"] and "40%" in by["uavloc"]  # 8 located of 20 present
+    assert "18:20" in by["uavloc"] and " 2.20 " in by["uavloc"]  # 1100 s mean / 500 s clairvoyant
+    assert "8:20" in by["clairvoyant"]
+    assert field._kind("given up: not located after 2 orbit looks of 236 s (heard on the last one)") == \
+        "given up: not located after N orbit looks of N s"
