@@ -26,6 +26,10 @@ DO_JUMP, DO_CHANGE_SPEED = 177, 178
 PASS_THROUGH_NEXT = frozenset({NAV_WAYPOINT, LOITER_UNLIM, LOITER_TIME})  # ArduCopter set_next_wp
 NAV_COMMANDS = frozenset(POSITIONAL | {RTL})
 _RELATIVE_FRAMES = frozenset({3, 6, 10, 11})
+CIRCLE_RADIUS_DEFAULT_M = 10.0  # ArduCopter CIRCLE_RADIUS default (1000 cm)
+# ArduCopter flies a NAV_LOITER_TURNS circle at about sqrt(a r): 7.9 m/s around 60 m measured on
+# SITL (docs/readme/orbits.md, uavloc_gcs.search.orbit.ORBIT_SPEED_M_S), a = 1.04 m/s^2
+CIRCLE_ACCEL_M_S2 = 7.9 * 7.9 / 60.0
 
 
 @dataclass
@@ -38,6 +42,10 @@ class Target:
     hold_s: float = 0.0
     next_xyz_m: np.ndarray | None = None  # the following waypoint of a pass-through one
     prev_xyz_m: np.ndarray | None = None  # where the leg to this waypoint starts
+    # "circle" (ArduCopter's NAV_LOITER_TURNS): centre xyz_m, radius, turns, counter-clockwise
+    radius_m: float = 0.0
+    turns: float = 0.0
+    ccw: bool = False
 
 
 def corner(leg_in_xy, leg_out_xy, speed_m_s: float, accel_m_s2: float, cut_m: float) -> tuple[float, float]:
@@ -80,6 +88,7 @@ class MissionExecutor:
     # being flown running (measured on SITL: flying the RTL at seq 4, a 4-item upload -> still
     # active at seq 4, flying home); it is kept here until reached.
     carried: WireItem | None = None
+    circled_rad: float | None = None  # a NAV_LOITER_TURNS being circled: the angle flown so far
 
     def reset(self, seq: int | None = None) -> None:
         self.current = self.first_seq if seq is None else seq
@@ -87,6 +96,7 @@ class MissionExecutor:
         self.carried = None
         self.leg_start_xyz_m = None
         self.hold_until_s = None
+        self.circled_rad = None
         self.complete = False
 
     def position_of(self, it: WireItem, here_xyz_m: np.ndarray) -> np.ndarray:
@@ -154,7 +164,13 @@ class MissionExecutor:
                           prev_xyz_m=self._previous_waypoint(items))
         if it.command == LOITER_TIME:
             return Target("fly", xyz, stop=True, hold_s=max(0.0, float(it.param1)))
-        if it.command in (LOITER_UNLIM, LOITER_TURNS):
+        if it.command == LOITER_TURNS:
+            # ArduCopter: param1 turns, param3 radius [m] (negative: counter-clockwise; 0: its
+            # CIRCLE_RADIUS default of 10 m); the vehicle goes to the circle's edge, circles, goes on
+            r = abs(float(it.param3)) or CIRCLE_RADIUS_DEFAULT_M
+            return Target("circle", xyz, stop=True, radius_m=r, turns=max(float(it.param1), 0.0),
+                          ccw=float(it.param3) < 0)
+        if it.command == LOITER_UNLIM:
             return Target("fly", xyz, stop=True, hold_s=math.inf)
         return Target("fly", xyz, stop=True)
 
@@ -198,4 +214,5 @@ class MissionExecutor:
         self.current += 1
         self.leg_start_xyz_m = None
         self.hold_until_s = None
+        self.circled_rad = None
         return seq

@@ -40,6 +40,7 @@ from .flavour import Flavour
 POSITIONAL = frozenset({16, 17, 18, 19, 21, 22, 31, 84, 85, 195, 201})
 NON_POSITIONAL = frozenset({20, 93, 112, 113, 114, 159, 177, 178, 179, 183, 184, 189, 200, 203, 205, 206,
                             211, 214, 1000, 2000, 2001, 2500, 2501, 3000})
+NAV_LOITER_TURNS = 18  # PX4 refuses it in a mission (MAV_MISSION_UNSUPPORTED)
 NAN_PARAM4_OK = frozenset({16, 21, 22, 84})  # ArduPilot sanity_check_params
 LOCATION_ALT_MAX_M = 83000.0
 _AP_FRAMES = frozenset({0, 2, 3, 5, 6, 10, 11})
@@ -243,6 +244,8 @@ class MissionServer:
                 if not math.isfinite(it.z) or abs(it.z) >= LOCATION_ALT_MAX_M:
                     return mav.MAV_MISSION_INVALID_PARAM7
             return mav.MAV_MISSION_ACCEPTED
+        if it.command == NAV_LOITER_TURNS:  # measured on PX4 SITL (docs/readme/orbits.md)
+            return mav.MAV_MISSION_UNSUPPORTED
         if positional:
             if it.frame == mav.MAV_FRAME_MISSION:
                 return mav.MAV_MISSION_UNSUPPORTED

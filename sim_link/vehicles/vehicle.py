@@ -26,7 +26,7 @@ from uavloc_gcs.geo import LocalFrame
 from uavloc_gcs.mission import WireItem
 
 from .commands import handle_command, handle_position_target, handle_set_mode
-from .executor import NAV_COMMANDS, TAKEOFF, MissionExecutor, Target, corner
+from .executor import CIRCLE_ACCEL_M_S2, NAV_COMMANDS, TAKEOFF, MissionExecutor, Target, corner
 from .flavour import Flavour
 from .flight import Kinematics
 from .mission_server import MissionServer, Peer, Reply
@@ -496,6 +496,8 @@ class FakeVehicle(TelemetryMixin):
                 if self._land(dt):
                     self.rtl_phase = "climb"
                     self._item_done()
+        elif tgt.kind == "circle":
+            self._circle(dt, tgt)
         elif tgt.stop or tgt.next_xyz_m is None:
             self._fly(dt, tgt.xyz_m, stop=True)
             if ex.reached(tgt, self.kin.pos, self.kin.ground_speed_m_s, self.t_s + dt,
@@ -503,6 +505,31 @@ class FakeVehicle(TelemetryMixin):
                 self._item_done()
         else:
             self._pass_through(dt, tgt)
+
+    def _circle(self, dt: float, tgt: Target) -> None:
+        """ArduCopter's NAV_LOITER_TURNS: to the edge of the circle nearest the vehicle, then
+        ``turns`` turns at min(cruise, sqrt(a r)), then the next item (not a hover at the centre)."""
+        ex = self.executor
+        c, r = tgt.xyz_m, tgt.radius_m
+        rel = self.kin.pos[:2] - c[:2]
+        d = float(np.hypot(*rel))
+        u = rel / d if d > 1e-6 else np.array([1.0, 0.0])
+        if ex.circled_rad is None:
+            edge = np.array([c[0] + r * u[0], c[1] + r * u[1], c[2]])
+            self._fly(dt, edge, stop=True)
+            if np.linalg.norm(self.kin.pos - edge) < 1.0 and self.kin.ground_speed_m_s < 0.5:
+                ex.circled_rad = 0.0
+            return
+        v = min(self.speed_m_s, math.sqrt(CIRCLE_ACCEL_M_S2 * r))
+        w = (v / r) * (1.0 if tgt.ccw else -1.0)
+        theta = math.atan2(u[1], u[0]) + w * dt
+        xy = c[:2] + r * np.array([math.cos(theta), math.sin(theta)])
+        vel = w * r * np.array([-math.sin(theta), math.cos(theta)])
+        self.kin.pos = np.array([xy[0], xy[1], self.kin.pos[2]])
+        self.kin.vel = np.array([vel[0], vel[1], 0.0])
+        ex.circled_rad += abs(w) * dt
+        if ex.circled_rad >= 2.0 * math.pi * tgt.turns - 1e-9:
+            self._item_done()
 
     def _pass_through(self, dt: float, tgt: Target) -> None:
         """Fly towards a pass-through waypoint, slowing for the corner; it is reached where the turn

@@ -40,10 +40,9 @@ from ..mission import (FRAME_GLOBAL_RELATIVE_ALT, MissionItem, MissionPlan, chan
 NAV_LOITER_TURNS = 18
 
 # How each autopilot flies an orbit (measured, docs/readme/orbits.md). A ring of waypoints is what
-# both fly (PX4 refuses NAV_LOITER_TURNS); ArduCopter flies NAV_LOITER_TURNS better (a true circle,
-# faster) and ``"loiter-turns"`` selects it, but uavloc's own fake ArduPilot-like vehicles (the demo,
-# the e2e tests: sim_link/vehicles/executor.py) hover at a LOITER_TURNS item's centre forever, so the
-# ring is the shipped form for both.
+# both fly (PX4 refuses NAV_LOITER_TURNS), so it is the shipped form for both; ArduCopter flies
+# NAV_LOITER_TURNS better (a true circle, faster) and ``"loiter-turns"`` selects it (uavloc's fake
+# ArduPilot flies it as the SITL does since 2026-11-26; before, it hovered at the centre for ever).
 ORBIT_FORM = {"ardupilot": "ring", "px4": "ring"}
 RING_POINTS_PER_TURN = 12
 # Speeds measured on SITL around a 60 m circle with 10 m/s asked (docs/readme/orbits.md): the

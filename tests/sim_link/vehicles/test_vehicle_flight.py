@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import numpy as np
 import pytest
 
@@ -348,3 +349,34 @@ def test_rtl_lands_in_rtl_and_the_next_missions_rtl_item_flies_home_again(ap):
     samples, _ = _fly(v, _wps(sc, [[100, 0]], ap, rtl=True), t_end_s=v.t_s + 300.0)
     assert samples[:, 1].max() > 90.0  # flew out to the waypoint
     assert v.landed and not v.armed and np.linalg.norm(v.position_xyz_m[:2]) < 2.0
+
+
+def test_ardupilot_flies_loiter_turns_as_a_circle_and_goes_on():
+    """NAV_LOITER_TURNS as ArduCopter SITL flies it (docs/readme/orbits.md): to the circle's edge,
+    the turns at about sqrt(a r) (7.9 m/s around 60 m), then the next item -- not a hover at the
+    centre for ever, as the fake did before."""
+    from uavloc_gcs.mission import WireItem
+
+    sc = PAPER.replace(fleet={"autopilot": "ardupilot", "speed_m_s": 10.0})
+    v = _vehicle(sc)
+    lat, lon = sc.frame.to_wgs84(200.0, 0.0)
+    lat2, lon2 = sc.frame.to_wgs84(0.0, 50.0)
+    home = WireItem(0, 0, 16, 0, 1, 0, 0, 0, 0, 0, 0, 0.0)
+    items = [home,
+             WireItem(1, 3, 22, 0, 1, 0, 0, 0, math.nan, 0, 0, 40.0),  # take-off to 40 m
+             WireItem(2, 3, 18, 0, 1, 2.0, 0, -60.0, 0, int(lat * 1e7), int(lon * 1e7), 40.0),  # 2 turns, CCW
+             WireItem(3, 3, 16, 0, 1, 0, 0, 0, 0, int(lat2 * 1e7), int(lon2 * 1e7), 40.0),
+             WireItem(4, 3, 20, 0, 1, 0, 0, 0, 0, 0, 0, 0.0)]
+    samples, msgs = _fly(v, items, t_end_s=400.0)
+    reached = {r.msg.seq: t for t, r in msgs if r.msg.get_type() == "MISSION_ITEM_REACHED"}
+    assert {2, 3, 4} <= set(reached), reached
+    on = samples[samples[:, 7] == 2]
+    d = np.hypot(on[:, 1] - 200.0, on[:, 2])
+    circling = on[np.abs(d - 60.0) < 1.0]
+    speed = np.hypot(circling[:, 4], circling[:, 5])
+    assert len(circling) and np.median(speed) == pytest.approx(7.9, abs=0.2)
+    # two turns of a 60 m circle at 7.9 m/s: about 95 s on the circle
+    assert (circling[-1, 0] - circling[0, 0]) == pytest.approx(2 * 2 * math.pi * 60.0 / 7.9, rel=0.05)
+    # counter-clockwise (param3 < 0): the angle about the centre grows
+    ang = np.unwrap(np.arctan2(circling[:, 2], circling[:, 1] - 200.0))
+    assert ang[-1] - ang[0] == pytest.approx(4 * math.pi, rel=0.05)
