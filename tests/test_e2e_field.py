@@ -6,6 +6,7 @@ import csv
 import math
 
 import numpy as np
+import pytest
 
 from tests.e2e_helpers import FIELD, small_scenario
 from uavloc_gcs.cli._fleet import start_fleet_process
@@ -50,3 +51,44 @@ def test_a_field_search_claims_only_what_is_true(tmp_path):
     heard = [r for r in rows if r["state"] != "never heard"]
     assert heard and all(r["addresses"] for r in heard)
     assert all(r["link"] in ("sure", "uncertain") for r in heard)
+
+
+def test_a_search_with_a_pod_target_flies_the_scan_planned_for_it(tmp_path):
+    """search.pod_target: the daemon uploads and flies the POD scan (its lanes and passes, at the
+    speed chosen for it), says so, and the claims that follow are the coverage of what was flown."""
+    import sqlite3
+
+    from uavloc_gcs.mission import NAV_WAYPOINT
+    from uavloc_gcs.service.store import wire_items_from_json
+    from uavloc_gcs.search.pod_plan import scan_for, scan_pod_plan
+
+    sc = small_scenario("ardupilot", seed=5, extra=FIELD + "\n[search]\npod_target = 0.9\n")
+    sc = sc.replace(simulation={"people": 2, "motion": "static"})
+    flown, plan = scan_for(sc)
+    pp = scan_pod_plan(sc)
+    assert pp.chosen.passes >= 2 and flown.fleet.speed_m_s < sc.fleet.speed_m_s
+    fleet = start_fleet_process(sc, speedup=sc.simulation.speedup, seed=sc.simulation.seed, base_port=0)
+    try:
+        opts = DaemonOptions(store_path=tmp_path / "search.sqlite", tlog_dir=tmp_path, resume=False)
+        conns = [(i + 1, c) for i, (_n, c) in enumerate(fleet.endpoints)]
+        result = run_search(sc, conns, opts, tmp_path)
+    finally:
+        fleet.stop()
+    out = result.outcome
+    assert sorted(out.vehicles_home + out.vehicles_returning) == [1, 2], out.statement
+    with StoreReader(tmp_path / "search.sqlite") as rd:
+        said = [e.text for e in rd.events("plan") if "scan planned for POD 0.9" in e.text]
+    assert said and f"{pp.chosen.passes} passes" in said[0]
+    conn = sqlite3.connect(tmp_path / "search.sqlite")
+    scans = {v: wire_items_from_json(j) for v, j in
+             conn.execute("SELECT vehicle, items_json FROM missions WHERE purpose = 'scan' ORDER BY rowid")}
+    conn.close()
+    for vs in plan.vehicles:
+        items = scans[vs.index + 1]
+        speeds = [it.param2 for it in items if it.command == 178]
+        assert speeds and speeds[0] == pytest.approx(flown.fleet.speed_m_s)
+        # every waypoint of the planned passes is on board (plus the hold at the end)
+        assert sum(it.command == NAV_WAYPOINT for it in items) >= len(vs.waypoints_xy_m)
+    cov = out.coverage
+    assert cov is not None and not cov.nothing_flown
+    assert "Achieved probability of detection" in out.statement

@@ -222,8 +222,10 @@ class FleetPreparation:
         # there, as the experiments model it, and the next mission is uploaded while the vehicle
         # holds; a vehicle the daemon no longer talks to comes home by itself after the hold.
         # The hold lasts until the longest scan is over, plus scan_hold_s.
-        plan = getattr(self, "_scan_plan", None) or plan_scan(self.sc)  # Daemon: search.pod_plan.scan_for's
+        # the scan planned for search.pod_target (Daemon: search.pod_plan.scan_for), else [scan]'s at
+        # the speed the vehicles fly (_setup_vehicles may have lowered it)
         pp = getattr(self, "_scan_pod", None)
+        plan = self._scan_plan if pp is not None else plan_scan(self.sc)
         if pp is not None:
             c = pp.chosen
             self._event("plan", f"scan planned for POD {pp.target:g}: {c.spacing_m:.0f} m lanes at {c.speed_m_s:g} m/s, "
