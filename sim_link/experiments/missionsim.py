@@ -8,9 +8,10 @@ vehicles are idealized: each flies its current path as a polyline at the constan
 (flight at cruise speed, hovering at P(0)).
 
 Timeline: every vehicle flies its part of the initial scan (``uavloc_gcs.search.pod_plan.scan_for``:
-planned for the POD target when the scenario gives one) from the launch point, waits (hovering) for the others, then the adaptive phase starts: every ``dt_s``
-the slots heard are given to the policy, which re-estimates and, when it asks, replans from the
-vehicles' current positions and remaining energy. The mission ends when every person heard is
+planned for the POD target when the scenario gives one) from the launch point, waits (hovering)
+for the others, then the adaptive phase starts: every ``dt_s`` the slots heard are given to the
+policy, which re-estimates and, when it asks, replans from the vehicles' current positions and
+remaining energy. The mission ends when every person heard is
 located (or given up) and every vehicle is home; the completion time is the moment the last
 vehicle lands (computed exactly from the path, not rounded to the step).
 """
