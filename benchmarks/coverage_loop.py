@@ -15,20 +15,11 @@ import argparse
 
 import numpy as np
 
-FIELD = """
-[channel]
-path_loss_exponent = 2.3
-reference_power_dbm = -40.0
-receiver_sensitivity_dbm = -90.0
-[emission]
-model = "probe-bursts"
-"""
-
 
 def main(argv=None) -> int:
     from sim_link.experiments.missionsim import simulate_mission
     from sim_link.world import World
-    from tests.e2e_helpers import small_scenario
+    from tests.e2e_helpers import FIELD, small_scenario
 
     ap = argparse.ArgumentParser(prog="python -m benchmarks.coverage_loop")
     ap.add_argument("--seeds", default="1,2,3")

@@ -17,18 +17,23 @@ from uavloc_gcs.service.store import StoreReader
 TRUTH_MARGIN = 1.5  # as tests/test_e2e_daemon.py: a calibrated radius is this far off once in a thousand
 
 
+def _search(sc, tmp_path):
+    """The daemon's whole search of ``sc`` on the fake fleet (in a child process)."""
+    fleet = start_fleet_process(sc, speedup=sc.simulation.speedup, seed=sc.simulation.seed, base_port=0)
+    try:
+        opts = DaemonOptions(store_path=tmp_path / "search.sqlite", tlog_dir=tmp_path, resume=False)
+        conns = [(i + 1, c) for i, (_n, c) in enumerate(fleet.endpoints)]
+        return run_search(sc, conns, opts, tmp_path)
+    finally:
+        fleet.stop()
+
+
 def test_a_field_search_claims_only_what_is_true(tmp_path):
     from sim_link.world import World
 
     sc = small_scenario("ardupilot", seed=5, extra=FIELD)
     sc = sc.replace(simulation={"people": 4, "motion": "static"})
-    fleet = start_fleet_process(sc, speedup=sc.simulation.speedup, seed=sc.simulation.seed, base_port=0)
-    try:
-        opts = DaemonOptions(store_path=tmp_path / "search.sqlite", tlog_dir=tmp_path, resume=False)
-        conns = [(i + 1, c) for i, (_n, c) in enumerate(fleet.endpoints)]
-        result = run_search(sc, conns, opts, tmp_path)
-    finally:
-        fleet.stop()
+    result = _search(sc, tmp_path)
     out = result.outcome
     assert sorted(out.vehicles_home + out.vehicles_returning) == [1, 2], out.statement
     with StoreReader(tmp_path / "search.sqlite") as rd:
@@ -67,13 +72,7 @@ def test_a_search_with_a_pod_target_flies_the_scan_planned_for_it(tmp_path):
     flown, plan = scan_for(sc)
     pp = scan_pod_plan(sc)
     assert pp.chosen.passes >= 2 and flown.fleet.speed_m_s < sc.fleet.speed_m_s
-    fleet = start_fleet_process(sc, speedup=sc.simulation.speedup, seed=sc.simulation.seed, base_port=0)
-    try:
-        opts = DaemonOptions(store_path=tmp_path / "search.sqlite", tlog_dir=tmp_path, resume=False)
-        conns = [(i + 1, c) for i, (_n, c) in enumerate(fleet.endpoints)]
-        result = run_search(sc, conns, opts, tmp_path)
-    finally:
-        fleet.stop()
+    result = _search(sc, tmp_path)
     out = result.outcome
     assert sorted(out.vehicles_home + out.vehicles_returning) == [1, 2], out.statement
     with StoreReader(tmp_path / "search.sqlite") as rd:
