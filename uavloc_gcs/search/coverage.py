@@ -617,8 +617,9 @@ def add_passes(policy, t_s: float, vehicles: list, plan):
         if getattr(task, "orbits", None) is not None:  # one per look point (search/orbit.py): passes fly none
             extra["orbits"] = tuple(task.orbits) + (None,) * len(lanes)
         tasks.append(replace(task, waypoints_xy_m=route, eta_s=max(task.eta_s, eta), **extra))
-    pass_eta = max((task.eta_s for task in tasks if str(task.vehicle_id) in pp.waypoints), default=t_s)
-    cov._round_end_s = pass_eta if new_round else max(cov._round_end_s, pass_eta)
+    if new_round:  # fixed when the round is planned: replans within it never push its end (else a
+        # search replanning every few seconds would never reach the next round, nor its end)
+        cov._round_end_s = max((task.eta_s for task in tasks if str(task.vehicle_id) in pp.waypoints), default=t_s)
     makespan = max((task.eta_s for task in tasks), default=t_s) - t_s
     return replace(plan, tasks=tuple(tasks), makespan_s=makespan)
 

@@ -132,6 +132,7 @@ def test_replans_while_passes_are_flown_do_not_use_up_the_rounds():
         _lane(cov, 1, 160.0 + 10 * k, 0.0, 50.0, t0=t + 5 * k)
         cm.add_passes(policy, t + 5 * k, vehicles, plan)
     assert cov.pass_rounds == 1
+    assert cov._round_end_s == end  # nor do they push the round's end (a search would never end)
     assert cm.passes_wanted(policy)
     cm.add_passes(policy, end + 1.0, vehicles, plan)  # the round is over: a new one
     assert cov.pass_rounds == 2
