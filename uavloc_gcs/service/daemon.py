@@ -268,16 +268,23 @@ class Daemon(FleetPreparation, VehicleCommands):
     def _on_position(self, vehicle: int, tel) -> None:
         self._rate.observe(tel)
         self.coverage.add_telemetry(vehicle, self.now_s(), tel.lat_deg, tel.lon_deg, tel.rel_alt_m)
-        w = self.wall()
-        if w - self._last_tel_store.get(vehicle, -math.inf) < 0.1:
-            return
-        self._last_tel_store[vehicle] = w
-        v = self.vehicles[vehicle]
-        self.store.add_telemetry([TelemetryRow(self.now_s(), vehicle, tel.lat_deg, tel.lon_deg, tel.rel_alt_m,
-                                               tel.battery_pct, tel.mode, tel.mission_seq, v.lost)])
+        if self.wall() - self._last_tel_store.get(vehicle, -math.inf) >= 0.1:
+            self._store_telemetry(vehicle, tel)
         if self.sc.channel.receiver_sensitivity_dbm is not None and hasattr(self.policy, "ingest_position"):
             e, n = self.frame.to_local(tel.lat_deg, tel.lon_deg)
             self.policy.ingest_position(vehicle, self.now_s(), (float(e), float(n), float(tel.rel_alt_m)))
+
+    def _on_mission_seq(self, vehicle: int, tel) -> None:
+        # at once, whatever the rate limit: a restart resumes the scan from the last item stored,
+        # which must not lag the vehicle (before the first position there is nothing to store)
+        if math.isfinite(tel.lat_deg):
+            self._store_telemetry(vehicle, tel)
+
+    def _store_telemetry(self, vehicle: int, tel) -> None:
+        """One telemetry row (from positions at most ten a second; :meth:`_on_mission_seq`)."""
+        self._last_tel_store[vehicle] = self.wall()
+        self.store.add_telemetry([TelemetryRow(self.now_s(), vehicle, tel.lat_deg, tel.lon_deg, tel.rel_alt_m,
+                                               tel.battery_pct, tel.mode, tel.mission_seq, self.vehicles[vehicle].lost)])
 
     def _on_text(self, vehicle: int, text: str) -> None:
         self.store.add_event("statustext", text, t_s=self.now_s(), vehicle=vehicle)

@@ -91,7 +91,8 @@ class FleetPreparation:
             v.link = await opened[v.connection]
             v.agent = VehicleAgent(v.id, v.link, self.frame, autopilot=self.sc.fleet.autopilot,
                                    epoch_unix_s=self._epoch, on_slots=self._on_slots,
-                                   on_position=self._on_position, on_status_text=self._on_text, wall=self.wall)
+                                   on_position=self._on_position, on_status_text=self._on_text,
+                                   on_mission_seq=self._on_mission_seq, wall=self.wall)
             await v.link.wait_heartbeat(v.id, timeout_s=self.opt.connect_timeout_s)
             v.phase = "connected"
 

@@ -69,6 +69,7 @@ class VehicleAgent:
                  on_slots: Callable[[SlotBatch], None] | None = None,
                  on_position: Callable[[int, Telemetry], None] | None = None,
                  on_status_text: Callable[[int, str], None] | None = None,
+                 on_mission_seq: Callable[[int, Telemetry], None] | None = None,
                  wall: Callable[[], float] = time.monotonic):
         self.vehicle = vehicle
         self.link = link
@@ -80,6 +81,7 @@ class VehicleAgent:
         self._on_slots = on_slots
         self._on_position = on_position
         self._on_status_text = on_status_text
+        self._on_mission_seq = on_mission_seq
         self._wall = wall
         self._pending_rssi: list = []  # raw messages that arrived before the epoch was known
         self.rssi_messages = 0
@@ -144,12 +146,15 @@ class VehicleAgent:
         elif kind == "ESTIMATOR_STATUS":
             t.estimator_pos_ok = bool(msg.flags & mavlink.ESTIMATOR_POS_HORIZ_ABS)
         elif kind == "MISSION_CURRENT":
-            t.mission_seq = int(msg.seq)
+            seq, before = int(msg.seq), t.mission_seq
+            t.mission_seq = seq
             total = getattr(msg, "total", 0)
             t.mission_total = int(total) if total not in (0, 65535) else None
             t.mission_state = getattr(msg, "mission_state", None)
             if not t.mission_ours:
                 t.mission_ours = self._new_mission_started(t.mission_state, t.wall_s)
+            if seq != before and self._on_mission_seq is not None:
+                self._on_mission_seq(self.vehicle, t)
         elif kind == "SYSTEM_TIME":
             if msg.time_unix_usec > 0:
                 if self._time_anchor is None or msg.time_boot_ms < self._time_anchor[1]:  # first, or rebooted

@@ -436,3 +436,38 @@ def test_a_look_flown_and_landed_from_while_its_start_was_judged_leaves_the_vehi
         assert all(v.home and v.phase == "landed" for v in d.vehicles.values())
     finally:
         d.store.close()
+
+
+def test_a_new_mission_item_is_stored_at_once_whatever_the_position_rate(tmp_path):
+    """CI (a loaded machine): a daemon stopped mid-scan had stored item 5 while the vehicle was on
+    its way to item 6 -- positions are stored at most ten a second and MISSION_CURRENT came between
+    two of them -- so the restart re-flew one leg more than it had to. The item is stored as it
+    changes."""
+    from tests.uavloc_gcs.service.test_vehicle_agent import _Link, _current
+    from uavloc_gcs.dialect import mavlink as mav
+    from uavloc_gcs.service.vehicle import VehicleAgent
+
+    sc = small_scenario()
+    d = Daemon(sc, [(1, "udpout:127.0.0.1:26990")], DaemonOptions(store_path=tmp_path / "s.sqlite"), policy=_Policy())
+    d.store = Store(tmp_path / "s.sqlite")
+    clock = [100.0]
+    d.wall = lambda: clock[0]
+    link = _Link()
+    agent = VehicleAgent(1, link, d.frame, autopilot="ardupilot", epoch_unix_s=lambda: 0.0,
+                         on_position=d._on_position, on_mission_seq=d._on_mission_seq, wall=lambda: clock[0])
+    d.vehicles[1].agent = agent
+    try:
+        link.feed(_current(5, mav.MISSION_STATE_ACTIVE))  # no position yet: nothing to store
+        link.feed(mav.MAVLink_global_position_int_message(1000, 426250000, 132830000, 0, 60000, 0, 0, 0, 0))
+        clock[0] = 100.03
+        link.feed(_current(6, mav.MISSION_STATE_ACTIVE))  # 30 ms after the last row
+        link.feed(_current(6, mav.MISSION_STATE_ACTIVE))  # unchanged: no row
+        clock[0] = 100.06
+        link.feed(mav.MAVLink_global_position_int_message(1060, 426250000, 132830100, 0, 60000, 0, 0, 0, 0))
+        d.store.flush()
+        with StoreReader(tmp_path / "s.sqlite") as rd:
+            seqs = [s for (s,) in rd._conn.execute("SELECT mission_seq FROM telemetry ORDER BY rowid")]
+            assert rd.last_mission_seq() == {1: 6}
+        assert seqs == [5, 6]  # the position row, then the item as it changed; the next position waits
+    finally:
+        d.store.close()
