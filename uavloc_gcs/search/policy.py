@@ -847,6 +847,9 @@ class SearchPolicy:
             orbit_verdict = orb.judge_orbit(self, eid, p, heard)  # None: not an orbit look
             if orbit_verdict is not None:
                 p.gave_up = orbit_verdict
+                # a look at eid planned while it was orbited is that orbit's rest (orbit_targets),
+                # judged now with it: left awaiting, it was judged again later as a fly-by
+                self._awaiting.pop(eid, None)
             elif p.misses >= MAX_MISSES and self._bursts:
                 # a phone heard in bursts is silent most of the time: a fly-by missing it says
                 # little about whether it is still there

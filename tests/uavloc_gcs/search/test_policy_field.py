@@ -120,3 +120,38 @@ def test_look_points_stay_inside_the_area_and_its_stated_margin():
         assert inside_area(sc.area_xy_m(), p) or boundary_distance_m(sc.area_xy_m(), p) <= margin + 1e-6
     assert np.allclose(out[2], far[2])  # a point inside is left alone
     assert abs(out[0][1] - (640.0 + margin)) < 1.0  # the northern one goes to the margin, no further
+
+
+def test_an_orbit_flown_across_a_replan_is_judged_once_as_an_orbit():
+    """bench field: people whose looks were orbits were given up "after 2 fly-by looks". A replan
+    while the vehicle orbited planned the rest of the same orbit; the orbit was judged at its end,
+    then the rest, reported flown a moment later, was judged again -- its orbit already judged, as
+    a fly-by. The rest is judged with its orbit."""
+    from uavloc_gcs.planning import VehicleState
+    from uavloc_gcs.search import orbit
+
+    sc = load_scenario(scenario_path("field"))
+    policy = SearchPolicy(sc, seed=0, time_limit_s=5.0, max_iter=5)
+    policy.look_reports = True  # as the daemon
+    person, a = np.array([300.0, 200.0]), LOCAL | 7
+    policy.ingest(_burst(sc, 10.0, (250.0, 150.0), person, a, 0x77))
+    policy.update(20.0)
+    policy.replan(20.0, [VehicleState("1", (0.0, 0.0), (0.0, 0.0), sc.usable_energy_j)])
+    assert a in policy._orbits  # the burst world looks by orbits
+    look = policy._orbits[a]
+    t_join = policy._awaiting[a]
+    policy.look_flown(a, t_join)
+    t_mid = t_join + 0.4 * look.flown_s  # someone else changed: a replan while it orbits
+    policy.replan(t_mid, [VehicleState("1", tuple(look.centre_xy_m + np.array([look.radius_m, 0.0])),
+                                       (0.0, 0.0), 0.5 * sc.usable_energy_j)])
+    rest_at = policy._awaiting[a]  # the rest of the same orbit
+    t_end = t_join + look.flown_s + policy.range_m / policy.speed_m_s
+    changed = policy.update(t_end)  # the orbit judged: nothing heard, look again
+    assert a in changed and policy._people[a].looks == 1 and not policy._people[a].gave_up
+    assert policy.needs_replan(t_end, changed)  # a new orbit is wanted now, not the old one's rest
+    policy.look_flown(a, max(rest_at, t_end))  # the vehicle flies on along the rest (no replan yet)
+    policy.update(t_end + 300.0)
+    p = policy._people[a]
+    assert p.looks == 1, (p.looks, p.gave_up)
+    assert "fly-by" not in p.gave_up
+    assert orbit.MAX_ORBIT_LOOKS >= 2
