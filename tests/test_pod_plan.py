@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -17,8 +18,10 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def _small_field(tmp_path: Path, extra: str = "") -> Path:
-    """examples/field.toml over 500 x 300 m with 2 vehicles of 60 kJ."""
+    """examples/field.toml over 500 x 300 m with 2 vehicles of 60 kJ, without its POD target."""
     s = (ROOT / "examples" / "field.toml").read_text()
+    s = re.sub(r"\n\[search\]\n(?:#.*\n)*pod_target = [0-9.]+\n", "\n", s)  # no target unless `extra` sets one
+    assert "\n[search]\n" not in s
     s = (s.replace("width_m = 1120.0", "width_m = 500.0").replace("height_m = 640.0", "height_m = 300.0")
          .replace("vehicles = 4", "vehicles = 2")
          .replace("energy_budget_j = 250000.0    # about 69 Wh of usable battery per vehicle", "energy_budget_j = 60000.0"))
@@ -144,3 +147,37 @@ def test_plan_from_the_scenario_key_is_the_scan_the_daemon_flies(tmp_path, capsy
     assert "As `uavloc daemon` flies it" in text
     chosen = pod_plan.scan_pod_plan(load_scenario(sc)).chosen
     assert f"{chosen.passes} pass" in text and f"at {chosen.speed_m_s:g} m/s" in text
+
+
+def test_vehicles_slower_than_the_pod_scan_get_it_planned_again_at_their_speed(tmp_path, small, monkeypatch):
+    """Real ArduCopter flies at most WPNAV_SPEED (10 m/s stock), PX4 MPC_XY_VEL_MAX (12): the POD
+    scan chosen at a faster speed is chosen again among the speeds they fly (measured on both SITLs
+    in tests/sitl/test_pod_scan.py: 15 m/s asked, 10.4 and 9.7 m/s flown)."""
+    import asyncio
+    from types import SimpleNamespace
+
+    from uavloc_gcs.service import setup
+    from uavloc_gcs.service.daemon import Daemon, DaemonOptions
+
+    sc = small.replace(search={"pod_target": 0.9})
+    fast = pod_plan.scan_pod_plan(sc).chosen.speed_m_s
+    slow = pod_plan.scan_pod_plan(sc, max_speed_m_s=10.0)
+    assert fast > 10.0 and slow.chosen.speed_m_s <= 10.0
+    assert all(o.speed_m_s <= 10.0 for o in slow.options) and 10.0 in [o.speed_m_s for o in slow.options]
+    d = Daemon(sc, [(1, "udpin:127.0.0.1:0")], DaemonOptions(store_path=tmp_path / "s.sqlite", tlog_dir=tmp_path))
+    events = []
+    d._event = lambda kind, text, *a, **k: events.append((kind, text))
+
+    async def limits(vehicles, wanted, *, consent):
+        return setup.FleetSpeed(10.0, 10.0, ("vehicle 1 flies at most 10 m/s",))
+
+    async def streams(*a):
+        return []
+    monkeypatch.setattr(setup, "fleet_speed", limits)
+    monkeypatch.setattr(setup, "request_streams", streams)
+    v = SimpleNamespace(id=1, link=None, agent=SimpleNamespace(flavour=None))
+    asyncio.run(d._setup_vehicles([v]))
+    assert d.sc.fleet.speed_m_s == slow.chosen.speed_m_s and d.policy.speed_m_s == slow.chosen.speed_m_s
+    assert d._scan_pod is slow and d._scan_plan is pod_plan.scan_for(sc, 10.0)[1]
+    assert any(k == "speed" and f"at {fast:g} m/s is planned again at {slow.chosen.speed_m_s:g} m/s" in t
+               for k, t in events), events

@@ -154,3 +154,5 @@ def test_field_scenario_is_the_paper_geometry_in_the_field_world():
     los = 10 ** ((ch.reference_power_dbm - ch.receiver_sensitivity_dbm) / 20)
     assert 280 < los < 340
     assert field.simulation.tx_power_spread_db > 0
+    # a search in the field world flies a scan planned for detection; the paper's flies the paper's
+    assert paper.search.pod_target is None and 0.5 <= field.search.pod_target < 0.95
