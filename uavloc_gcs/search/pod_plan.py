@@ -186,16 +186,20 @@ def _evaluate(sc, one_pass, spacing, speed, passes, grid) -> PodOption:
 
 
 def plan_for_pod(sc, target: float, *, best_effort: bool = False, speeds=None, spacing_factors=None,
-                 energy_share: float = 1.0) -> PodPlan:
+                 energy_share: float = 1.0, max_speed_m_s: float | None = None) -> PodPlan:
     """Choose lane spacing, speed and passes for ``target`` (see the module docstring). Raises
     InfeasibleError (one sentence) when the target is out of reach and ``best_effort`` is False, or
     when not even one pass fits in the energy. ``energy_share``: the part of every vehicle's usable
-    energy the scan may use (the rest is kept for the looks after it)."""
+    energy the scan may use (the rest is kept for the looks after it). ``max_speed_m_s``: the
+    fastest the vehicles will fly (their WPNAV_SPEED / MPC_XY_VEL_MAX, read by the daemon): only
+    speeds up to it are candidates, and it is one."""
     if not 0.0 < target < 1.0:
         raise InfeasibleError(f"--pod must be a probability between 0 and 1 (exclusive), got {target:g}")
     radius = burst_radius_m(sc)
     usable = sc.usable_energy_j * float(energy_share)
     speeds = sorted(set(PLAN_SPEEDS_M_S if speeds is None else speeds) | {float(sc.fleet.speed_m_s)})
+    if max_speed_m_s is not None:
+        speeds = sorted({v for v in speeds if v <= max_speed_m_s} | {float(max_speed_m_s)})
     speeds = [v for v in speeds if v > sc.people.max_speed_m_s]
     area = abs(pod.grid_for(sc, 10.0).inside.sum()) * 100.0
     coarse = pod.grid_for(sc, max(20.0, math.sqrt(area / SEARCH_CELLS)))
@@ -259,39 +263,41 @@ SEARCH_SCAN_SHARE = 0.6
 _SCANS: dict = {}
 
 
-def scan_for(sc):
+def scan_for(sc, max_speed_m_s: float | None = None):
     """``(scenario as flown, scan.ScanPlan)`` of a search: the scan planned for ``search.pod_target``
-    (best effort within SEARCH_SCAN_SHARE of the energy; the scenario's ``fleet.speed_m_s`` is the
-    chosen speed) when the scenario gives one, else ``[scan]``'s layout at the scenario's speed.
-    The same scenario gets the same plan (cached: the daemon, the simulator and the coverage all
-    ask)."""
+    (best effort within SEARCH_SCAN_SHARE of the energy, at most ``max_speed_m_s``; the scenario's
+    ``fleet.speed_m_s`` is the chosen speed) when the scenario gives one, else ``[scan]``'s layout
+    at the scenario's speed. The same scenario gets the same plan (cached: the daemon, the
+    simulator and the coverage all ask)."""
     from ..scan import plan_scan
 
     target = getattr(getattr(sc, "search", None), "pod_target", None)
     if target is None:
         return sc, plan_scan(sc)
-    key = _key(sc)
+    key = _key(sc, max_speed_m_s)
     hit = _SCANS.get(key)
     if hit is None:
-        pp = plan_for_pod(sc, float(target), best_effort=True, energy_share=SEARCH_SCAN_SHARE)
+        pp = plan_for_pod(sc, float(target), best_effort=True, energy_share=SEARCH_SCAN_SHARE,
+                          max_speed_m_s=max_speed_m_s)
         hit = _SCANS[key] = (pp.scenario, pp.plan, pp)
         if len(_SCANS) > 16:
             _SCANS.pop(next(iter(_SCANS)))
     return hit[0], hit[1]
 
 
-def scan_pod_plan(sc) -> "PodPlan | None":
+def scan_pod_plan(sc, max_speed_m_s: float | None = None) -> "PodPlan | None":
     """The PodPlan :func:`scan_for` flies for ``sc`` (None without a POD target)."""
     if getattr(getattr(sc, "search", None), "pod_target", None) is None:
         return None
-    scan_for(sc)
-    return _SCANS[_key(sc)][2]
+    scan_for(sc, max_speed_m_s)
+    return _SCANS[_key(sc, max_speed_m_s)][2]
 
 
-def _key(sc) -> str:
+def _key(sc, max_speed_m_s: float | None = None) -> str:
     # the plan depends on the area, fleet, radio and emission, not on the simulated world's seed
     sim = getattr(sc, "simulation", None)
-    return f"{SEARCH_SCAN_SHARE}:" + repr(sc.replace(simulation={"seed": 0}) if sim is not None and hasattr(sim, "seed") else sc)
+    return (f"{SEARCH_SCAN_SHARE}:{max_speed_m_s}:"
+            + repr(sc.replace(simulation={"seed": 0}) if sim is not None and hasattr(sim, "seed") else sc))
 
 
 def _rank(o: PodOption, target: float):

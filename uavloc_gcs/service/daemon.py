@@ -92,6 +92,7 @@ class Daemon(FleetPreparation, VehicleCommands):
         # the scan it flies: planned for search.pod_target (at the speed chosen for it) when the
         # scenario gives one, else [scan]'s; everything after plans with that speed
         self._scan_pod = scan_pod_plan(scenario)
+        self._given_sc = scenario  # re-planned by _setup_vehicles if the vehicles fly slower
         scenario, self._scan_plan = scan_for(scenario)
         self.sc = scenario
         self.opt = options

@@ -183,7 +183,21 @@ class FleetPreparation:
             self._event("speed", note)
         self._return_speed_m_s = speed.return_m_s
         if speed.mission_m_s < self.sc.fleet.speed_m_s:
-            self.sc = self.sc.replace(fleet={"speed_m_s": speed.mission_m_s})
+            if getattr(self, "_scan_pod", None) is not None:
+                # the POD scan was chosen among speeds these vehicles do not fly: choose again
+                # among those they do (a slower flight would hear more, but take longer and
+                # spend energy the plan did not count)
+                from ..search.pod_plan import scan_for, scan_pod_plan  # noqa: PLC0415
+
+                was = self._scan_pod.chosen.speed_m_s
+                # seconds of CPU: off the event loop, which keeps reading the vehicles meanwhile
+                self._scan_pod = await asyncio.to_thread(scan_pod_plan, self._given_sc, speed.mission_m_s)
+                flown, self._scan_plan = scan_for(self._given_sc, speed.mission_m_s)  # the same, cached
+                self._event("speed", f"the scan planned for POD {self._scan_pod.target:g} at {was:g} m/s is planned "
+                            f"again at {flown.fleet.speed_m_s:g} m/s, the fastest all vehicles fly")
+                self.sc = self.sc.replace(fleet={"speed_m_s": flown.fleet.speed_m_s})
+            else:
+                self.sc = self.sc.replace(fleet={"speed_m_s": speed.mission_m_s})
             if hasattr(self.policy, "speed_m_s"):
                 self.policy.scenario, self.policy.speed_m_s = self.sc, self.sc.fleet.speed_m_s
 
