@@ -25,7 +25,7 @@ MAX_PEOPLE = 1000  # simulated people: beyond this the fake fleet's world does n
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("demo", help="the paper's area in the field world on fake vehicles + daemon + live view (about a minute)",
+    p = sub.add_parser("demo", help="the paper's area in the field world on fake vehicles + daemon + live view (a few minutes)",
                        description=__doc__.replace("``", ""), formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--scenario", metavar="FILE.toml", help="scenario TOML, or a shipped one by name: field, paper, small (default: field, "
                         "the paper's area in the field world; paper is the paper's own world)")

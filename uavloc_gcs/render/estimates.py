@@ -97,7 +97,14 @@ def result_figure(people, *, area_xy_m: np.ndarray, tracks_xy_m: Mapping[int, np
         if not group:
             continue
         xy = np.array([[p.east_m, p.north_m] for p in group])
-        maps.draw_circles(ax, xy, [p.radius95_m for p in group], color=STATE_COLORS[state], alpha=0.12)
+        radii = np.array([p.radius95_m for p in group], dtype=float)
+        # a tinted circle wider than the area tints the whole map and hides the POD raster under
+        # it (a person heard once can have a radius of kilometres): those are outlines only
+        wide = radii > WIDE_CIRCLE_FRACTION * max(span)
+        if (~wide).any():
+            maps.draw_circles(ax, xy[~wide], radii[~wide], color=STATE_COLORS[state], alpha=0.12)
+        if wide.any():
+            maps.draw_circles(ax, xy[wide], radii[wide], color=STATE_COLORS[state], fill=False)
         # a circle of a few metres on a kilometre map is smaller than its marker: a ring of fixed
         # size shows where it is (its radius is in the label)
         small = np.array([p.radius95_m < SMALL_CIRCLE_FRACTION * max(span) for p in group])
@@ -141,6 +148,7 @@ def _fit_view(ax, pieces) -> None:
 
 
 SMALL_CIRCLE_FRACTION = 1 / 60  # 95 % circles under this share of the map's span get a ring
+WIDE_CIRCLE_FRACTION = 0.5  # 95 % circles over this share of the area's span are not tinted
 
 
 def person_label(p) -> str:

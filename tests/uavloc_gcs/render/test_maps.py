@@ -61,3 +61,22 @@ def test_bad_suffix_writes_nothing(tmp_path):
 def test_many_vehicles_get_distinct_colors():
     cols = maps.vehicle_colors(20)
     assert len(cols) == 20 and len({str(c) for c in cols}) == 20
+
+
+def test_a_95_circle_wider_than_the_area_is_an_outline_and_leaves_the_pod_raster_visible():
+    """The field demo's result.png: two people heard once had 95 % radii of 7 and 20 km; tinted,
+    they covered the whole map in pink and the POD raster (green: 0.80 achieved) read as 0."""
+    from types import SimpleNamespace as P
+
+    from matplotlib.patches import Circle
+
+    from uavloc_gcs.render.estimates import WIDE_CIRCLE_FRACTION, result_figure
+
+    area = np.array([[0, 0], [1120, 0], [1120, 640], [0, 640]], float)
+    people = [P(emitter_id=1, label="P01", state="given up", east_m=600, north_m=300, radius95_m=19600.0),
+              P(emitter_id=2, label="P02", state="given up", east_m=300, north_m=200, radius95_m=120.0)]
+    ax = result_figure(people, area_xy_m=area, tracks_xy_m={}).axes[0]
+    circles = [c for c in ax.patches if isinstance(c, Circle)]
+    tinted = [c.get_radius() for c in circles if c.get_facecolor()[3] > 0]
+    assert 120.0 in tinted and all(r <= WIDE_CIRCLE_FRACTION * 1120 for r in tinted)
+    assert any(c.get_radius() == 19600.0 and c.get_edgecolor()[3] > 0 for c in circles)  # still drawn
