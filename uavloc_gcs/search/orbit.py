@@ -365,10 +365,15 @@ def orbit_targets(policy, t_s: float, targets: list) -> list:
             r95 = policy._radius95(p) if p is not None and p.estimate is not None and policy._ok(p) else math.inf
             spread = r95 / 2.45 if math.isfinite(r95) else float(sc.horizontal_range_m)  # 95 % of a 2-D normal
             orb = plan_orbit(sc, t.xy_m, spread)
+            # the whole circle within the area and its stated margin (policy._inside_reach): a
+            # person predicted outside is orbited from the edge, not chased (the field demo flew
+            # an orbit centred 250 m south of the area)
+            c = policy._inside_reach(np.asarray(orb.centre_xy_m, float), inset_m=orb.radius_m)[0]
+            orb = _replace(orb, centre_xy_m=(float(c[0]), float(c[1])))
             orbits[eid] = orb
             svc = orb.flown_s
         planned[eid], vels[eid] = orb, tuple(t.velocity_m_s)
-        out.append(_replace(t, xy_m=t.xy_m if eid not in flown else orb.centre_xy_m, radius_m=orb.radius_m,
+        out.append(_replace(t, xy_m=np.asarray(orb.centre_xy_m, float), radius_m=orb.radius_m,
                             service_s=svc, service_energy_j=float(pw.power_w(orb.speed_m_s)) * svc))
     return out
 
@@ -393,8 +398,10 @@ def attach_orbits(policy, plan):
                 continue
             ta = task.access_times_s[k] if k < len(task.access_times_s) else t0
             vx, vy = vels.get(int(eid), (0.0, 0.0))
-            c = (orb.centre_xy_m[0] + vx * (ta - t0), orb.centre_xy_m[1] + vy * (ta - t0))
-            row.append(_replace(orb, centre_xy_m=c))
+            c = np.array([orb.centre_xy_m[0] + vx * (ta - t0), orb.centre_xy_m[1] + vy * (ta - t0)])
+            if vx or vy:  # a walker's drift may take the circle out again
+                c = policy._inside_reach(c, inset_m=orb.radius_m)[0]
+            row.append(_replace(orb, centre_xy_m=(float(c[0]), float(c[1]))))
         tasks.append(_replace(task, orbits=tuple(row)))
     return _replace(plan, tasks=tuple(tasks))
 

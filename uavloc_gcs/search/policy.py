@@ -703,24 +703,30 @@ class SearchPolicy:
         makespan = max((task.eta_s for task in tasks), default=t_s) - t_s
         return SearchPlan(tuple(tasks), makespan, runtime, None if result is None else result.plan, t_s)
 
-    def _inside_reach(self, pts: np.ndarray) -> np.ndarray:
+    def _inside_reach(self, pts: np.ndarray, inset_m: float = 0.0) -> np.ndarray:
         """Look points moved into the search area grown by the hearing range (``LOOK_AREA_MARGIN``
         of it): people are searched for inside the area, and from that margin a vehicle still
         hears its edge. A look at an estimate predicted far outside (a wide field-world posterior,
         a walker extrapolated) flew 1.1 km north of the area in the field demo; it now goes as far
-        as the margin and no further."""
+        as the margin and no further. ``inset_m``: the margin less this much (at least the area
+        itself), for an orbit's centre, whose circle of that radius must stay within the margin."""
         import shapely
         from shapely.geometry import Polygon
         from shapely.ops import nearest_points
 
+        pts = np.asarray(pts, dtype=float).reshape(-1, 2)
         if not len(pts) or LOOK_AREA_MARGIN is None:
             return pts
+        grow = max(LOOK_AREA_MARGIN * self.range_m - float(inset_m), 0.0)
         if self._reach_poly is None:
-            self._reach_poly = Polygon(self.area_xy_m).buffer(LOOK_AREA_MARGIN * self.range_m)
-        inside = shapely.contains_xy(self._reach_poly, pts[:, 0], pts[:, 1])
+            self._reach_poly = {}
+        poly = self._reach_poly.get(round(grow, 1))
+        if poly is None:
+            poly = self._reach_poly[round(grow, 1)] = Polygon(self.area_xy_m).buffer(grow)
+        inside = shapely.contains_xy(poly, pts[:, 0], pts[:, 1])
         out = pts.copy()
         for i in np.flatnonzero(~inside):
-            q = nearest_points(self._reach_poly.exterior, shapely.Point(pts[i]))[0]
+            q = nearest_points(poly.exterior, shapely.Point(pts[i]))[0]
             out[i] = (q.x, q.y)
         return out
 

@@ -155,3 +155,28 @@ def test_an_orbit_flown_across_a_replan_is_judged_once_as_an_orbit():
     assert p.looks == 1, (p.looks, p.gave_up)
     assert "fly-by" not in p.gave_up
     assert orbit.MAX_ORBIT_LOOKS >= 2
+
+
+def test_an_orbit_around_a_person_predicted_outside_stays_inside_the_stated_margin():
+    """The field demo flew an orbit centred 250 m south of the area, and gave people up "for lack of
+    energy" for orbits kilometres away: the look point had been moved to the margin, the orbit's
+    circle stayed where the estimate was (here 19 km off after one burst: no orbit was planned at
+    all). The whole circle stays within the area grown by the stated margin."""
+    from shapely.geometry import Point, Polygon
+
+    from uavloc_gcs.planning import VehicleState
+    from uavloc_gcs.search.policy import LOOK_AREA_MARGIN
+
+    sc = load_scenario(scenario_path("field"))
+    policy = SearchPolicy(sc, seed=0, time_limit_s=5.0, max_iter=5)
+    person, a = np.array([560.0, -250.0]), LOCAL | 8  # predicted 250 m south of the area
+    policy.ingest(_burst(sc, 10.0, (500.0, 20.0), person, a, 0x88))
+    policy.update(20.0)
+    policy.replan(20.0, [VehicleState("1", (0.0, 0.0), (0.0, 0.0), sc.usable_energy_j)])
+    reach = Polygon(sc.area_xy_m()).buffer(LOOK_AREA_MARGIN * sc.horizontal_range_m + 1.0)
+    looks = [(task, o) for task in policy._plan.tasks for o in task.orbits if o is not None]
+    assert looks, "an orbit look was planned"
+    for task, o in looks:
+        assert reach.contains(Point(o.centre_xy_m).buffer(o.radius_m)), (o.centre_xy_m, o.radius_m)
+        for q in task.waypoints_xy_m:
+            assert reach.contains(Point(q)), q
