@@ -20,6 +20,7 @@ BENCHMARKS = {
     "identity": "linking addresses into people vs truth (people reported, bursts on the wrong person, splits, merges)",
     "sense": "Wi-Fi capture parser vs dpkt and scapy dissectors (frames/s on one core, fields agreeing)",
     "field": "the search for real phones vs the paper's plan, a lawnmower and the clairvoyant (located, time, energy, POD)",
+    "demos": "uavloc demo run N times: people located and given up, the reasons, given up near the truth",
 }
 
 
