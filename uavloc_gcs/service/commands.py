@@ -23,8 +23,8 @@ from ..search.orbit import look_mission, orbits_for
 from ..terrain_missions import point_seqs, terrain_safe
 from .lifecycle import persist
 from .missionstate import final_seq, hold_seq, same_stored_mission
-from .starting import (CLIMB_WAIT_S, READY_WAIT_S, StartFailed, UnsafeStart, read_facts, refusal_in, start_guard,
-                       takeoff_seen)
+from .starting import (CLIMB_WAIT_S, READY_WAIT_S, REFUSAL_GRACE_S, StartFailed, UnsafeStart, read_facts, refusal_in,
+                       start_guard, takeoff_seen)
 from .vehicle import VehicleAgent
 from .vehiclelife import HOMING_MODES
 from .vehiclelife import VehicleLife as _Vehicle
@@ -189,16 +189,32 @@ class VehicleCommands:
         airborne since the start began at ``began_wall_s``: a start whose ACKs were lost can last
         as long as a short look, flown and landed from meanwhile). A refusal it states
         after the start was accepted (STATUSTEXT since ``since_wall_s``; refusals during the start
-        exchange are the exchange's to retry) or no climb within CLIMB_WAIT_S is a failed start:
+        exchange are the exchange's to retry; one that does not rule out a repetition only if the
+        vehicle does not fly the mission anyway) or no climb within CLIMB_WAIT_S is a failed start:
         a vehicle left armed on the ground is disarmed, and StartFailed names the reason (the
         vehicle becomes unusable; its scan is not counted as flown)."""
+        from ..link.mission_control import final_start_refusal  # noqa: PLC0415
+
         a = v.agent
         deadline = self.wall() + CLIMB_WAIT_S
+        refused_wall_s = None
         while not (takeoff_seen(read_facts(a), ground_alt_m) or a.airborne_wall_s >= began_wall_s):
             refusal = refusal_in(a.texts, since_wall_s)
-            late = self.wall() >= deadline
-            if refusal is not None or late:
-                why = (f"the vehicle refused it: \"{refusal}\"" if refusal is not None else
+            now = self.wall()
+            if refusal is not None and refused_wall_s is None:
+                refused_wall_s = now
+            # A refusal fails the start at once when no repetition changes it ("Missing Takeoff
+            # Cmd"); any other only if the vehicle does not go on to fly the mission (armed, in
+            # its mission mode) within REFUSAL_GRACE_S: PX4 sends a denied attempt's STATUSTEXT
+            # on its own stream, after the ACK of the retry it accepted (PX4 SITL under load:
+            # "Mission start denied! No valid mission" 0.25 s after the accepted MISSION_START, while
+            # it took off; the daemon tried to disarm it and gave the vehicle up)
+            flying_it = a.tel.armed and a.in_mission_mode
+            refused = refusal is not None and (final_start_refusal(refusal) or (
+                not flying_it and now - refused_wall_s >= REFUSAL_GRACE_S))
+            late = now >= deadline
+            if refused or late:
+                why = (f"the vehicle refused it: \"{refusal}\"" if refused else
                        f"it did not leave the ground within {CLIMB_WAIT_S:g} s ({a.tel.mode}, "
                        f"{'armed' if a.tel.armed else 'disarmed'})")
                 await self._disarm_on_ground(v)

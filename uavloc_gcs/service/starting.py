@@ -33,6 +33,7 @@ from ..mission import NAV_RETURN_TO_LAUNCH, POSITIONAL_COMMANDS, TAKEOFF_COMMAND
 
 CLIMB_WAIT_S = 20.0  # wall seconds after a start from the ground for the vehicle to leave the ground
 READY_WAIT_S = 120.0  # wall seconds a start waits for the vehicle to be ready to arm (EKF, GPS, pre-arm)
+REFUSAL_GRACE_S = 2.0  # wall seconds a vehicle that stated a refusal has to show it flies the mission anyway
 CLIMB_M = 2.0  # above LANDED_ALT_M: metres of relative altitude that count as "it left the ground"
 # What autopilots say when they refuse to start or to fly what they were told (lower case):
 # ArduCopter ModeAuto::init "Auto: Missing Takeoff Cmd"; Copter::set_mode "Mode change to Auto
