@@ -95,6 +95,9 @@ def _dispatch(v: "FakeVehicle", cmd: int, p: list, extra: list, is_int: bool = F
         return ACCEPTED if v.set_mode(mode) else FAILED
     if cmd == mav.MAV_CMD_MISSION_START:
         first = _i(p[0])
+        if v.t_s - v.mission_changed_t_s < v.flavour.mission_valid_after_upload_s:
+            v.say_later(v.flavour.refusal_text_delay_s, mav.MAV_SEVERITY_CRITICAL, "Mission start denied! No valid mission")
+            return DENIED  # PX4: the new mission is still being checked
         if (first or _i(p[1])) and v.flavour.mission_start_first_item_denied:
             return DENIED  # ArduPilot: only 0, 0 (it resumes from its current item)
         if first > 0 and not v.set_current(first):

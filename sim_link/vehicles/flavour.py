@@ -77,6 +77,11 @@ class Flavour:
     arm_refused_after_boot_s: float = 0.0  # refuses to arm this long after boot (simulated seconds)
     arm_refusal: tuple[int, str] = (mav.MAV_RESULT_FAILED, "Arm: Accels inconsistent")
     refusal_text_delay_s: float = 0.0  # PX4: the STATUSTEXT saying why comes ~0.6 s after the ACK
+    # PX4 checks a new mission in the background: a MISSION_START this soon (simulated s) after the
+    # upload is DENIED, "Mission start denied! No valid mission" following the ACK late (SITL,
+    # 2026-11-27: DENIED 11 ms after the upload's MISSION_ACK, the retry 0.5 s later ACCEPTED, the
+    # denial's text 0.25 s after that ACK)
+    mission_valid_after_upload_s: float = 0.0
     # Options the daemon needs other fixes for (see VehicleConfig.realistic_streams /
     # stale_mission_complete): what the real autopilot does, used only when switched on there.
     default_streams: tuple[int, ...] = ()  # streamed without being asked (realistic_streams)
@@ -136,7 +141,7 @@ PX4 = Flavour(
     download_int_frames=True, set_current_command_unsupported=True, arm_refused_after_boot_s=1.0,
     mission_start_arms=True,
     arm_refusal=(mav.MAV_RESULT_TEMPORARILY_REJECTED, "Arming denied: Resolve system health failures first"),
-    refusal_text_delay_s=0.6,
+    refusal_text_delay_s=0.6, mission_valid_after_upload_s=0.3,
     default_streams=(mav.MAVLINK_MSG_ID_HEARTBEAT, mav.MAVLINK_MSG_ID_GLOBAL_POSITION_INT,
                      mav.MAVLINK_MSG_ID_SYS_STATUS, mav.MAVLINK_MSG_ID_MISSION_CURRENT,
                      mav.MAVLINK_MSG_ID_EXTENDED_SYS_STATE),  # no SYSTEM_TIME unless asked

@@ -105,6 +105,7 @@ class FakeVehicle(TelemetryMixin):
 
     def _boot(self, t_s: float) -> None:
         self.boot_t_s = t_s
+        self.mission_changed_t_s = -math.inf  # the last upload's time (PX4 checks it a while: commands.py)
         self.armed = False
         self.landed = True
         self.mode = "STABILIZE" if self.flavour.name == "ardupilot" else "LOITER"
@@ -316,6 +317,7 @@ class FakeVehicle(TelemetryMixin):
         if mission_type != 0:
             return
         n = len(self.mission.stores[0])
+        self.mission_changed_t_s = self.t_s
         if self.flavour.name == "px4":
             self.executor.jumps_done.clear()  # PX4 stores every uploaded DO_JUMP with its count at 0
         self.stale_complete = (self.cfg.stale_mission_complete and self.flavour.keeps_mission_complete

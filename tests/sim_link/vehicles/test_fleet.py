@@ -66,7 +66,13 @@ def test_pymavlink_client_uploads_and_flies_a_mission(autopilot):
             assert ack.type == mav.MAV_MISSION_ACCEPTED
             assert {m.get_type() for m in c.log if m.get_type().startswith("MISSION_REQUEST")} == {req}
             assert (await c.command(1, mav.MAV_CMD_COMPONENT_ARM_DISARM, 1)).result == mav.MAV_RESULT_ACCEPTED
-            assert (await c.command(1, mav.MAV_CMD_MISSION_START)).result == mav.MAV_RESULT_ACCEPTED
+            start = await c.command(1, mav.MAV_CMD_MISSION_START)
+            while autopilot == "px4" and start.result == mav.MAV_RESULT_DENIED:
+                # PX4 checks a new mission for a moment and denies a start meanwhile ("Mission
+                # start denied! No valid mission"; flavour.mission_valid_after_upload_s): retry
+                await asyncio.sleep(0.02)
+                start = await c.command(1, mav.MAV_CMD_MISSION_START)
+            assert start.result == mav.MAV_RESULT_ACCEPTED
             reached = []
             while True:
                 m = await c.recv(("MISSION_ITEM_REACHED", "MISSION_CURRENT"), timeout=10)

@@ -77,6 +77,9 @@ def test_ardupilot_accepts_auto_disarmed_or_with_a_takeoff():
 def test_px4_arms_by_mission_start_and_climbs_even_without_a_takeoff():
     v = _vehicle(PX4, takeoff=False)
     assert not v.armed and v.landed
+    result, _ = _command(v, mav.MAV_CMD_MISSION_START)  # at once after the upload: still checked
+    assert result == mav.MAV_RESULT_DENIED and not v.armed
+    v.advance(PX4.mission_valid_after_upload_s)
     result, _ = _command(v, mav.MAV_CMD_MISSION_START)
     assert result == mav.MAV_RESULT_ACCEPTED and v.armed and v.mode == "AUTO"
     v.advance(3.0)
