@@ -107,3 +107,38 @@ class Watch:
                              f"(mode {self.mode if 'HEARTBEAT' in self.last else '?'}, armed {self.armed}, "
                              f"alt {self.rel_alt_m:.1f} m, mission seq {self.mission_seq}, state "
                              f"{self.mission_state}, seqs {self.seqs[-12:]}, texts {self.texts[-6:]})")
+
+
+
+MISSION_STREAMS = {"GLOBAL_POSITION_INT": 10.0, "MISSION_CURRENT": 4.0, "SYSTEM_TIME": 1.0, "EXTENDED_SYS_STATE": 1.0}
+
+
+async def fly_to_its_return(link, system: int, flavour, wire, on_position, *, what: str, timeout_s: float) -> float:
+    """Fly ``wire`` from the ground on vehicle ``system``: ask for MISSION_STREAMS, upload and
+    verify, start, call ``on_position(msg, watch)`` for every GLOBAL_POSITION_INT, wait until the
+    mission reaches its RTL item or the vehicle returns (``what`` names that moment in a timeout),
+    then bring it home and wait for the landing. Returns the wall seconds from start to RTL."""
+    from uavloc_gcs.link import request_streams, return_home, start_mission_from, upload_mission  # noqa: PLC0415
+    from uavloc_gcs.mission import NAV_RETURN_TO_LAUNCH  # noqa: PLC0415
+
+    watch = Watch(link, system)
+    try:
+        await request_streams(link, system, flavour, MISSION_STREAMS)
+        await watch.until("position", lambda: "GLOBAL_POSITION_INT" in watch.last and "MISSION_CURRENT" in watch.last, 30)
+        sub = link.subscribe("GLOBAL_POSITION_INT", source_system=system, callback=lambda m: on_position(m, watch))
+        try:
+            await upload_mission(link, system, 1, wire, verify=True, autopilot=flavour)
+            await start_mission_from(link, system, 1, flavour, flavour.first_mission_seq, armed=watch.armed,
+                                     mode=watch.mode)
+            rtl = next(it.seq for it in wire if it.command == NAV_RETURN_TO_LAUNCH)
+            t0 = time.monotonic()
+            await watch.until(what, lambda: (watch.mission_seq or 0) >= rtl or watch.mode in ("RTL", "AUTO.RTL"),
+                              timeout_s, poll_s=0.5)
+            flown_wall = time.monotonic() - t0
+            await return_home(link, system, 1)
+            await watch.until("landing", lambda: watch.landed, 200)
+        finally:
+            sub.close()
+    finally:
+        watch.close()
+    return flown_wall

@@ -6,18 +6,17 @@ and the time spent on the circle (the dwell)."""
 from __future__ import annotations
 
 import math
-import time
 
 import numpy as np
 import pytest
 
-from uavloc_gcs.link import flavour_for, open_link, request_streams, return_home, start_mission_from, upload_mission
+from uavloc_gcs.link import flavour_for, open_link
 from uavloc_gcs.mission import NAV_RETURN_TO_LAUNCH, to_wire
 from uavloc_gcs.scenario import loads_scenario
 from uavloc_gcs.search.orbit import ORBIT_FORM, OrbitLook, look_mission, orbit_speed_m_s
 
 from . import harness
-from .flying import Watch
+from .flying import fly_to_its_return
 
 ALT_M = 30.0
 SPEED_M_S = 10.0
@@ -82,26 +81,9 @@ async def _fly(sitl, kind: str, wire, looks) -> list[tuple]:
     rows: list[tuple] = []
     async with await open_link(sitl.connection) as link:
         hb = await link.wait_heartbeat(sitl.sysid, timeout_s=30)
-        system = hb.get_srcSystem()
-        watch = Watch(link, system)
-        flavour = flavour_for(hb.autopilot)
-        await request_streams(link, system, flavour, {"GLOBAL_POSITION_INT": 10.0, "MISSION_CURRENT": 4.0,
-                                                      "SYSTEM_TIME": 1.0, "EXTENDED_SYS_STATE": 1.0})
-        await watch.until("position", lambda: "GLOBAL_POSITION_INT" in watch.last and "MISSION_CURRENT" in watch.last, 30)
-
-        def on_pos(msg):
-            rows.append((msg.time_boot_ms / 1000.0, msg.lat / 1e7, msg.lon / 1e7, watch.mission_seq))
-        sub = link.subscribe("GLOBAL_POSITION_INT", source_system=system, callback=on_pos)
-        await upload_mission(link, system, 1, wire, verify=True, autopilot=flavour)
-        await start_mission_from(link, system, 1, flavour, flavour.first_mission_seq, armed=watch.armed, mode=watch.mode)
-        rtl = next(it.seq for it in wire if it.command == NAV_RETURN_TO_LAUNCH)
-        t0 = time.monotonic()
-        await watch.until("the orbit's end", lambda: (watch.mission_seq or 0) >= rtl
-                          or watch.mode in ("RTL", "AUTO.RTL"), 400, poll_s=0.5)
-        flown_wall = time.monotonic() - t0
-        await return_home(link, system, 1)
-        await watch.until("landing", lambda: watch.landed, 200)
-        sub.close()
-        watch.close()
+        flown_wall = await fly_to_its_return(
+            link, hb.get_srcSystem(), flavour_for(hb.autopilot), wire,
+            lambda msg, w: rows.append((msg.time_boot_ms / 1000.0, msg.lat / 1e7, msg.lon / 1e7, w.mission_seq)),
+            what="the orbit's end", timeout_s=400)
     print(f"{kind}: mission to the orbit's end in {flown_wall:.0f} wall s")
     return rows

@@ -7,21 +7,19 @@ turns at the lane ends take extra time, which the test measures and bounds."""
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 import pytest
 
 from tests.e2e_helpers import FIELD
+from uavloc_gcs.link import flavour_for, open_link
 from uavloc_gcs.link.params import speed_limits
-from uavloc_gcs.link import flavour_for, open_link, request_streams, return_home, start_mission_from, upload_mission
 from uavloc_gcs.mission import DO_CHANGE_SPEED, NAV_RETURN_TO_LAUNCH, NAV_WAYPOINT, to_wire
 from uavloc_gcs.scan import scan_missions
 from uavloc_gcs.scenario import loads_scenario
 from uavloc_gcs.search import pod, pod_plan
 
 from . import harness
-from .flying import Watch
+from .flying import fly_to_its_return
 
 ALT_M = 30.0
 
@@ -100,30 +98,14 @@ async def _fly(sitl, sc, kind):
     rows: list[tuple] = []
     async with await open_link(sitl.connection) as link:
         hb = await link.wait_heartbeat(sitl.sysid, timeout_s=30)
-        system = hb.get_srcSystem()
-        watch = Watch(link, system)
-        flavour = flavour_for(hb.autopilot)
+        system, flavour = hb.get_srcSystem(), flavour_for(hb.autopilot)
         limits = await speed_limits(link, system, flavour)
         flown_sc, plan = pod_plan.scan_for(sc, limits.max_m_s)
         pp = pod_plan.scan_pod_plan(sc, limits.max_m_s)
         wire = to_wire(scan_missions(flown_sc, plan)[0], kind)
-        await request_streams(link, system, flavour, {"GLOBAL_POSITION_INT": 10.0, "MISSION_CURRENT": 4.0,
-                                                      "SYSTEM_TIME": 1.0, "EXTENDED_SYS_STATE": 1.0})
-        await watch.until("position", lambda: "GLOBAL_POSITION_INT" in watch.last and "MISSION_CURRENT" in watch.last, 30)
-
-        def on_pos(msg):
-            rows.append((msg.time_boot_ms / 1000.0, msg.lat / 1e7, msg.lon / 1e7, msg.relative_alt / 1000.0,
-                         watch.mission_seq))
-        sub = link.subscribe("GLOBAL_POSITION_INT", source_system=system, callback=on_pos)
-        await upload_mission(link, system, 1, wire, verify=True, autopilot=flavour)
-        await start_mission_from(link, system, 1, flavour, flavour.first_mission_seq, armed=watch.armed, mode=watch.mode)
-        rtl = next(it.seq for it in wire if it.command == NAV_RETURN_TO_LAUNCH)
-        t0 = time.monotonic()
-        await watch.until("the scan's end", lambda: (watch.mission_seq or 0) >= rtl
-                          or watch.mode in ("RTL", "AUTO.RTL"), 600, poll_s=0.5)
-        flown_wall = time.monotonic() - t0
-        await return_home(link, system, 1)
-        await watch.until("landing", lambda: watch.landed, 200)
-        sub.close()
-        watch.close()
+        flown_wall = await fly_to_its_return(
+            link, system, flavour, wire,
+            lambda msg, w: rows.append((msg.time_boot_ms / 1000.0, msg.lat / 1e7, msg.lon / 1e7,
+                                        msg.relative_alt / 1000.0, w.mission_seq)),
+            what="the scan's end", timeout_s=600)
     return rows, flown_wall, limits, (flown_sc, plan, pp, wire)
