@@ -55,11 +55,13 @@ def corner(leg_in_xy, leg_out_xy, speed_m_s: float, accel_m_s2: float, cut_m: fl
     waypoint (as PX4's acceptance radius and ArduCopter's WPNAV_RADIUS bound the rounded corner),
     flown at the speed whose radius v^2/a fits: a 90 deg corner with cut 10 m and 5 m/s^2 is taken
     at 11 m/s starting 24 m before the waypoint; a small heading change at full speed.
-    Returns (0, 0) for a reversal (the vehicle stops there).
+    Returns (0, 0) for a reversal or when the next item is at the waypoint (the vehicle stops there).
     """
     a, b = np.asarray(leg_in_xy, float), np.asarray(leg_out_xy, float)
     na, nb = float(np.hypot(*a)), float(np.hypot(*b))
-    if na < 1e-6 or nb < 1e-6:
+    if nb < 1e-6:  # the next item is here (a loiter at the waypoint): arrive and stop, as ArduCopter's
+        return 0.0, 0.0  # S-curve does for a zero-length next leg (the fake flew 37 m past it)
+    if na < 1e-6:
         return speed_m_s, 0.0
     cos_t = max(-1.0, min(1.0, float(a @ b) / (na * nb)))
     theta = math.acos(cos_t)  # heading change

@@ -380,3 +380,24 @@ def test_ardupilot_flies_loiter_turns_as_a_circle_and_goes_on():
     # counter-clockwise (param3 < 0): the angle about the centre grows
     ang = np.unwrap(np.arctan2(circling[:, 2], circling[:, 1] - 200.0))
     assert ang[-1] - ang[0] == pytest.approx(4 * math.pi, rel=0.05)
+
+
+def test_a_waypoint_followed_by_a_loiter_at_the_same_point_is_arrived_at_not_flown_past():
+    """The daemon's scan mission ends with LOITER_TIME at the last waypoint. The fake took that
+    waypoint as a pass-through with a zero-length next leg, at full speed, and flew 37 m past it
+    (out of a geofence the plan kept 20 m inside); ArduCopter's S-curve stops at it."""
+    from uavloc_gcs.mission import MissionItem, MissionPlan, change_speed, pass_through_waypoint, return_to_launch
+    from uavloc_gcs.mission import takeoff
+
+    sc = PAPER
+    ll = sc.frame.to_wgs84_latlon(np.array([[0.0, 200.0], [300.0, 200.0]]))
+    items = (takeoff(60.0, *sc.launch_latlon_deg), change_speed(15.0),
+             pass_through_waypoint(*ll[0], 60.0), pass_through_waypoint(*ll[1], 60.0),
+             MissionItem(19, params=(5.0, 0.0, 0.0, 0.0), lat_deg=float(ll[1][0]), lon_deg=float(ll[1][1]),
+                         alt_m=60.0),
+             return_to_launch())
+    plan = MissionPlan(items, *sc.launch_latlon_deg, autopilot="ardupilot", cruise_speed_m_s=15.0, hover_speed_m_s=5.0)
+    v = _vehicle(sc)
+    samples, _msgs = _fly(v, to_wire(plan, "ardupilot"))
+    assert samples[:, 1].max() < 300.0 + 3.0, samples[:, 1].max()  # no more than a few metres past it
+    assert v.landed and np.linalg.norm(v.position_xyz_m[:2]) < 2.0
