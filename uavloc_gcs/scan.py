@@ -559,10 +559,24 @@ def _vehicle_scan(scenario, idx: int, pc: _Piece, rows: _Rows, rot: np.ndarray, 
     geoms = [] if part is None else getattr(part, "geoms", [part])
     polys = sorted((g for g in geoms if g.geom_type == "Polygon" and g.area > 1e-6), key=lambda g: -g.area)
     parts = tuple(_ccw(np.asarray(g.exterior.coords)[:-1] @ rot) for g in polys)
+    wps = _inside_fence(scenario, wps)
     route = np.vstack([np.zeros((1, 2)), wps, np.zeros((1, 2))])
     rc = route_cost(route, scenario.fleet.speed_m_s, scenario.power_model)
     return VehicleScan(idx, parts[0] if parts else np.zeros((0, 2)), parts, lanes, wps,
                        rc.length_m, rc.duration_s, rc.energy_j)
+
+
+def _inside_fence(scenario, wps: np.ndarray) -> np.ndarray:
+    """The scan's waypoints kept inside the scenario's geofence (none: unchanged): each moved
+    inside its margin, with corners added where a leg from the launch point, between lanes or back
+    would cut across a notch of the fence (uavloc_gcs/geofence.py)."""
+    from . import geofence
+
+    fence = geofence.for_scenario(scenario)
+    if fence is None or not len(wps):
+        return wps
+    routed, _ = fence.route(fence.clip(wps), start_xy_m=np.zeros(2), end_xy_m=np.zeros(2))
+    return _dedupe(routed)
 
 
 def _dedupe(xy: np.ndarray, tol_m: float = 0.01) -> np.ndarray:
@@ -599,9 +613,15 @@ def fence_xy_m(scenario, plan: ScanPlan, margin_m: float = FENCE_MARGIN_M) -> np
     area would then make PX4 reject the mission (waypoints outside the fence) and ArduPilot
     breach it in flight. So the fence is the area when every route, widened by ``margin_m``,
     stays inside it, else the convex hull of the area and all routes, grown by ``margin_m``.
+    A scenario that gives a geofence (``area.geofence_deg``/``geofence_file``) gets that one.
     """
     from shapely.geometry import MultiLineString, MultiPoint, Polygon
 
+    from . import geofence
+
+    given = geofence.for_scenario(scenario)
+    if given is not None:  # the scenario's own fence: the scan was planned inside it
+        return _ccw(np.asarray(given.polygon_xy_m, float))
     area_xy = scenario.area_xy_m()
     area = Polygon(area_xy)
     routes = [v.route_xy_m() for v in plan.vehicles]

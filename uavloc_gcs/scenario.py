@@ -61,6 +61,13 @@ class AreaSpec:
     heading_deg: float = 90.0
     polygon_deg: list | None = None
     polygon_file: str | None = None
+    # An inclusion geofence every planned flight stays inside (uavloc_gcs/geofence.py): the
+    # airspace the team may use. ``geofence_deg = [[lat, lon], ...]`` or ``geofence_file`` (GeoJSON
+    # or a QGroundControl .plan's inclusion polygon; it may be the same file as the area).
+    # Planned points keep ``geofence_margin_m`` inside it, legs half of that.
+    geofence_deg: list | None = None
+    geofence_file: str | None = None
+    geofence_margin_m: float = 30.0
 
 
 @dataclass(frozen=True)
@@ -250,6 +257,7 @@ class Scenario:
     # Resolved geometry (filled by load/validate): polygon vertices as [[lat, lon], ...].
     polygon_latlon_deg: tuple = ()
     launch_latlon_deg: tuple = ()
+    geofence_latlon_deg: tuple = ()  # the resolved area.geofence_deg / geofence_file, or ()
 
     # -- derived geometry -----------------------------------------------------------------
     @property
@@ -517,7 +525,58 @@ def _resolve(sc: Scenario, base_dir: Path | None = None) -> Scenario:
     )
     xy = sc.area_xy_m()
     _check_polygon_simple(sc, xy)
+    sc = _resolve_geofence(sc, xy, base_dir)
     return _resolve_terrain(sc, xy, base_dir)
+
+
+def _resolve_geofence(sc: Scenario, area_xy: np.ndarray, base_dir: Path | None) -> Scenario:
+    """[area] geofence_deg / geofence_file: read, checked to be a simple polygon around the launch
+    point with room inside its margin for part of the area, and resolved to lat/lon vertices."""
+    from shapely.geometry import Point, Polygon
+
+    a = sc.area
+    _check(math.isfinite(a.geofence_margin_m) and 0.0 <= a.geofence_margin_m <= 1000.0,
+           f"must be 0-1000 m, got {a.geofence_margin_m}", sc, "area.geofence_margin_m")
+    if a.geofence_deg is None and a.geofence_file is None:
+        return dataclasses.replace(sc, geofence_latlon_deg=()) if sc.geofence_latlon_deg else sc
+    _check(a.geofence_deg is None or a.geofence_file is None, "give geofence_deg or geofence_file, not both",
+           sc, "area.geofence_deg")
+    if a.geofence_deg is not None:
+        key = "area.geofence_deg"
+        poly = a.geofence_deg
+        _check(isinstance(poly, list), f"must be a list of [lat, lon] vertices, got {poly!r}", sc, key)
+        for i, v in enumerate(poly):
+            ok = (isinstance(v, list) and len(v) == 2
+                  and all(isinstance(c, (int, float)) and not isinstance(c, bool) for c in v))
+            _check(ok, f"vertex {i} must be [lat, lon] numbers, got {v!r}", sc, key)
+            _check_latlon(sc, float(v[0]), float(v[1]), f"{key}[{i}]")
+        if len(poly) >= 2 and poly[0] == poly[-1]:
+            poly = poly[:-1]
+    else:
+        key = "area.geofence_file"
+        path = Path(a.geofence_file)
+        if not path.is_absolute() and base_dir is not None:
+            path = base_dir / path
+        from mission_io.area import read_area_polygon  # file formats live in mission_io
+
+        try:
+            poly = read_area_polygon(path)
+        except UavlocError as exc:
+            raise ConfigError(f"cannot use the geofence file: {exc}", source=sc.source, key=key) from None
+        sc = dataclasses.replace(sc, area=dataclasses.replace(a, geofence_file=str(path.resolve())))
+    _check(len(poly) >= 3, f"needs at least 3 distinct vertices, got {len(poly)}", sc, key)
+    ll = tuple((float(v[0]), float(v[1])) for v in poly)
+    fxy = sc.frame.to_local_xy(np.asarray(ll))
+    fence = Polygon(fxy)
+    _check(fence.is_valid and fence.area > 1.0, "the geofence polygon crosses itself or has no area", sc, key)
+    _check(fence.buffer(0.5).covers(Point(0.0, 0.0)),
+           f"the launch point ({sc.launch_latlon_deg[0]:.6f}, {sc.launch_latlon_deg[1]:.6f}) lies outside "
+           "the geofence; every vehicle must take off inside it", sc, key)
+    inner = fence.buffer(-sc.area.geofence_margin_m, join_style="mitre")
+    _check(not inner.is_empty and inner.intersects(Polygon(area_xy)),
+           f"no part of the search area lies {sc.area.geofence_margin_m:g} m inside the geofence "
+           "(area.geofence_margin_m); nothing could be searched", sc, key)
+    return dataclasses.replace(sc, geofence_latlon_deg=ll)
 
 
 def _resolve_terrain(sc: Scenario, area_xy: np.ndarray, base_dir: Path | None) -> Scenario:

@@ -39,6 +39,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from .. import geofence
 from ..errors import EstimationError, InfeasibleError
 from ..observations import SlotBatch
 from ..scenario import Scenario
@@ -709,20 +710,24 @@ class SearchPolicy:
         hears its edge. A look at an estimate predicted far outside (a wide field-world posterior,
         a walker extrapolated) flew 1.1 km north of the area in the field demo; it now goes as far
         as the margin and no further. ``inset_m``: the margin less this much (at least the area
-        itself), for an orbit's centre, whose circle of that radius must stay within the margin."""
+        itself), for an orbit's centre, whose circle of that radius must stay within the margin.
+        With a scenario geofence, also inside it by its margin (``uavloc_gcs.geofence``)."""
         import shapely
         from shapely.geometry import Polygon
         from shapely.ops import nearest_points
 
         pts = np.asarray(pts, dtype=float).reshape(-1, 2)
-        if not len(pts) or LOOK_AREA_MARGIN is None:
+        fence = geofence.for_scenario(self.scenario)
+        if not len(pts) or (LOOK_AREA_MARGIN is None and fence is None):
             return pts
-        grow = max(LOOK_AREA_MARGIN * self.range_m - float(inset_m), 0.0)
+        grow = max((LOOK_AREA_MARGIN or 0.0) * self.range_m - float(inset_m), 0.0)
         if self._reach_poly is None:
             self._reach_poly = {}
         poly = self._reach_poly.get(round(grow, 1))
         if poly is None:
             poly = self._reach_poly[round(grow, 1)] = Polygon(self.area_xy_m).buffer(grow)
+        if fence is not None:  # and inside the scenario's geofence, its margin (and the orbit) in
+            return fence.clip(pts, extra_inset_m=inset_m, within=None if LOOK_AREA_MARGIN is None else poly)
         inside = shapely.contains_xy(poly, pts[:, 0], pts[:, 1])
         out = pts.copy()
         for i in np.flatnonzero(~inside):

@@ -16,6 +16,7 @@ import math
 
 import numpy as np
 
+from .. import geofence
 from ..errors import InfeasibleError, LinkError
 from ..estimation.identity import person_name
 from ..mission import NAV_WAYPOINT, flight_mission, to_wire
@@ -329,11 +330,18 @@ class VehicleCommands:
             plan = flight_mission(latlon.tolist(), alt_m=f.altitude_m, speed_m_s=f.speed_m_s, autopilot=f.autopilot,
                                   home_latlon_deg=self.sc.launch_latlon_deg, include_takeoff=on_ground)
             orbits = orbits_for(self.policy, v.id, targets) if self.sc.dem is None else ()
-            if any(o is not None for o in orbits):  # orbit looks (search/orbit.py)
-                looks = look_mission(self.frame, pts, targets, orbits, alt_m=f.altitude_m, speed_m_s=f.speed_m_s,
-                                     autopilot=f.autopilot, home_latlon_deg=self.sc.launch_latlon_deg,
-                                     start_xy_m=v.agent.position_xy_m(), include_takeoff=on_ground)
+            fence = geofence.for_scenario(self.sc)
+            if any(o is not None for o in orbits) or fence is not None:  # orbits (search/orbit.py), a fence
+                try:
+                    looks = look_mission(self.frame, pts, targets, orbits or None, alt_m=f.altitude_m,
+                                         speed_m_s=f.speed_m_s, autopilot=f.autopilot,
+                                         home_latlon_deg=self.sc.launch_latlon_deg,
+                                         start_xy_m=v.agent.position_xy_m(), include_takeoff=on_ground, fence=fence)
+                except InfeasibleError as exc:
+                    self._event("hold", f"vehicle {v.id}: look not flown: {exc}", v.id)
+                    return
                 plan = looks.plan
+                latlon = self.frame.to_wgs84_latlon(looks.look_xy_m)  # moved inside the fence
             if self.sc.dem is not None:  # over the ground of terrain.dem, from where the vehicle is
                 try:
                     plan = terrain_safe(plan, self.sc, name=f"vehicle {v.id}", start_xy_m=None if on_ground
@@ -359,7 +367,10 @@ class VehicleCommands:
         v.look_first_seq = next((it.seq for it in items if it.command == NAV_WAYPOINT and it.seq > 0), first)
         # over terrain, waypoints added between the look points: where each look point went
         v.look_seqs = point_seqs(items, latlon) if self.sc.dem is not None else ()
-        if any(o is not None for o in orbits):  # each look counted at its orbit's entry
+        if fence is not None:
+            v.look_xy_m = looks.look_xy_m  # moved inside the fence
+        if any(o is not None for o in orbits) or (fence is not None and self.sc.dem is None):
+            # each look counted at its orbit's entry or its own item (detours around the fence between)
             v.look_xy_m, v.look_seqs = looks.look_xy_m, looks.look_seqs(v.agent.flavour.home_at_seq0)
         a = v.agent
         # Read now, not assumed: a start whose ACKs were lost lasts as long as a short look, and the

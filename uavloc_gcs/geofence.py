@@ -1,0 +1,216 @@
+"""The scenario's geofence: every flight uavloc plans stays inside it (issue 26 item 4).
+
+A scenario may give an inclusion polygon (``area.geofence_deg`` or ``area.geofence_file``: a
+GeoJSON polygon or the inclusion polygon of a QGroundControl ``.plan``), for instance the airspace
+a team was cleared to fly in. Without one, looks stay within the search area grown by the stated
+hearing-range margin (``search.policy.LOOK_AREA_MARGIN``); with one, also inside the fence.
+
+What "inside" means here:
+
+* every point uavloc places (scan waypoints, look points, orbit circles, coverage passes) lies at
+  least ``area.geofence_margin_m`` inside the fence: room for tracking error and for the corner a
+  pass-through waypoint cuts (the scan's own exported fence keeps 30 m around its path, for the
+  same reason);
+* every leg between them stays inside the fence shrunk by half that margin. A leg that would cut
+  across a notch of a concave fence is replaced by the shortest path through the shrunk fence's
+  corners (a visibility graph over its vertices, searched by Dijkstra);
+* the launch point and the vehicle's position when a mission is uploaded may lie on the fence
+  (a launch at the area's corner): legs from them are checked against the fence itself near them.
+
+A route that cannot be kept inside (a fence whose shrunk interior falls apart into pieces, say)
+raises :class:`~uavloc_gcs.errors.InfeasibleError` naming the leg; it is never flown.
+"""
+
+from __future__ import annotations
+
+import heapq
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .errors import InfeasibleError
+
+__all__ = ["Geofence", "for_scenario"]
+
+_TOL_M = 0.5  # numerical room when testing a leg against a polygon
+
+
+@dataclass
+class Geofence:
+    """An inclusion polygon in local metres (counter-clockwise, not closed) and its margin."""
+
+    polygon_xy_m: np.ndarray
+    margin_m: float = 30.0
+    _cache: dict = field(default_factory=dict, repr=False)
+
+    # -- polygons --------------------------------------------------------------------------
+    @property
+    def polygon(self):
+        from shapely.geometry import Polygon
+
+        p = self._cache.get("poly")
+        if p is None:
+            p = self._cache["poly"] = Polygon(np.asarray(self.polygon_xy_m, float))
+        return p
+
+    def inner(self, extra_inset_m: float = 0.0):
+        """The fence shrunk by its margin plus ``extra_inset_m`` (possibly empty or in pieces)."""
+        d = round(self.margin_m + max(float(extra_inset_m), 0.0), 1)
+        p = self._cache.get(("inner", d))
+        if p is None:
+            p = self._cache[("inner", d)] = self.polygon.buffer(-d, join_style="mitre") if d > 0 else self.polygon
+        return p
+
+    def _corridor(self):
+        d = round(self.margin_m / 2.0, 1)
+        p = self._cache.get(("corridor", d))
+        if p is None:
+            p = self._cache[("corridor", d)] = self.polygon.buffer(-d + _TOL_M, join_style="mitre")
+        return p
+
+    # -- points ----------------------------------------------------------------------------
+    def contains(self, pts_xy_m) -> np.ndarray:
+        """Which points lie inside the fence itself (with half a metre of numerical room)."""
+        import shapely
+
+        pts = np.asarray(pts_xy_m, float).reshape(-1, 2)
+        return shapely.contains_xy(self.polygon.buffer(_TOL_M), pts[:, 0], pts[:, 1])
+
+    def clip(self, pts_xy_m, extra_inset_m: float = 0.0, within=None) -> np.ndarray:
+        """Points moved to the nearest point of the fence's interior (its margin plus
+        ``extra_inset_m`` inside; if that is empty, the margin alone) and, when ``within`` (a
+        shapely polygon, e.g. the area grown by the hearing range) overlaps it, of their overlap."""
+        import shapely
+        from shapely.ops import nearest_points
+
+        pts = np.asarray(pts_xy_m, float).reshape(-1, 2)
+        if not len(pts):
+            return pts
+        region = self.inner(extra_inset_m)
+        if region.is_empty:
+            region = self.inner(0.0)
+        if region.is_empty:
+            raise InfeasibleError(f"the geofence leaves no room inside its {self.margin_m:g} m margin")
+        if within is not None:
+            both = region.intersection(within)
+            if not both.is_empty and both.area > 1.0:
+                region = both
+        inside = shapely.contains_xy(region, pts[:, 0], pts[:, 1])
+        out = pts.copy()
+        for i in np.flatnonzero(~inside):
+            q = nearest_points(region, shapely.Point(pts[i]))[0]
+            out[i] = (q.x, q.y)
+        return out
+
+    # -- legs ------------------------------------------------------------------------------
+    def leg_inside(self, a, b, *, ends=()) -> bool:
+        """Whether the leg a->b stays inside the fence shrunk by half its margin; near a point of
+        ``ends`` (launch point, vehicle position), which may lie on the fence, inside the fence."""
+        from shapely.geometry import LineString, Point
+
+        a, b = np.asarray(a, float), np.asarray(b, float)
+        line = LineString([a, b]) if np.linalg.norm(b - a) > 1e-9 else Point(a)
+        region = self._corridor()
+        if ends:
+            near = [Point(e).buffer(self.margin_m) for e in ends]
+            from shapely.ops import unary_union
+
+            region = region.union(unary_union(near).intersection(self.polygon.buffer(_TOL_M)))
+        return bool(region.covers(line))
+
+    def _nodes(self) -> np.ndarray:
+        n = self._cache.get("nodes")
+        if n is None:
+            inner = self.inner(0.0).simplify(1.0)
+            rings = [np.asarray(g.exterior.coords)[:-1] for g in getattr(inner, "geoms", [inner]) if not g.is_empty]
+            n = self._cache["nodes"] = np.vstack(rings) if rings else np.zeros((0, 2))
+        return n
+
+    def detour(self, a, b, *, ends=()) -> np.ndarray:
+        """The corners to fly through between a and b (none when the straight leg is inside):
+        the shortest path through the shrunk fence's vertices whose every leg is inside."""
+        if self.leg_inside(a, b, ends=ends):
+            return np.zeros((0, 2))
+        nodes = self._nodes()
+        pts = [np.asarray(a, float), np.asarray(b, float)] + [q for q in nodes]
+        n = len(pts)
+        dist = [math.inf] * n
+        prev = [-1] * n
+        dist[0] = 0.0
+        heap = [(0.0, 0)]
+        seen = [False] * n
+        while heap:
+            d, u = heapq.heappop(heap)
+            if seen[u]:
+                continue
+            seen[u] = True
+            if u == 1:
+                break
+            for v in range(1, n):
+                if seen[v]:
+                    continue
+                w = float(np.linalg.norm(pts[v] - pts[u]))
+                if d + w >= dist[v] or not self.leg_inside(pts[u], pts[v], ends=ends):
+                    continue
+                dist[v] = d + w
+                prev[v] = u
+                heapq.heappush(heap, (dist[v], v))
+        if not math.isfinite(dist[1]):
+            raise InfeasibleError(
+                f"no path inside the geofence from ({a[0]:.0f}, {a[1]:.0f}) m to "
+                f"({b[0]:.0f}, {b[1]:.0f}) m (local east, north of the launch point) keeps its "
+                f"{self.margin_m:g} m margin")
+        path = []
+        u = prev[1]
+        while u > 0:
+            path.append(pts[u])
+            u = prev[u]
+        return np.asarray(path[::-1], float).reshape(-1, 2)
+
+    def route(self, pts_xy_m, *, start_xy_m=None, end_xy_m=None) -> tuple[np.ndarray, np.ndarray]:
+        """``pts_xy_m`` flown from ``start_xy_m`` and back to ``end_xy_m`` (either may be None),
+        with detour corners inserted where a leg would leave the fence. The points themselves are
+        not moved (clip them first). Returns (points with detours, the index of each given point
+        in it); the detours to ``end_xy_m`` come last."""
+        pts = np.asarray(pts_xy_m, float).reshape(-1, 2)
+        ends = tuple(np.asarray(e, float)[:2] for e in (start_xy_m, end_xy_m) if e is not None)
+        out, idx = [], []
+        prev = None if start_xy_m is None else np.asarray(start_xy_m, float)[:2]
+        for q in pts:
+            if prev is not None:
+                out.extend(self.detour(prev, q, ends=ends))
+            idx.append(len(out))
+            out.append(q)
+            prev = q
+        if end_xy_m is not None and prev is not None:
+            out.extend(self.detour(prev, np.asarray(end_xy_m, float)[:2], ends=ends))
+        return np.asarray(out, float).reshape(-1, 2), np.asarray(idx, int)
+
+    def outside_legs(self, pts_xy_m, *, ends=()) -> list[int]:
+        """Indices k of the legs pts[k] -> pts[k+1] that leave the fence itself (the final check)."""
+        from shapely.geometry import LineString
+
+        pts = np.asarray(pts_xy_m, float).reshape(-1, 2)
+        poly = self.polygon.buffer(_TOL_M)
+        return [k for k in range(len(pts) - 1)
+                if np.linalg.norm(pts[k + 1] - pts[k]) > 1e-9 and not poly.covers(LineString(pts[k:k + 2]))]
+
+
+_FENCES: dict = {}
+
+
+def for_scenario(sc) -> Geofence | None:
+    """The scenario's geofence in its local frame, or None when it gives none."""
+    ll = getattr(sc, "geofence_latlon_deg", ())
+    if not ll:
+        return None
+    key = (tuple(ll), tuple(sc.launch_latlon_deg), float(sc.area.geofence_margin_m))
+    g = _FENCES.get(key)
+    if g is None:
+        xy = sc.frame.to_local_xy(np.asarray(ll, float))
+        x, y = xy[:, 0], xy[:, 1]
+        if np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y) < 0:
+            xy = xy[::-1].copy()
+        g = _FENCES[key] = Geofence(xy, float(sc.area.geofence_margin_m))
+    return g
