@@ -96,8 +96,10 @@ def _vehicle_text(v: VehicleStatus) -> str:
     return f"UAV{v.vehicle} {v.mode:<6} {batt} {state}{prog}"
 
 
-def render_lines(s: StatusSnapshot, labels=None) -> list[str]:
-    """The multi-line view (terminal mode). ``labels``: a ``service.labels.PersonLabels``."""
+def render_lines(s: StatusSnapshot, labels=None, frame=None) -> list[str]:
+    """The multi-line view (terminal mode). ``labels``: a ``service.labels.PersonLabels``;
+    ``frame``: the scenario's ``geo.LocalFrame``, to show each located person's latitude and
+    longitude (one per line; the others three to a line)."""
     located = sum(p.located for p in s.people)
     lines = [f"uavloc  t = {s.elapsed_s:7.1f} s   slots {s.slots:>7}   replans {s.replans:>3}   "
              f"people located {located}/{len(s.people)} (within {s.required_accuracy_m:g} m)"]
@@ -118,7 +120,12 @@ def render_lines(s: StatusSnapshot, labels=None) -> list[str]:
 
     for p in sorted(s.people, key=order):
         r = "  ?  " if not math.isfinite(p.radius95_m) else f"{p.radius95_m:5.1f}"
-        row.append(f"{name(p.emitter_id):<15} {r} m {'ok' if p.located else '..'}")
+        cell = f"{name(p.emitter_id):<15} {r} m {'ok' if p.located else '..'}"
+        if frame is not None and p.located and math.isfinite(p.east_m) and math.isfinite(p.north_m):
+            lat, lon = frame.to_wgs84(p.east_m, p.north_m)
+            lines.append(f"  {cell}  {float(lat):.6f}, {float(lon):.6f}")
+            continue
+        row.append(cell)
         if len(row) == 3:
             lines.append("  " + "   ".join(row))
             row = []
@@ -147,6 +154,7 @@ class LiveView:
         self._last_draw = -math.inf
         self._drawn_lines = 0
         self.labels = None  # a service.labels.PersonLabels: people shown as "P01 #17"
+        self.frame = None  # the scenario's geo.LocalFrame: located people shown with lat/lon
 
     def update(self, snapshot: StatusSnapshot, *, force: bool = False) -> None:
         now = self.clock()
@@ -156,7 +164,7 @@ class LiveView:
         if self.tty:
             if self.labels is not None:
                 self.labels.refresh()
-            lines = render_lines(snapshot, self.labels)
+            lines = render_lines(snapshot, self.labels, self.frame)
             # move to the top of the previous drawing and clear to the end of the screen
             up = f"\x1b[{self._drawn_lines}F" if self._drawn_lines else ""
             self.stream.write(up + "\x1b[J" + "\n".join(lines) + "\n")

@@ -120,6 +120,7 @@ def run_search(scenario: Scenario, connections: Sequence[tuple[int, str]], optio
     labels = PersonLabels(options.store_path)
     if view is not None:
         view.labels = labels
+        view.frame = scenario.frame
     daemon = Daemon(scenario, connections, options, view=view)
     if on_daemon is not None:
         on_daemon(daemon)

@@ -172,3 +172,18 @@ def test_person_view_shows_the_other_mirror_candidate_while_ambiguous():
     assert (believes_mirror.mirror_east_m, believes_mirror.mirror_north_m) == (100.0, 50.0)
     located = person_view(NS(xy_m=(100.0, 50.0), **{**status, "located": True}))
     assert not located.ambiguous and math.isnan(located.mirror_east_m)  # a fix has one position
+
+
+def test_terminal_view_gives_the_latitude_and_longitude_of_every_located_person():
+    """Issue 29: no lat/lon anywhere in the live people table; a team walks to coordinates."""
+    from uavloc_gcs.service.liveview import render_lines
+
+    snap = StatusSnapshot(60.0, [VehicleStatus(1, "scanning", "AUTO", 80.0)],
+                          [PersonStatusView(1, 7.0, True, east_m=100.0, north_m=50.0),
+                           PersonStatusView(2, 40.0, False, east_m=300.0, north_m=10.0)], 99, 15.0)
+    text = "\n".join(render_lines(snap, None, FRAME))
+    lat, lon = FRAME.to_wgs84(100.0, 50.0)
+    assert f"{float(lat):.6f}, {float(lon):.6f}" in text
+    lat2, lon2 = FRAME.to_wgs84(300.0, 10.0)
+    assert f"{float(lat2):.6f}" not in text  # not located: no coordinates to walk to
+    assert f"{float(lat):.6f}" not in "\n".join(render_lines(snap))  # without a frame, as before
