@@ -95,6 +95,7 @@ def test_route_refuses_binary_files_and_picture_suffixes_before_writing(tmp_path
     assert sorted(p.name for p in tmp_path.iterdir()) == ["garbage.plan"]
 
 
+@pytest.mark.slow
 def test_ctrl_c_during_an_ortools_route_is_not_success_and_writes_nothing(tmp_path):
     pytest.importorskip("ortools")
     import signal

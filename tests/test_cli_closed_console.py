@@ -17,6 +17,8 @@ import pytest
 
 from uavloc_gcs.service.store import StoreReader
 
+pytestmark = pytest.mark.slow  # a whole search or demo: `pytest -m 'not slow and not sitl'` leaves it out
+
 ROOT = Path(__file__).resolve().parents[1]
 
 

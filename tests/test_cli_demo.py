@@ -5,9 +5,12 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 
 
+@pytest.mark.slow
 def test_demo_runs_to_the_end_and_writes_its_results(tmp_path):
     out = tmp_path / "demo"
     proc = subprocess.run(

@@ -8,6 +8,8 @@ from pathlib import Path
 
 import pytest
 
+pytestmark = pytest.mark.slow  # a whole search or demo: `pytest -m 'not slow and not sitl'` leaves it out
+
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 
 

@@ -38,6 +38,7 @@ def _wait(pred, timeout_s, what):
     raise AssertionError(f"timed out waiting for {what}")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("on_stop,sig", [("rtl", signal.SIGTERM), ("continue", signal.SIGINT)])
 def test_stopping_the_daemon_says_what_each_vehicle_does(tmp_path, on_stop, sig):
     sc = small_scenario("ardupilot", speedup=10.0)

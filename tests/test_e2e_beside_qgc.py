@@ -26,6 +26,8 @@ from uavloc_gcs.cli._fleet import start_fleet_process
 from uavloc_gcs.service.daemon import DaemonOptions
 from uavloc_gcs.service.run import run_search
 
+pytestmark = pytest.mark.slow  # a whole search or demo: `pytest -m 'not slow and not sitl'` leaves it out
+
 MAVPROXY = shutil.which("mavproxy.py") or str(Path(sys.executable).with_name("mavproxy.py"))
 
 

@@ -16,6 +16,8 @@ from uavloc_gcs.service.daemon import DaemonOptions
 from uavloc_gcs.service.run import run_search
 from uavloc_gcs.service.store import StoreReader
 
+pytestmark = pytest.mark.slow  # a whole search or demo: `pytest -m 'not slow and not sitl'` leaves it out
+
 
 def _run(tmp_path, during):
     # a 90 m range (67 m on the ground at 60 m): vehicle 2's lanes (x = 0-267 m) are out of

@@ -14,6 +14,8 @@ from uavloc_gcs.service.daemon import DaemonOptions
 from uavloc_gcs.service.run import run_search
 from uavloc_gcs.service.store import StoreReader
 
+pytestmark = pytest.mark.slow  # a whole search or demo: `pytest -m 'not slow and not sitl'` leaves it out
+
 # A calibrated 95 % radius is exceeded by one person in twenty; 1.5x the required accuracy is
 # exceeded by a calibrated estimator about once in a thousand.
 TRUTH_MARGIN = 1.5

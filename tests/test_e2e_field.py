@@ -14,6 +14,8 @@ from uavloc_gcs.service.daemon import DaemonOptions
 from uavloc_gcs.service.run import run_search
 from uavloc_gcs.service.store import StoreReader
 
+pytestmark = pytest.mark.slow  # a whole search or demo: `pytest -m 'not slow and not sitl'` leaves it out
+
 TRUTH_MARGIN = 1.5  # as tests/test_e2e_daemon.py: a calibrated radius is this far off once in a thousand
 
 

@@ -3,6 +3,7 @@ position the vehicles reported, scan and looks and the ways home, lies inside th
 item 4: "and inside a geofence when the scenario gives one")."""
 
 import numpy as np
+import pytest
 from shapely.geometry import Point, Polygon
 
 from tests.e2e_helpers import small_scenario
@@ -10,6 +11,8 @@ from uavloc_gcs.cli._fleet import start_fleet_process
 from uavloc_gcs.service.daemon import DaemonOptions
 from uavloc_gcs.service.run import run_search
 from uavloc_gcs.service.store import StoreReader
+
+pytestmark = pytest.mark.slow  # a whole search or demo: `pytest -m 'not slow and not sitl'` leaves it out
 
 # the small area is 400 m x 250 m from the launch corner; the team may not fly over its north-east
 # part (x > 250 m, y > 120 m), where the lanes and looks would otherwise go

@@ -12,6 +12,8 @@ from uavloc_gcs.service.daemon import DaemonOptions
 from uavloc_gcs.service.run import run_search
 from uavloc_gcs.service.store import StoreReader
 
+pytestmark = pytest.mark.slow  # a whole search or demo: `pytest -m 'not slow and not sitl'` leaves it out
+
 REAL = {"realistic_streams": True, "stale_mission_complete": True, "arm_refused_after_boot_s": None}
 
 

@@ -7,10 +7,14 @@ import subprocess
 import sys
 import time
 
+import pytest
+
 from tests.e2e_helpers import SMALL, small_scenario, world_ids
 from tests.test_e2e_daemon import check_everyone_found, run_e2e
 from uavloc_gcs.cli._fleet import start_fleet_process
 from uavloc_gcs.service.store import StoreReader
+
+pytestmark = pytest.mark.slow  # a whole search or demo: `pytest -m 'not slow and not sitl'` leaves it out
 
 
 def test_twenty_percent_packet_loss(tmp_path):

@@ -11,11 +11,15 @@ makes no odd move, and the upload counts go on from the store.
 import asyncio
 import time
 
+import pytest
+
 from tests.e2e_helpers import small_scenario
 from uavloc_gcs.cli._fleet import start_fleet_process
 from uavloc_gcs.mission import NAV_WAYPOINT
 from uavloc_gcs.service.daemon import Daemon, DaemonOptions
 from uavloc_gcs.service.store import StoreReader, wire_items_from_json
+
+pytestmark = pytest.mark.slow  # a whole search or demo: `pytest -m 'not slow and not sitl'` leaves it out
 
 
 def _waypoints(items) -> int:

@@ -64,6 +64,7 @@ def test_the_installed_tool_is_not_this_checkout(installed):
     assert _run(installed, "--version").stdout.strip() == "uavloc 0.1.0"
 
 
+@pytest.mark.slow
 def test_demo_and_experiment_run_from_anywhere(installed):
     r = _run(installed, "demo", "--scenario", "small", "--people", "1", "--speedup", "40", "--base-port", "0",
              "--out", "demo")
@@ -84,12 +85,14 @@ def test_demo_and_experiment_run_from_anywhere(installed):
     ["looks", "--runs", "1", "--scenario", "small", "--people", "2", "--variants", "default,no-inside-cut", "--jobs", "1"],
     ["link", "--no-mavsdk", "--runs-clean", "1", "--loss", "0", "--items", "20", "--no-service"],
 ])
+@pytest.mark.slow
 def test_every_bench_runs_from_anywhere(installed, bench):
     r = _run(installed, "bench", *bench)
     assert "done in" in r.stderr, r.stderr[-1000:]  # the progress report
     assert "--scenario" in _run(installed, "bench", bench[0], "--help").stdout
 
 
+@pytest.mark.slow
 def test_every_command_finds_the_shipped_files_by_name(installed):
     """Issue 29 item 4: plan, localize, route and sim know the shipped scenarios and route file by
     name from any directory, as demo, bench and experiment do."""

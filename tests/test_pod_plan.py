@@ -52,6 +52,7 @@ def test_more_passes_more_pod_and_balanced_vehicles(small):
     assert pods[0][0] < pods[1][0] < pods[2][0] and pods[0][1] < pods[1][1] < pods[2][1]
 
 
+@pytest.mark.slow
 def test_reachable_target_is_met_in_the_least_time(small):
     res = pod_plan.plan_for_pod(small, 0.5, speeds=(10.0, 15.0), spacing_factors=(1.0, 2.0))
     assert res.met and res.grid.overall(1) >= 0.5 and res.grid.overall(2) >= 0.5
@@ -62,6 +63,7 @@ def test_reachable_target_is_met_in_the_least_time(small):
     assert "POD1" in res.table() and "Chosen:" in res.summary()
 
 
+@pytest.mark.slow
 def test_unreachable_target_says_what_is_reachable(small):
     with pytest.raises(InfeasibleError) as err:
         pod_plan.plan_for_pod(small, 0.95, speeds=(10.0,), spacing_factors=(1.0,))
@@ -98,6 +100,7 @@ def test_cli_bad_pod_input(tmp_path, capsys):
     assert not (tmp_path / "o").exists()
 
 
+@pytest.mark.slow
 def test_cli_pod_plan(tmp_path, capsys):
     """From the scenario key: exit 2 with one sentence and nothing written when out of reach; with
     --best-effort the missions, the POD map and the grid."""
@@ -117,6 +120,7 @@ def test_cli_pod_plan(tmp_path, capsys):
     assert (out / "uav1.plan").exists() and (out / "uav2.plan").exists()
 
 
+@pytest.mark.slow
 def test_a_search_flies_the_scan_planned_for_its_pod_target(tmp_path, small):
     """search.pod_target: the daemon and the simulator fly the POD scan at its speed, within
     SEARCH_SCAN_SHARE of the energy (the rest is for the looks); without it, [scan]'s layout."""
@@ -140,6 +144,7 @@ def test_a_search_flies_the_scan_planned_for_its_pod_target(tmp_path, small):
     assert d.policy.scenario.fleet.speed_m_s == pp.chosen.speed_m_s
 
 
+@pytest.mark.slow
 def test_plan_from_the_scenario_key_is_the_scan_the_daemon_flies(tmp_path, capsys):
     sc = _small_field(tmp_path, "\n[search]\npod_target = 0.9\n")
     code, text, err = _run(capsys, "plan", sc, "--best-effort", "--out", tmp_path / "o")

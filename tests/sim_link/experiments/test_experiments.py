@@ -56,6 +56,7 @@ def test_results_do_not_depend_on_the_number_of_jobs():
     assert set(red) == {"MLE-GA", "RL-NM"}
 
 
+@pytest.mark.slow
 def test_cli_tiny_run_end_to_end(tmp_path):
     out = tmp_path / "paper"
     proc = subprocess.run(

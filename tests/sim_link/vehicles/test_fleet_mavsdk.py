@@ -95,6 +95,7 @@ def test_mavsdk_upload_download_start_and_clear(autopilot):
     ("ardupilot", FaultConfig(loss=0.05, latency_s=0.005)),
     ("px4", FaultConfig(loss=0.1, reorder=0.05, latency_s=0.005)),
 ])
+@pytest.mark.slow
 def test_mavsdk_upload_and_download_on_a_lossy_link(autopilot, faults):
     """Loss each way (5 % ArduPilot-like, 10 % plus reordering PX4-like): MAVSDK's retries and the
     vehicle's re-requests get the whole mission across, and the download matches.

@@ -16,6 +16,7 @@ from .conftest import identical, run, survey_items
 EXAMPLES = Path(__file__).resolve().parents[3] / "examples"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("autopilot", ["ardupilot", "px4"])
 def test_every_vehicle_gets_its_mission_through_20_percent_loss(autopilot):
     sc = load_scenario(EXAMPLES / "small.toml").replace(fleet={"autopilot": autopilot, "vehicles": 2})

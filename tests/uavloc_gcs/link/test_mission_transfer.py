@@ -34,6 +34,7 @@ def test_clean_upload_is_stored_exactly_and_verified(style):
     assert "MISSION_ITEM" not in {m.get_type() for m in v.received}
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("style", [ARDUPILOT, PX4], ids=lambda s: s.name)
 def test_upload_survives_loss_duplication_and_reordering(style):
     items = survey_items(6, style.name)

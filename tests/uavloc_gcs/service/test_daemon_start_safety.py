@@ -69,6 +69,7 @@ def _watch_unsafe(fake, seen: list) -> asyncio.Task:
     return asyncio.ensure_future(watch())
 
 
+@pytest.mark.slow
 def test_a_look_whose_upload_stalls_until_the_vehicle_landed_is_never_started_without_a_takeoff(tmp_path):
     """Issue 26, PX4 SIH: a look planned while vehicle 1 hovered had no take-off; its upload
     stalled, the vehicle landed meanwhile, and the daemon then started it: PX4 armed by mission
@@ -115,6 +116,7 @@ def test_a_look_whose_upload_stalls_until_the_vehicle_landed_is_never_started_wi
         assert NAV_TAKEOFF in on_board, on_board
 
 
+@pytest.mark.slow
 def test_a_start_the_vehicle_refuses_is_a_failed_start_never_a_scan_flown(tmp_path):
     """Issue 26: the vehicle answered "Auto: Missing Takeoff Cmd" and the daemon logged "started
     its scan", then "finished its scan" 0.8 s later with nothing flown. Here the ArduCopter fake
@@ -158,6 +160,7 @@ def test_a_start_the_vehicle_refuses_is_a_failed_start_never_a_scan_flown(tmp_pa
     assert landed and not armed, "left disarmed on the ground"
 
 
+@pytest.mark.slow
 def test_a_second_search_on_the_same_vehicles_flies_its_scan(tmp_path):
     """Issue 26 as seen: `uavloc sim` left running, the daemon run again. The first search ended
     with the vehicle sent home (RTL) in the middle of its scan's hold; the second search's start

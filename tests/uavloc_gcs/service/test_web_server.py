@@ -153,6 +153,28 @@ def test_server_page_state_and_stream(store):
     _run(asyncio.wait_for(go(), 30))
 
 
+def test_stopping_the_server_ends_open_event_streams_at_once(store):
+    """Ctrl-C of `uavloc demo` with the map open in a browser took 124 s: aiohttp waited its
+    shutdown timeout for the endless event stream. stop() now ends the streams first."""
+    async def go():
+        server = await _serve(MapFeed(SC, store.path))
+        stopped = False
+        try:
+            async with aiohttp.ClientSession() as http:
+                async with http.get(server.url + "api/stream") as r:
+                    async for line in r.content:
+                        if line.startswith(b"event: state"):
+                            break
+                    await asyncio.wait_for(server.stop(), 10.0)  # 60 s and more before
+                    stopped = True
+                    await asyncio.wait_for(r.content.read(), 10.0)  # returns: the server closed it
+        finally:
+            if not stopped:
+                await server.stop()
+
+    _run(asyncio.wait_for(go(), 60))
+
+
 def test_other_addresses_need_the_token(store):
     assert WebOptions(host="0.0.0.0").resolved_token()  # the LAN gets a random token
     assert WebOptions().resolved_token() is None
@@ -239,6 +261,7 @@ def test_bad_web_options_are_one_sentence_before_anything_starts(tmp_path):
         assert not (tmp_path / "o").exists()  # nothing started, nothing written
 
 
+@pytest.mark.slow
 def test_web_keep_serves_the_final_result_as_the_files_say_until_ctrl_c(tmp_path):
     """With --web-keep the map stays up after the search and shows the written results (the
     same label, state and radius as people.csv); Ctrl-C then ends the demo normally."""

@@ -139,6 +139,7 @@ class MapServer:
         self._runner: web.AppRunner | None = None
         self._poller: asyncio.Task | None = None
         self._changed = asyncio.Condition()
+        self._closing = False  # set by stop(): open event streams end, so shutting down does not wait
         self.port: int | None = None
 
     @property
@@ -158,7 +159,9 @@ class MapServer:
         app.router.add_get("/api/state", self._state)
         app.router.add_get("/api/stream", self._stream)
         app.router.add_get("/tiles/{z}/{x}/{y}", self._tile)
-        self._runner = web.AppRunner(app, access_log=None, handle_signals=False)
+        # an open event stream held Ctrl-C of `uavloc demo` for 124 s (aiohttp waits up to its
+        # shutdown timeout, 60 s, for handlers); stop() ends the streams, this bounds the rest
+        self._runner = web.AppRunner(app, access_log=None, handle_signals=False, shutdown_timeout=2.0)
         await self._runner.setup()
         try:
             await self._bind(self.opt.port)
@@ -179,6 +182,9 @@ class MapServer:
         self.port = sockets[0].getsockname()[1] if sockets else port
 
     async def stop(self) -> None:
+        self._closing = True
+        async with self._changed:
+            self._changed.notify_all()
         if self._poller is not None:
             self._poller.cancel()
             try:
@@ -243,13 +249,15 @@ class MapServer:
         cursor = self.feed.cursor()
         await self._send(resp, "state", {**self.feed.state(), "config": self._config()})
         try:
-            while True:
+            while not self._closing:
                 async with self._changed:
                     try:
                         await asyncio.wait_for(self._changed.wait(), timeout=15.0)
                     except TimeoutError:
                         await resp.write(b": keep-alive\n\n")
                         continue
+                if self._closing:
+                    break
                 await self._send(resp, "delta", self.feed.delta(cursor))
         except (ConnectionResetError, asyncio.CancelledError):
             pass
