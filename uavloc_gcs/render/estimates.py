@@ -59,7 +59,7 @@ STATE_LEGEND = {"located": "located (95 % circle)", "heard": "heard, not located
 
 def result_figure(people, *, area_xy_m: np.ndarray, tracks_xy_m: Mapping[int, np.ndarray],
                   truth_xy_m: Mapping[int, np.ndarray] | None = None, title: str = "Result",
-                  subtitle: str | None = None, coverage=None, terrain=None) -> Figure:
+                  subtitle: str | None = None, coverage=None, terrain=None, fence_xy_m=None) -> Figure:
     """The end-of-search map: area, flown tracks, each person's reported position with its 95 %
     circle coloured by state and its label (P01 ...; labels never overlap), the true positions
     joined to their estimates when simulated, launch point, legend, scale bar and north arrow.
@@ -67,7 +67,8 @@ def result_figure(people, *, area_xy_m: np.ndarray, tracks_xy_m: Mapping[int, np
     ``people``: objects with ``east_m``, ``north_m``, ``radius95_m``, ``state``, ``label`` and
     ``emitter_id`` (``service.results.PersonResult``). ``coverage`` (search.coverage.CoverageSummary):
     the achieved POD of every cell under it all, red (0: unsearched) to green (the target).
-    ``terrain`` (uavloc_gcs.terrain.Terrain): hillshade and contours underneath."""
+    ``terrain`` (uavloc_gcs.terrain.Terrain): hillshade and contours underneath. ``fence_xy_m``:
+    the scenario's geofence (uavloc_gcs/geofence.py), drawn as a dashed red outline."""
     import math  # noqa: PLC0415
     import textwrap  # noqa: PLC0415
 
@@ -86,6 +87,9 @@ def result_figure(people, *, area_xy_m: np.ndarray, tracks_xy_m: Mapping[int, np
     if coverage is not None:
         draw_pod(fig, ax, coverage)
     maps.draw_area(ax, area)
+    if fence_xy_m is not None and len(fence_xy_m):
+        ring = np.vstack([fence_xy_m, np.asarray(fence_xy_m)[:1]])
+        ax.plot(ring[:, 0], ring[:, 1], color="#c0392b", lw=1.4, ls=(0, (6, 3)), zorder=4, label="geofence")
     ids = sorted(tracks_xy_m)
     colors = maps.vehicle_colors(max(ids, default=0))
     maps.draw_polylines(ax, [tracks_xy_m[v] for v in ids], [f"UAV {v} flown" for v in ids],

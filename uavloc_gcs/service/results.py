@@ -309,7 +309,7 @@ def write_results(out_dir: str | Path, people: Sequence[PersonResult], *, frame:
                   area_latlon_deg: np.ndarray, tracks_latlon_deg: Mapping[int, np.ndarray],
                   required_accuracy_m: float, truth_xy_m: Mapping[int, Sequence[float]] | None = None,
                   name: str = "uavloc", epoch_unix_s: float | None = None, coverage=None,
-                  terrain=None) -> list[Path]:
+                  terrain=None, fence_latlon_deg=None) -> list[Path]:
     """Write people.csv, people.geojson, people.kml, result.png and results.txt into ``out_dir``.
     ``epoch_unix_s``: UNIX time of mission time 0 (the UTC times in the files; omitted when None).
     ``coverage`` (search.coverage.CoverageSummary): what was searched, in every file (the POD
@@ -338,7 +338,8 @@ def write_results(out_dir: str | Path, people: Sequence[PersonResult], *, frame:
     png = out / "result.png"
     render_result_png(png, people, frame=frame, area_latlon_deg=area_latlon_deg,
                       tracks_latlon_deg=tracks_latlon_deg, truth_xy_m=truth_xy_m, title=name,
-                      epoch_unix_s=epoch_unix_s, coverage=coverage, terrain=terrain)
+                      epoch_unix_s=epoch_unix_s, coverage=coverage, terrain=terrain,
+                      fence_latlon_deg=fence_latlon_deg)
     written.append(png)
     return written
 
@@ -346,8 +347,10 @@ def write_results(out_dir: str | Path, people: Sequence[PersonResult], *, frame:
 def render_result_png(path: Path, people: Sequence[PersonResult], *, frame: LocalFrame,
                       area_latlon_deg: np.ndarray, tracks_latlon_deg: Mapping[int, np.ndarray],
                       truth_xy_m: Mapping[int, Sequence[float]] | None, title: str,
-                      epoch_unix_s: float | None = None, coverage=None, terrain=None) -> None:
-    """The result map in local metres (``render.estimates.result_figure``)."""
+                      epoch_unix_s: float | None = None, coverage=None, terrain=None,
+                      fence_latlon_deg=None) -> None:
+    """The result map in local metres (``render.estimates.result_figure``); ``fence_latlon_deg``:
+    the scenario's geofence, if it gives one."""
     from ..render import maps  # noqa: PLC0415
     from ..render.estimates import result_figure  # noqa: PLC0415
 
@@ -361,5 +364,7 @@ def render_result_png(path: Path, people: Sequence[PersonResult], *, frame: Loca
     if coverage is not None:
         caption += "\n" + coverage.sentence()
     fig = result_figure(people, area_xy_m=area, tracks_xy_m=tracks, truth_xy_m=truth_xy_m, title=title,
-                        subtitle=caption, coverage=coverage, terrain=terrain)
+                        subtitle=caption, coverage=coverage, terrain=terrain,
+                        fence_xy_m=(frame.to_local_xy(np.asarray(fence_latlon_deg, dtype=float))
+                                    if fence_latlon_deg is not None and len(fence_latlon_deg) else None))
     maps.save_figure(fig, path)

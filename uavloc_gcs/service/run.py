@@ -186,7 +186,7 @@ def _results(outcome: SearchOutcome, daemon: Daemon, scenario: Scenario, connect
     files = write_results(out_dir, people, frame=frame, area_latlon_deg=np.array(scenario.polygon_latlon_deg),
                           tracks_latlon_deg=tracks, required_accuracy_m=scenario.people.required_accuracy_m,
                           truth_xy_m=truth_xy, name=scenario.name + (TITLE_MARK if outcome.partial else ""), epoch_unix_s=epoch, coverage=summary,
-                          terrain=scenario.dem)
+                          terrain=scenario.dem, fence_latlon_deg=scenario.geofence_latlon_deg or None)
     if outcome.partial:
         mark_partial(files, outcome.partial)
     table = results_table(people, scenario.people.required_accuracy_m, truth_xy, epoch_unix_s=epoch,
