@@ -187,6 +187,57 @@ class Geofence:
             out.extend(self.detour(prev, np.asarray(end_xy_m, float)[:2], ends=ends))
         return np.asarray(out, float).reshape(-1, 2), np.asarray(idx, int)
 
+    def clip_route(self, pts_xy_m, *, start_xy_m, end_xy_m) -> np.ndarray:
+        """A route through ``pts_xy_m`` (from ``start_xy_m`` back to ``end_xy_m``, neither
+        returned) kept inside: each leg cut to the part of it inside the fence's margin (a scan
+        lane keeps its direction and loses only what lies outside; a leg wholly outside is
+        dropped) and the pieces joined round the fence's corners (:meth:`detour`)."""
+        from shapely.geometry import LineString, Point
+
+        pts = np.asarray(pts_xy_m, float).reshape(-1, 2)
+        inner = self.inner(0.0)
+        if inner.is_empty:
+            raise InfeasibleError(f"the geofence leaves no room inside its {self.margin_m:g} m margin")
+        region = inner.buffer(_TOL_M, join_style="mitre")  # a lane on the margin's edge is kept whole
+        pieces: list[np.ndarray] = []
+        for a, b in zip(pts[:-1], pts[1:]):
+            if np.linalg.norm(b - a) < 1e-9:
+                continue
+            leg, parts = self._best_shift(region, a, b)
+            parts.sort(key=lambda g: leg.project(Point(g.coords[0])) + leg.project(Point(g.coords[-1])))
+            for g in parts:
+                c = np.asarray(g.coords, float)[[0, -1]]
+                if leg.project(Point(c[0])) > leg.project(Point(c[1])):
+                    c = c[::-1]
+                pieces.append(c)
+        if len(pts) == 1 or not pieces:  # a single point, or a route wholly outside: its nearest inside
+            keep = self.clip(pts[:1] if not pieces else pts)
+            pieces = [keep]
+        out = np.vstack(pieces)
+        keep = [0] + [k for k in range(1, len(out)) if np.linalg.norm(out[k] - out[k - 1]) > 1.0]
+        routed, _ = self.route(out[keep], start_xy_m=start_xy_m, end_xy_m=end_xy_m)
+        return routed
+
+    def _best_shift(self, region, a, b):
+        """The leg a->b, or a parallel copy moved sideways by up to the margin (plus 5 m), whose
+        part inside ``region`` is longest (the least move among equals): an outer scan lane
+        planned half a metre inside the area's edge, which is also the fence, moves in by the
+        margin instead of being dropped. Returns (that leg, its inside pieces)."""
+        from shapely.geometry import LineString
+
+        d = (b - a) / np.linalg.norm(b - a)
+        n = np.array([-d[1], d[0]])
+        best = None
+        for s in sorted(set(np.r_[0.0, np.arange(2.5, self.margin_m + 5.0 + 1e-9, 2.5)]) | {self.margin_m + 5.0}):
+            for sign in ((1.0,) if s == 0 else (1.0, -1.0)):
+                leg = LineString([a + sign * s * n, b + sign * s * n])
+                cut = region.intersection(leg)
+                parts = [g for g in getattr(cut, "geoms", [cut]) if g.geom_type == "LineString" and g.length > 1.0]
+                got = sum(g.length for g in parts)
+                if best is None or got > best[0] + 1.0:
+                    best = (got, leg, parts)
+        return best[1], best[2]
+
     def outside_legs(self, pts_xy_m, *, ends=()) -> list[int]:
         """Indices k of the legs pts[k] -> pts[k+1] that leave the fence itself (the final check)."""
         from shapely.geometry import LineString

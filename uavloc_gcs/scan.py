@@ -567,16 +567,16 @@ def _vehicle_scan(scenario, idx: int, pc: _Piece, rows: _Rows, rot: np.ndarray, 
 
 
 def _inside_fence(scenario, wps: np.ndarray) -> np.ndarray:
-    """The scan's waypoints kept inside the scenario's geofence (none: unchanged): each moved
-    inside its margin, with corners added where a leg from the launch point, between lanes or back
-    would cut across a notch of the fence (uavloc_gcs/geofence.py)."""
+    """The scan's waypoints kept inside the scenario's geofence (none: unchanged): every lane
+    cut to its part inside the fence's margin, with corners added where a leg from the launch
+    point, between lanes or back would cut across a notch of the fence (uavloc_gcs/geofence.py).
+    What lies beyond the fence is not flown; the coverage of the flown tracks says so."""
     from . import geofence
 
     fence = geofence.for_scenario(scenario)
     if fence is None or not len(wps):
         return wps
-    routed, _ = fence.route(fence.clip(wps), start_xy_m=np.zeros(2), end_xy_m=np.zeros(2))
-    return _dedupe(routed)
+    return _dedupe(fence.clip_route(wps, start_xy_m=np.zeros(2), end_xy_m=np.zeros(2)))
 
 
 def _dedupe(xy: np.ndarray, tol_m: float = 0.01) -> np.ndarray:

@@ -19,12 +19,20 @@ def scan_figure(scenario, plan, *, title: str | None = None) -> Figure:
     sub = (f"{n} vehicles, lanes {plan.lane_spacing_m:.0f} m apart ({plan.coverage} coverage, "
            f"hearing radius R = {plan.range_m:.0f} m) at {scenario.fleet.altitude_m:g} m, "
            f"{scenario.fleet.speed_m_s:g} m/s\n{maps.origin_caption(lat0, lon0)}")
-    everything = np.vstack([scenario.area_xy_m(), np.zeros((1, 2))] + [v.route_xy_m() for v in plan.vehicles])
+    from .. import geofence
+
+    fence = geofence.for_scenario(scenario)
+    fence_xy = [] if fence is None else [np.asarray(fence.polygon_xy_m, float)]
+    everything = np.vstack([scenario.area_xy_m(), np.zeros((1, 2))] + fence_xy + [v.route_xy_m() for v in plan.vehicles])
     fig, ax = maps.new_map(head, subtitle=sub, extent_m=tuple(np.ptp(everything, axis=0)))
     if scenario.dem is not None:  # hillshade and contours of terrain.dem underneath
         from .terrain import draw_terrain
         draw_terrain(ax, scenario.dem, everything)
     maps.draw_area(ax, scenario.area_xy_m(), label="search area")
+    for ring in fence_xy:  # the scenario's geofence: every planned flight stays inside it
+        ring = np.vstack([ring, ring[:1]])
+        ax.plot(ring[:, 0], ring[:, 1], color="#c0392b", lw=1.4, ls=(0, (6, 3)), zorder=4,
+                label=f"geofence ({fence.margin_m:g} m margin kept)")
     for v, col in zip(plan.vehicles, colors):
         maps.draw_polygons(ax, list(v.subarea_parts_xy_m), colors=[col] * len(v.subarea_parts_xy_m))
     for v, col in zip(plan.vehicles, colors):
