@@ -115,6 +115,12 @@
       for (const c of terrain.lines) {
         el("polyline", { points: poly(c.xy_m), fill: "none", stroke: "#8c6d46", "stroke-width": 0.8,
                          "stroke-opacity": 0.6, class: "contour", "data-level": c.level_m }, gTerrain);
+        if (c.xy_m.length >= 2) {  // its height at its middle vertex, so the slope can be read
+          const [x, y] = px(...c.xy_m[Math.floor(c.xy_m.length / 2)]);
+          const t = el("text", { x: x, y: y - 2, "text-anchor": "middle", "font-size": 10, fill: "#8c6d46",
+                                 class: "clabel", "data-level": c.level_m }, gTerrain);
+          t.textContent = `${Math.round(c.level_m)} m`;
+        }
       }
     }
     const area = S.static.area_xy_m;
