@@ -25,9 +25,10 @@ import numpy as np
 
 from ..observations import SlotBatch
 
-__all__ = ["estimate_on_terrain", "above_person", "ITERATIONS"]
+__all__ = ["estimate_on_terrain", "above_person", "ITERATIONS", "CONVERGED_M"]
 
 ITERATIONS = 2
+CONVERGED_M = 2.0  # the ground under the estimate moved less than this: a further refit changes nothing
 
 
 def above_person(xyz_m: np.ndarray, person_ground_m: float) -> np.ndarray:
@@ -42,11 +43,26 @@ def estimate_on_terrain(slots: SlotBatch, channel, dem, *, estimate, censored=No
     """``estimate(slots, channel, **options)`` (``estimate_emitter``) with the person on ``dem``'s
     ground (a :class:`~uavloc_gcs.terrain.Terrain` in the same local frame as the slots)."""
     home = dem.height_at(0.0, 0.0, clamp=True)
-    est = estimate(slots, channel, censored=censored, silence=silence, **options)
-    for _ in range(ITERATIONS):
-        if getattr(est, "position_xy_m", None) is None or not np.all(np.isfinite(est.position_xy_m)):
+
+    def ground(e) -> float | None:  # the person's ground above the launch point at estimate e
+        xy = getattr(e, "position_xy_m", None)
+        if xy is None or not np.all(np.isfinite(xy)):
+            return None
+        return float(dem.height_at(*map(float, np.asarray(xy)[:2]), clamp=True)) - home
+
+    # Start from the ground under the previous estimate when there is one: the flat first pass put
+    # a phone 300 m up the slope at the launch point's height, its ranges "contradicted the nominal
+    # transmit power" and the estimator fitted that too -- 3 slow fits per person per update,
+    # which idled the mountains demo for minutes of wall time (issue 28). Refits stop once the
+    # ground under the estimate moves less than CONVERGED_M.
+    est = None
+    offset = ground(options.get("previous"))
+    if offset is None:
+        est = estimate(slots, channel, censored=censored, silence=silence, **options)
+        offset = ground(est)
+        if offset is None:
             return est
-        offset = float(dem.height_at(*map(float, est.position_xy_m[:2]), clamp=True)) - home
+    for _ in range(ITERATIONS):
         moved = dataclasses.replace(slots, xyz_m=above_person(slots.xyz_m, offset))
         cen = (dataclasses.replace(censored, xyz_m=above_person(censored.xyz_m, offset))
                if censored is not None and len(censored) else censored)
@@ -54,6 +70,11 @@ def estimate_on_terrain(slots: SlotBatch, channel, dem, *, estimate, censored=No
         if silence is not None and hasattr(silence, "xyz_m") and len(silence.xyz_m):
             sil = dataclasses.replace(silence, xyz_m=above_person(silence.xyz_m, offset))
         opts = dict(options)
-        opts["previous"] = est
+        if est is not None:
+            opts["previous"] = est
         est = estimate(moved, channel, censored=cen, silence=sil, **opts)
+        new = ground(est)
+        if new is None or abs(new - offset) < CONVERGED_M:
+            return est
+        offset = new
     return est
