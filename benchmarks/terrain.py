@@ -7,12 +7,14 @@
    above the same ground (what the scan at 100 m above the launch point would have done).
 2. People placed uniformly over the area, heard by the simulated world on the ground's surface
    from two terrain-following passes 70-80 m either side: the static estimator's RMSE with everyone
-   at the launch point's height (the flat model) and with the person's height from the DEM.
+   at the launch point's height (the flat model) and with the person's height from the DEM, and
+   what the terrain fit costs (estimator fits and CPU seconds), first and on a later update.
 """
 
 from __future__ import annotations
 
 import argparse
+import time
 from pathlib import Path
 
 import numpy as np
@@ -51,6 +53,12 @@ def main(argv=None) -> int:
     ch = ChannelModel.from_scenario(sc)
     home = dem.height_at(0.0, 0.0)
     flat_err, ter_err, heights, both = [], [], [], []
+    fits, cost = [0], [np.zeros(2), np.zeros(2)]  # fits and CPU seconds: first estimates, updates
+
+    def counted(*a, **k):
+        fits[0] += 1
+        return estimate_emitter(*a, **k)
+
     rng = np.random.default_rng(2026)
     lo, hi = xy.min(axis=0) + 100.0, xy.max(axis=0) - 100.0
     for k in range(args.people):
@@ -66,7 +74,13 @@ def main(argv=None) -> int:
             tt += 20.0
         slots = w.hear_track(1, np.array(t), np.array(pts))
         flat = estimate_emitter(slots, ch, max_speed_m_s=0.0, model_motion=False)
-        ter = estimate_on_terrain(slots, ch, dem, estimate=estimate_emitter, max_speed_m_s=0.0, model_motion=False)
+        c0, w0 = fits[0], time.process_time()
+        ter = estimate_on_terrain(slots, ch, dem, estimate=counted, max_speed_m_s=0.0, model_motion=False)
+        c1, w1 = fits[0], time.process_time()
+        # the daemon's next update of the same person: the same slots, the last estimate given
+        estimate_on_terrain(slots, ch, dem, estimate=counted, max_speed_m_s=0.0, model_motion=False, previous=ter)
+        cost[0] += [c1 - c0, w1 - w0]
+        cost[1] += [fits[0] - c1, time.process_time() - w1]
         flat_err.append(float(np.linalg.norm(flat.position_xy_m - person)))
         ter_err.append(float(np.linalg.norm(ter.position_xy_m - person)))
         heights.append(dem.height_at(*person) - home)
@@ -81,6 +95,8 @@ def main(argv=None) -> int:
           f"{b.sum()} heard from both passes: RMSE {rm(fe[b]):.1f} m with everyone at the launch point's height, "
           f"{rm(te[b]):.1f} m with the person's height from the DEM (median {np.median(fe[b]):.1f} / "
           f"{np.median(te[b]):.1f} m)")
+    print(f"estimator over terrain: {cost[0][0]:.0f} fits in {cost[0][1]:.1f} s CPU for the first estimates, "
+          f"{cost[1][0]:.0f} fits in {cost[1][1]:.1f} s CPU to update them with the previous estimate given")
     if (~b).any():
         print(f"{(~b).sum()} heard from one pass only (the ground there put the other pass beyond "
               f"{sc.fleet.comm_range_m:g} m): a pass's mirror ambiguity, errors flat "
