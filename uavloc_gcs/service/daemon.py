@@ -25,8 +25,6 @@ import functools
 import logging
 import math
 import time
-from dataclasses import dataclass
-from pathlib import Path
 from typing import Callable, Sequence
 
 import numpy as np
@@ -37,6 +35,7 @@ from ..scenario import Scenario
 from .commands import STOP_WAIT_S, WAYPOINT_TOLERANCE_M, VehicleCommands
 from .liveview import LiveView, StatusSnapshot, VehicleStatus, person_view
 from .missionstate import ClockRate
+from .options import DaemonOptions
 from .outcome import SearchOutcome, estimate_row, final_results, statement_for
 from .preparing import FleetPreparation
 from .store import Store, StoreReader, TelemetryRow
@@ -54,26 +53,6 @@ IDLE_END_S = 10.0  # mission seconds with every vehicle home and no look planned
 
 
 PARTIAL_TEXT = "PARTIAL RESULTS: the search was stopped before its end."
-
-
-@dataclass(frozen=True)
-class DaemonOptions:
-    store_path: Path
-    start: str = "auto"  # "auto" or "operator"
-    signing_key: bytes | None = None
-    tlog_dir: Path | None = None
-    lost_timeout_s: float = 5.0  # wall seconds of silence before a vehicle is lost
-    connect_timeout_s: float = 15.0
-    planner_time_limit_s: float | None = None  # None: the scenario's, capped to ~2 s of mission time
-    tick_s: float = 0.05
-    source_system: int = 245  # not QGroundControl's 255 (operators keep QGC open beside us)
-    max_mission_s: float = 4 * 3600.0
-    resume: bool = True
-    rssi_connections: tuple = ()  # [(vehicle, connection)]: RSSI beside the autopilot ([link] rssi_connections)
-    set_speed_params: bool = False  # the operator's consent to set the vehicles' speed parameters
-    on_stop: str = "rtl"  # when the daemon is stopped (Ctrl-C, SIGTERM): "rtl" sends the airborne home
-    scan_hold_s: float = 120.0  # mission seconds a finished scan holds before its RTL (the next mission
-    # is normally uploaded well before; without a daemon the vehicle then comes home by itself)
 
 
 def _idle(vehicles) -> bool:
