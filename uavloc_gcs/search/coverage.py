@@ -159,6 +159,14 @@ class Coverage:
         self.sc = sc
         self.grid = grid if grid is not None else grid_for(sc)
         self._hearing = _Hearing(sc)
+        # Over terrain (terrain.dem) a position's height is above the launch point, as telemetry
+        # gives it; each cell's people stand on its own ground. Taken as height above every cell,
+        # the mountains demo reported 0.604 of 0.731 km^2 "unsearched" under lanes it had flown
+        # (vehicles 300-400 m above the launch point, 100 m above the slope).
+        self._dem = sc.dem
+        self._home_m = 0.0 if self._dem is None else self._dem.height_at(0.0, 0.0, clamp=True)
+        self._cell_ground_m = (None if self._dem is None
+                               else self._dem.height_xy(self.grid.xy_m, clamp=True) - self._home_m)
         self.min_alt_m = MIN_ALTITUDE_FRACTION * sc.fleet.altitude_m
         n = len(self.grid.xy_m)
         self._win = _Windows(sc)
@@ -179,13 +187,18 @@ class Coverage:
     # -- data in ---------------------------------------------------------------------------------
     def add_position(self, vehicle: int, t_s: float, xyz_m) -> None:
         """One flown position of ``vehicle`` at mission time ``t_s`` [s]; (east, north, height above
-        the people) [m]. Positions must come in time order per vehicle (older ones are ignored)."""
+        the launch point) [m] -- over flat ground, above the people. Positions must come in time
+        order per vehicle (older ones are ignored)."""
         x, y, z = (float(v) for v in np.asarray(xyz_m, float).reshape(3))
         v = int(vehicle)
         last = self._last.get(v)
         if last is not None and t_s <= last[0]:
             return
-        if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)) or z < self.min_alt_m:
+        # survey altitude is judged above the ground under the vehicle (a valley below the launch
+        # point has z < 0 at survey height)
+        above = z if self._dem is None or not (math.isfinite(x) and math.isfinite(y)) else \
+            z - (self._dem.height_at(x, y, clamp=True) - self._home_m)
+        if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)) or above < self.min_alt_m:
             self._close(v)
             self._last.pop(v, None)
             return
@@ -206,7 +219,8 @@ class Coverage:
             centre = 0.5 * (last[1] + here)
             cand = np.flatnonzero(np.max(np.abs(self.grid.xy_m - centre), axis=1) <= reach + seg / 2)
             d = self.grid.xy_m[cand, None, :] - mids[None, :, :]
-            d3 = np.sqrt(np.einsum("ijk,ijk->ij", d, d) + z * z)  # (n, k)
+            dz = z if self._cell_ground_m is None else (z - self._cell_ground_m[cand])[:, None]
+            d3 = np.sqrt(np.einsum("ijk,ijk->ij", d, d) + dz * dz)  # (n, k)
             w = np.zeros(len(self.grid.xy_m))
             near = np.zeros(len(self.grid.xy_m), bool)
             w[cand] = self._hearing.at(d3).mean(axis=1) * dt  # effective window gained [s]
@@ -638,7 +652,10 @@ def scan_coverage(sc, step_s: float = 0.5) -> Coverage:
         t = np.arange(0.0, cum[-1] / speed + step_s, step_s)
         s = np.minimum(t * speed, cum[-1])
         xy = np.column_stack([np.interp(s, cum, pts[:, 0]), np.interp(s, cum, pts[:, 1])])
-        cov.add_track(vs.index + 1, t, np.column_stack([xy, np.full(len(t), sc.fleet.altitude_m)]))
+        z = np.full(len(t), sc.fleet.altitude_m)
+        if sc.dem is not None:  # the planned scan follows the ground: its height above the launch point
+            z = z + sc.dem.height_xy(xy, clamp=True) - sc.dem.height_at(0.0, 0.0, clamp=True)
+        cov.add_track(vs.index + 1, t, np.column_stack([xy, z]))
     return cov
 
 
