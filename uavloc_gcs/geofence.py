@@ -111,13 +111,25 @@ class Geofence:
 
         a, b = np.asarray(a, float), np.asarray(b, float)
         line = LineString([a, b]) if np.linalg.norm(b - a) > 1e-9 else Point(a)
-        region = self._corridor()
-        if ends:
-            near = [Point(e).buffer(self.margin_m) for e in ends]
-            from shapely.ops import unary_union
+        return bool(self._leg_region(ends).covers(line))
 
-            region = region.union(unary_union(near).intersection(self.polygon.buffer(_TOL_M)))
-        return bool(region.covers(line))
+    def _leg_region(self, ends):
+        """Where legs may run: the corridor, and the fence itself near ``ends`` (cached per ends:
+        a detour's search tests every pair of corners)."""
+        from shapely.geometry import Point
+        from shapely.ops import unary_union
+
+        key = ("legs", tuple((round(float(e[0]), 2), round(float(e[1]), 2)) for e in ends))
+        region = self._cache.get(key)
+        if region is None:
+            region = self._corridor()
+            if ends:
+                near = unary_union([Point(e).buffer(self.margin_m) for e in ends])
+                region = region.union(near.intersection(self.polygon.buffer(_TOL_M)))
+            if len(self._cache) > 256:  # vehicle positions make new keys: keep the cache small
+                self._cache = {k: v for k, v in self._cache.items() if not (isinstance(k, tuple) and k[0] == "legs")}
+            self._cache[key] = region
+        return region
 
     def _nodes(self) -> np.ndarray:
         n = self._cache.get("nodes")
@@ -189,9 +201,10 @@ class Geofence:
 
     def clip_route(self, pts_xy_m, *, start_xy_m, end_xy_m) -> np.ndarray:
         """A route through ``pts_xy_m`` (from ``start_xy_m`` back to ``end_xy_m``, neither
-        returned) kept inside: each leg cut to the part of it inside the fence's margin (a scan
-        lane keeps its direction and loses only what lies outside; a leg wholly outside is
-        dropped) and the pieces joined round the fence's corners (:meth:`detour`)."""
+        returned) kept inside: each leg, moved sideways by up to the margin where that keeps more
+        of it (:meth:`_best_shift`), cut to its part inside the fence's margin (a scan lane keeps
+        its direction; a leg wholly outside is dropped), and the pieces joined round the fence's
+        corners (:meth:`detour`)."""
         from shapely.geometry import LineString, Point
 
         pts = np.asarray(pts_xy_m, float).reshape(-1, 2)
