@@ -543,26 +543,12 @@ def _resolve_geofence(sc: Scenario, area_xy: np.ndarray, base_dir: Path | None) 
            sc, "area.geofence_deg")
     if a.geofence_deg is not None:
         key = "area.geofence_deg"
-        poly = a.geofence_deg
-        _check(isinstance(poly, list), f"must be a list of [lat, lon] vertices, got {poly!r}", sc, key)
-        for i, v in enumerate(poly):
-            ok = (isinstance(v, list) and len(v) == 2
-                  and all(isinstance(c, (int, float)) and not isinstance(c, bool) for c in v))
-            _check(ok, f"vertex {i} must be [lat, lon] numbers, got {v!r}", sc, key)
-            _check_latlon(sc, float(v[0]), float(v[1]), f"{key}[{i}]")
-        if len(poly) >= 2 and poly[0] == poly[-1]:
-            poly = poly[:-1]
+        _check(isinstance(a.geofence_deg, list), f"must be a list of [lat, lon] vertices, got {a.geofence_deg!r}",
+               sc, key)
+        poly = _vertices_deg(sc, a.geofence_deg, key)
     else:
         key = "area.geofence_file"
-        path = Path(a.geofence_file)
-        if not path.is_absolute() and base_dir is not None:
-            path = base_dir / path
-        from mission_io.area import read_area_polygon  # file formats live in mission_io
-
-        try:
-            poly = read_area_polygon(path)
-        except UavlocError as exc:
-            raise ConfigError(f"cannot use the geofence file: {exc}", source=sc.source, key=key) from None
+        poly, path = _polygon_from_file(sc, a.geofence_file, base_dir, key, "geofence")
         sc = dataclasses.replace(sc, area=dataclasses.replace(a, geofence_file=str(path.resolve())))
     _check(len(poly) >= 3, f"needs at least 3 distinct vertices, got {len(poly)}", sc, key)
     ll = tuple((float(v[0]), float(v[1])) for v in poly)
@@ -696,27 +682,37 @@ def _resolve_polygon(sc: Scenario, base_dir: Path | None) -> list:
                sc, "area.width_m")
         return rectangle_latlon(a.origin_lat_deg, a.origin_lon_deg, a.width_m, a.height_m, a.heading_deg)
     if a.polygon_deg is not None:
-        poly = a.polygon_deg
-        for i, v in enumerate(poly):
-            ok = (isinstance(v, list) and len(v) == 2
-                  and all(isinstance(c, (int, float)) and not isinstance(c, bool) for c in v))
-            _check(ok, f"vertex {i} must be [lat, lon] numbers, got {v!r}", sc, "area.polygon_deg")
-            _check_latlon(sc, float(v[0]), float(v[1]), f"area.polygon_deg[{i}]")
-        if len(poly) >= 2 and poly[0] == poly[-1]:
-            poly = poly[:-1]
+        poly = _vertices_deg(sc, a.polygon_deg, "area.polygon_deg")
         _check(len(poly) >= 3, f"needs at least 3 distinct vertices, got {len(poly)}", sc, "area.polygon_deg")
         return [[float(v[0]), float(v[1])] for v in poly]
-    path = Path(a.polygon_file)
-    if not path.is_absolute() and base_dir is not None:
-        path = base_dir / path
-    from mission_io.area import read_area_polygon  # file formats live in mission_io
-
-    try:
-        poly = read_area_polygon(path)
-    except UavlocError as exc:
-        raise ConfigError(f"cannot use the area file: {exc}", source=sc.source, key="area.polygon_file") from None
+    poly, _ = _polygon_from_file(sc, a.polygon_file, base_dir, "area.polygon_file", "area")
     _check(len(poly) >= 3, "the area file's polygon has fewer than 3 vertices", sc, "area.polygon_file")
     return [[float(v[0]), float(v[1])] for v in poly]
+
+
+def _vertices_deg(sc: Scenario, poly: list, key: str) -> list:
+    """``[[lat, lon], ...]`` from the scenario checked vertex by vertex (one sentence naming
+    ``key`` and the vertex), a closing vertex equal to the first dropped."""
+    for i, v in enumerate(poly):
+        ok = (isinstance(v, list) and len(v) == 2
+              and all(isinstance(c, (int, float)) and not isinstance(c, bool) for c in v))
+        _check(ok, f"vertex {i} must be [lat, lon] numbers, got {v!r}", sc, key)
+        _check_latlon(sc, float(v[0]), float(v[1]), f"{key}[{i}]")
+    return poly[:-1] if len(poly) >= 2 and poly[0] == poly[-1] else poly
+
+
+def _polygon_from_file(sc: Scenario, name: str, base_dir: Path | None, key: str, what: str) -> tuple[list, Path]:
+    """The polygon of a GeoJSON or ``.plan`` file named by ``key`` (relative to the scenario's
+    folder) and its path; a file that cannot be used is one sentence naming ``key``."""
+    from mission_io.area import read_area_polygon  # file formats live in mission_io
+
+    path = Path(name)
+    if not path.is_absolute() and base_dir is not None:
+        path = base_dir / path
+    try:
+        return read_area_polygon(path), path
+    except UavlocError as exc:
+        raise ConfigError(f"cannot use the {what} file: {exc}", source=sc.source, key=key) from None
 
 
 def rectangle_latlon(lat0: float, lon0: float, width_m: float, height_m: float, heading_deg: float) -> list:

@@ -88,8 +88,7 @@ def result_figure(people, *, area_xy_m: np.ndarray, tracks_xy_m: Mapping[int, np
         draw_pod(fig, ax, coverage)
     maps.draw_area(ax, area)
     if fence_xy_m is not None and len(fence_xy_m):
-        ring = np.vstack([fence_xy_m, np.asarray(fence_xy_m)[:1]])
-        ax.plot(ring[:, 0], ring[:, 1], color="#c0392b", lw=1.4, ls=(0, (6, 3)), zorder=4, label="geofence")
+        maps.draw_fence(ax, np.asarray(fence_xy_m, dtype=float))
     ids = sorted(tracks_xy_m)
     colors = maps.vehicle_colors(max(ids, default=0))
     maps.draw_polylines(ax, [tracks_xy_m[v] for v in ids], [f"UAV {v} flown" for v in ids],

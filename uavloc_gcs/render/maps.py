@@ -97,6 +97,13 @@ def draw_area(ax: Axes, xy: np.ndarray, label: str | None = "search area", *, co
     ax.autoscale_view()
 
 
+def draw_fence(ax: Axes, xy: np.ndarray, label: str | None = "geofence") -> None:
+    """A scenario's geofence (uavloc_gcs/geofence.py): a dashed red outline. ``xy`` (N, 2) metres."""
+    ring = _closed(xy)
+    ax.plot(ring[:, 0], ring[:, 1], color="#c0392b", linewidth=1.4, linestyle=(0, (6, 3)), label=label, zorder=4)
+    ax.update_datalim(ring)
+
+
 def draw_polygons(ax: Axes, polygons: Sequence[np.ndarray], labels: Sequence[str | None] | None = None,
                   colors: Sequence | None = None, *, alpha: float = 0.14) -> None:
     """Filled polygons (e.g. one sub-area per vehicle), a thin dashed edge each."""

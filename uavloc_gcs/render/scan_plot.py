@@ -30,9 +30,7 @@ def scan_figure(scenario, plan, *, title: str | None = None) -> Figure:
         draw_terrain(ax, scenario.dem, everything)
     maps.draw_area(ax, scenario.area_xy_m(), label="search area")
     for ring in fence_xy:  # the scenario's geofence: every planned flight stays inside it
-        ring = np.vstack([ring, ring[:1]])
-        ax.plot(ring[:, 0], ring[:, 1], color="#c0392b", lw=1.4, ls=(0, (6, 3)), zorder=4,
-                label=f"geofence ({fence.margin_m:g} m margin kept)")
+        maps.draw_fence(ax, ring, label=f"geofence ({fence.margin_m:g} m margin kept)")
     for v, col in zip(plan.vehicles, colors):
         maps.draw_polygons(ax, list(v.subarea_parts_xy_m), colors=[col] * len(v.subarea_parts_xy_m))
     for v, col in zip(plan.vehicles, colors):

@@ -30,7 +30,7 @@ heard (p_burst_heard), so :func:`orbit_radius_m` maximises E[p_heard(d) rho^2 / 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -276,7 +276,7 @@ def look_mission(frame, points_xy_m, targets, orbits, *, alt_m: float, speed_m_s
     for k, q in enumerate(pts):  # points beyond the looks (coverage passes' lanes) are fly-throughs
         orb = orbits[k] if k < len(orbits) else None
         if orb is not None and fence is not None and not _circle_inside(fence, orb):
-            orb = _replace_orbit(orb, form="ring")  # its ring points are moved inside below
+            orb = replace(orb, form="ring")  # its ring points are moved inside below
         if orb is None:
             around(q)
             idx_out.append(len(items))
@@ -334,12 +334,6 @@ def _circle_inside(fence, orb) -> bool:
     from shapely.geometry import Point
 
     return bool(fence.inner(0.0).buffer(0.5).covers(Point(orb.centre_xy_m).buffer(orb.radius_m, 16)))
-
-
-def _replace_orbit(orb, **changes):
-    from dataclasses import replace
-
-    return replace(orb, **changes)
 
 
 def orbits_for(policy, vehicle_id, targets) -> tuple:
