@@ -9,10 +9,12 @@ world (``sim_link.world.World(scenario, seed=...)``) when it needs the truth.
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import multiprocessing as mp
 import os
 import queue as queue_mod
 import signal
+import threading
 from dataclasses import dataclass
 
 from ..errors import LinkError, UavlocError
@@ -44,6 +46,8 @@ class FleetProcess:
 
 
 def _kill(proc, timeout_s: float = 5.0) -> None:
+    if proc.pid is None:  # never started
+        return
     proc.terminate()
     proc.join(timeout_s)
     if proc.is_alive():
@@ -79,14 +83,40 @@ def _child(scenario, kwargs: dict, queue, stop, commands, parent_pid: int) -> No
     asyncio.run(main())
 
 
+@contextlib.contextmanager
+def _signals_held(signums=(signal.SIGINT, signal.SIGTERM)):
+    """Hold SIGINT and SIGTERM while the child is spawned, then deliver them.
+
+    A handler that raises (Ctrl-C, the demo's SIGTERM) between the child's fork and the parent's
+    write of its start-up data would leave the child to die on a half-sent pickle, with a
+    traceback on the terminal the operator reads."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    held: list[int] = []
+    previous = {}
+    for signum in signums:
+        handler = signal.getsignal(signum)
+        if handler is not None:  # None: installed outside Python, cannot be put back
+            previous[signum] = signal.signal(signum, lambda s, _frame: held.append(s))
+    try:
+        yield
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+        for signum in dict.fromkeys(held):
+            signal.raise_signal(signum)
+
+
 def start_fleet_process(scenario, **kwargs) -> FleetProcess:
     """Start ``sim_link.vehicles.fleet.FakeFleet(scenario, **kwargs)`` in a child process."""
     ctx = mp.get_context("spawn")
     queue, stop, commands = ctx.Queue(), ctx.Event(), ctx.Queue()
     proc = ctx.Process(target=_child, args=(scenario, kwargs, queue, stop, commands, os.getpid()),
                        name="uavloc-fake-fleet", daemon=True)
-    proc.start()
     try:
+        with _signals_held():
+            proc.start()
         msg = None
         for _ in range(int(START_TIMEOUT_S / 0.5)):
             try:
