@@ -50,7 +50,7 @@ from .mission import (
     MissionPlan,
 )
 
-__all__ = ["terrain_safe", "TRACK_TOLERANCE_M", "route_profile", "Profile"]
+__all__ = ["terrain_safe", "TRACK_TOLERANCE_M", "route_profile", "Profile", "hearing_share", "contour_angle"]
 
 TRACK_TOLERANCE_M = 10.0  # how far the flown straight legs may stray from the planned profile
 
@@ -328,3 +328,55 @@ def check_climb_energy(scenario, vehicles, missions) -> list[float]:
                 f"{scenario.fleet.vehicles}) or raise fleet.energy_budget_j")
         out.append(c)
     return out
+
+
+def contour_angle(scenario, area_xy: np.ndarray) -> float | None:
+    """The lane direction (radians from east, 0..pi) along the area's mean contour lines: across the
+    gradient of the least-squares plane through the ground under the area; None on level ground."""
+    dem = scenario.dem
+    lo, hi = area_xy.min(axis=0), area_xy.max(axis=0)
+    step = max(dem.resolution_m, float(np.max(hi - lo)) / 60.0)
+    gx, gy = np.meshgrid(np.arange(lo[0], hi[0] + step / 2, step), np.arange(lo[1], hi[1] + step / 2, step))
+    xy = np.column_stack([gx.ravel(), gy.ravel()])
+    g = dem.height_xy(xy, clamp=True)
+    ok = np.isfinite(g)
+    if ok.sum() < 3:
+        return None
+    a = np.column_stack([xy[ok], np.ones(ok.sum())])
+    (sx, sy, _), *_ = np.linalg.lstsq(a, g[ok], rcond=None)
+    if math.hypot(sx, sy) < 0.02:  # under 2 % slope: any direction follows the ground
+        return None
+    return (math.atan2(sy, sx) + math.pi / 2) % math.pi
+
+
+def hearing_share(scenario, routes_xy: list, *, need: int, speed_m_s: float) -> float:
+    """Share of the area within the 3-D hearing range (``fleet.comm_range_m``) of at least ``need``
+    distinct legs of ``routes_xy`` (each launch first and last) flown along their terrain-following
+    profiles -- the height the climb and descent limits leave them at, not the aim. Lanes flown up
+    and down a steep slope end high above a valley (the descent cannot follow the ground) and hear
+    less there than lanes along the contours."""
+    from shapely.geometry import Point, Polygon  # noqa: PLC0415
+    from shapely.prepared import prep  # noqa: PLC0415
+
+    dem = scenario.dem
+    area_xy = scenario.area_xy_m()
+    poly = prep(Polygon(area_xy))
+    lo, hi = area_xy.min(axis=0), area_xy.max(axis=0)
+    step = max(scenario.horizontal_range_m / 6.0, math.sqrt(Polygon(area_xy).area / 3000.0))
+    gx, gy = np.meshgrid(np.arange(lo[0] + step / 2, hi[0], step), np.arange(lo[1] + step / 2, hi[1], step))
+    pts = np.column_stack([gx.ravel(), gy.ravel()])
+    pts = pts[[poly.contains(Point(p)) for p in pts]]
+    if not len(pts):
+        return 1.0
+    ground = dem.height_xy(pts, clamp=True)
+    r2 = scenario.fleet.comm_range_m ** 2
+    legs_heard = np.zeros(len(pts), dtype=int)
+    for route in routes_xy:
+        prof = route_profile(scenario, np.asarray(route, float), speed_m_s=speed_m_s)
+        leg = np.clip(np.searchsorted(prof.vertex, np.arange(len(prof.s)), side="left") - 1, 0, None)
+        for k in np.unique(leg):
+            on = leg == k
+            d2 = (np.sum((pts[:, None, :] - prof.xy[None, on, :]) ** 2, axis=2)
+                  + (prof.z[None, on] - ground[:, None]) ** 2)
+            legs_heard += np.any(d2 <= r2, axis=1)
+    return float(np.mean(legs_heard >= need))

@@ -653,8 +653,11 @@ def scan_coverage(sc, step_s: float = 0.5) -> Coverage:
         s = np.minimum(t * speed, cum[-1])
         xy = np.column_stack([np.interp(s, cum, pts[:, 0]), np.interp(s, cum, pts[:, 1])])
         z = np.full(len(t), sc.fleet.altitude_m)
-        if sc.dem is not None:  # the planned scan follows the ground: its height above the launch point
-            z = z + sc.dem.height_xy(xy, clamp=True) - sc.dem.height_at(0.0, 0.0, clamp=True)
+        if sc.dem is not None:  # the planned scan follows the ground as the climb and descent limits let it
+            from ..terrain_missions import route_profile  # noqa: PLC0415
+
+            prof = route_profile(flown, np.vstack([pts, np.zeros((1, 2))]), speed_m_s=speed)
+            z = np.interp(s, prof.s, prof.z) - sc.dem.height_at(0.0, 0.0, clamp=True)
         cov.add_track(vs.index + 1, t, np.column_stack([xy, z]))
     return cov
 
