@@ -523,10 +523,12 @@ def _resample(t_s, xyz_m) -> tuple[np.ndarray, np.ndarray]:
     return tt, np.column_stack([np.interp(tt, t, xyz[:, c]) for c in range(3)])
 
 
-def _looks(cx, cy, tracks, hearing: _Hearing):
+def _looks(cx, cy, tracks, hearing: _Hearing, ground=None):
     """Per cell: looks (t0, t1, w[T]) over all tracks. Returns padded arrays t0, t1 (C, L), w (C, L, T)
-    and a validity mask (C, L)."""
+    and a validity mask (C, L). ``ground`` (C,): each cell's ground above the launch point [m] (the
+    tracks' heights are above the launch point); None: flat."""
     C, T = len(cx), hearing.table.shape[1]
+    g = np.zeros(C) if ground is None else np.asarray(ground, float)
     per_cell = [[] for _ in range(C)]
     for t_s, xyz_m in tracks:
         t, xyz = _resample(t_s, xyz_m)
@@ -538,7 +540,8 @@ def _looks(cx, cy, tracks, hearing: _Hearing):
             sl = slice(a, min(C, a + 64))
             dx = xyz[None, :, 0] - cx[sl, None]
             dy = xyz[None, :, 1] - cy[sl, None]
-            d3 = np.sqrt(dx * dx + dy * dy + xyz[None, :, 2] ** 2)
+            dz = xyz[None, :, 2] - g[sl, None]
+            d3 = np.sqrt(dx * dx + dy * dy + dz * dz)
             near = d3 <= hearing.max_range_m
             rows, cols = np.nonzero(near)  # row-major: runs of consecutive samples per cell
             if len(rows) == 0:
@@ -562,11 +565,12 @@ def _looks(cx, cy, tracks, hearing: _Hearing):
     return t0, t1, w, valid
 
 
-def _elicited(cx, cy, tracks, hearing: _Hearing, reach_m: float):
+def _elicited(cx, cy, tracks, hearing: _Hearing, reach_m: float, ground=None):
     """Elicited detections per cell and type: every run of a track within ``reach_m`` (where the
     phone hears the access point) is one detection with probability 1 - exp(-m), m its elicited
     frames expected to be heard. Returns P(none) and P(exactly one), (C, T) each."""
     C, T = len(cx), hearing.table.shape[1]
+    g = np.zeros(C) if ground is None else np.asarray(ground, float)
     el0 = np.ones((C, T))
     el1 = np.zeros((C, T))
     for t_s, xyz_m in tracks:
@@ -575,7 +579,7 @@ def _elicited(cx, cy, tracks, hearing: _Hearing, reach_m: float):
             continue
         dt = np.diff(np.concatenate([[t[0]], 0.5 * (t[1:] + t[:-1]), [t[-1]]]))
         d3 = np.sqrt((xyz[None, :, 0] - cx[:, None]) ** 2 + (xyz[None, :, 1] - cy[:, None]) ** 2
-                     + xyz[None, :, 2] ** 2)
+                     + (xyz[None, :, 2] - g[:, None]) ** 2)
         rows, cols = np.nonzero(d3 <= reach_m)
         if len(rows) == 0:
             continue
@@ -615,7 +619,8 @@ def _merge(t0, t1, w, valid, gap_s: float):
 
 def pod_from_tracks(sc, tracks, grid: PodGrid | None = None, *, coarse: bool = False) -> PodGrid:
     """POD of every cell of ``grid`` (default :func:`grid_for`) from ``tracks`` as flown: a list of
-    (times (N,) [s], positions (N, 3) [m, local, z = height above the people]). See the module
+    (times (N,) [s], positions (N, 3) [m, local, z = height above the launch point; over terrain
+    each cell's people stand on the DEM's ground there]). See the module
     docstring for the model. ``coarse``: every second phone quantile and silence timeline (4x
     faster, for comparing plans)."""
     grid = grid_for(sc) if grid is None else grid
@@ -626,7 +631,11 @@ def pod_from_tracks(sc, tracks, grid: PodGrid | None = None, *, coarse: bool = F
     if len(idx) == 0 or not tracks:
         return grid.with_pod(pod1, pod2)
     hearing = _hearing(sc)
-    t0, t1, w, valid = _looks(grid.x_m[idx], grid.y_m[idx], tracks, hearing)
+    ground = None
+    if sc.dem is not None:  # heights are above the launch point; each cell's people on its own ground
+        xy = np.column_stack([grid.x_m[idx], grid.y_m[idx]])
+        ground = sc.dem.height_xy(xy, clamp=True) - sc.dem.height_at(0.0, 0.0, clamp=True)
+    t0, t1, w, valid = _looks(grid.x_m[idx], grid.y_m[idx], tracks, hearing, ground)
     bt = BurstTiming.from_scenario(sc)
     if bt.continuous:
         p1, p2 = _continuous_pod(t0, t1, w, valid, hearing, sc.channel.slot_s)
@@ -635,7 +644,7 @@ def pod_from_tracks(sc, tracks, grid: PodGrid | None = None, *, coarse: bool = F
         horizon = max(float(t[-1]) for t, _ in tracks) - start + 1.0
         el = None
         if hearing.elicit is not None:
-            el = _elicited(grid.x_m[idx], grid.y_m[idx], tracks, hearing, elicitation_range_m(sc))
+            el = _elicited(grid.x_m[idx], grid.y_m[idx], tracks, hearing, elicitation_range_m(sc), ground)
         p1, p2 = _burst_pod(bt, t0 - start, t1 - start, w, valid, hearing.weights, horizon, 2 if coarse else 1, el)
     pod1[idx], pod2[idx] = p1, p2
     return grid.with_pod(pod1, pod2)
