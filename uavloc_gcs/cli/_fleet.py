@@ -84,21 +84,23 @@ def _child(scenario, kwargs: dict, queue, stop, commands, parent_pid: int) -> No
 
 
 @contextlib.contextmanager
-def _signals_held(signums=(signal.SIGINT, signal.SIGTERM)):
-    """Hold SIGINT and SIGTERM while the child is spawned, then deliver them.
+def _signals_held():
+    """While the child is spawned: SIGTERM is held and delivered after, SIGINT ignored.
 
-    A handler that raises (Ctrl-C, the demo's SIGTERM) between the child's fork and the parent's
-    write of its start-up data would leave the child to die on a half-sent pickle, with a
-    traceback on the terminal the operator reads."""
+    A handler that raises (the demo's SIGTERM, Ctrl-C) between the child's fork and the parent's
+    write of its start-up data left the child to die on a half-sent pickle, with a traceback on the
+    operator's terminal (CI, 2026-11-27). SIGINT is ignored rather than held so that the child
+    inherits the ignoring from birth: Ctrl-C reaches the whole process group, and a child still
+    importing would print a KeyboardInterrupt traceback before its own ``SIG_IGN``. A Ctrl-C in
+    those few milliseconds is not seen (the operator presses again)."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
     held: list[int] = []
     previous = {}
-    for signum in signums:
-        handler = signal.getsignal(signum)
-        if handler is not None:  # None: installed outside Python, cannot be put back
-            previous[signum] = signal.signal(signum, lambda s, _frame: held.append(s))
+    for signum, handler in ((signal.SIGTERM, lambda s, _frame: held.append(s)), (signal.SIGINT, signal.SIG_IGN)):
+        if signal.getsignal(signum) is not None:  # None: installed outside Python, cannot be put back
+            previous[signum] = signal.signal(signum, handler)
     try:
         yield
     finally:

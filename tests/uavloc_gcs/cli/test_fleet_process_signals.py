@@ -49,3 +49,18 @@ def test_a_signal_while_the_fleet_is_spawned_stops_it_without_a_child_traceback(
     child = int(next(line for line in proc.stdout.splitlines() if line.startswith("child")).split()[1])
     assert not Path(f"/proc/{child}").exists() or \
         Path(f"/proc/{child}/stat").read_text().rsplit(")", 1)[1].split()[0] == "Z"
+
+
+# Ctrl-C reaches the whole process group: here it reaches the fleet's child while it is still
+# starting (importing), before its own SIG_IGN; the parent goes on and the fleet starts.
+SCRIPT_CTRL_C = SCRIPT.replace("os.kill(os.getpid(), signal.SIGTERM)", "os.kill(pid, signal.SIGINT)").replace(
+    'print("not interrupted", flush=True)', 'print("not interrupted", flush=True); fleet.stop()').replace(
+    "    start_fleet_process(", "    fleet = start_fleet_process(")
+
+
+def test_ctrl_c_reaching_the_fleet_while_it_starts_leaves_no_child_traceback(tmp_path):
+    proc = subprocess.run([sys.executable, "-c", SCRIPT_CTRL_C, str(ROOT / "examples" / "small.toml")],
+                          capture_output=True, text=True, timeout=120, cwd=ROOT)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert "not interrupted" in proc.stdout.splitlines()
+    assert "Traceback" not in proc.stderr and "KeyboardInterrupt" not in proc.stderr, proc.stderr
