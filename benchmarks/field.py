@@ -10,6 +10,8 @@ simulator (``sim_link.experiments.missionsim``: the daemon's policy, estimator a
   the energy for the looks), then orbit looks at the people heard and extra passes over the cells
   whose achieved POD is below the target (``search.coverage``);
 - ``paper`` (anchor a): the paper's plan, its scan at 25 m/s and fly-by looks, no passes;
+  with ``--elicitation`` (an on-board access point) also the comparison of orbit looks against
+  fly-bys;
 - ``lawnmower`` (anchor b): a conventional parallel-track search: the lane spacing, speed and
   passes that reach the same POD target with all the energy (``uavloc plan --pod``), no
   adaptivity: the vehicles fly home after it and the people are what the scan's data gives;
@@ -51,6 +53,22 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="scenario file, or a shipped one by name (default field)")
     parser.add_argument("--seed", type=number(int, min=0), default=0, help="first world's seed (default 0)")
     parser.add_argument("--jobs", type=number(int, min=1, max=64), default=2, help="worker processes (default 2)")
+    parser.add_argument("--elicitation", type=number(float, min=0.0, max=1000.0), default=None, metavar="HZ",
+                        help="an on-board access point that makes phones in range answer at HZ frames a second "
+                             "(emission.elicitation_rate_hz; default: the scenario's)")
+    parser.add_argument("--trapped", action="store_true",
+                        help="people who cannot move (simulation.motion = static, people.max_speed_m_s = 0)")
+
+
+def overrides(args: argparse.Namespace) -> dict:
+    """The scenario sections ``--elicitation`` and ``--trapped`` replace."""
+    out: dict = {}
+    if getattr(args, "elicitation", None) is not None:
+        out["emission"] = {"elicitation_rate_hz": float(args.elicitation)}
+    if getattr(args, "trapped", False):
+        out["people"] = {"max_speed_m_s": 0.0}
+        out["simulation"] = {"motion": "static"}
+    return out
 
 
 def scenario_for(plan: str, sc, pod_target: float):
@@ -62,14 +80,17 @@ def scenario_for(plan: str, sc, pod_target: float):
 
 def _fly(job):
     """One mission of one plan on one world (in a worker: the switches are module globals)."""
-    plan, scenario_file, people, seed, pod_target = job
+    plan, scenario_file, people, seed, pod_target, changes = job
     from sim_link.experiments import missionsim
     from sim_link.world import World
     from uavloc_gcs.scenario import load_scenario
     from uavloc_gcs.search import coverage as coverage_mod, orbit, pod_plan
 
     shipped = {"rounds": coverage_mod.MAX_PASS_ROUNDS, "orbits": orbit.ORBIT_LOOKS, "share": pod_plan.SEARCH_SCAN_SHARE}
-    sc = load_scenario(scenario_file).replace(simulation={"people": people, "seed": seed})
+    sc = load_scenario(scenario_file)
+    if changes:
+        sc = sc.replace(**changes)
+    sc = sc.replace(simulation={"people": people, "seed": seed})
     sc = scenario_for(plan, sc, pod_target)
     try:
         if plan != "uavloc":  # the POD accumulator measures; no passes are added
@@ -139,14 +160,17 @@ def main(args: argparse.Namespace) -> int:
 
     scenario_file = str(scenario_path(args.scenario))
     seeds = [args.seed + k for k in range(args.runs)]
-    jobs = [(plan, scenario_file, args.people, s, args.pod) for s in seeds for plan in PLANS]
+    changes = overrides(args)
+    jobs = [(plan, scenario_file, args.people, s, args.pod, changes) for s in seeds for plan in PLANS]
     bar = Progress(len(jobs))
     rows = []
     with ProcessPoolExecutor(max(1, args.jobs)) as pool:
         for row in pool.map(_fly, jobs):
             rows.append(row)
             bar.step(f"{row['plan']} world {row['seed']}")
-    print(f"the search for real phones on '{args.scenario}': {args.people} people, {args.runs} paired world(s) "
+    extra = "".join([f", access point {args.elicitation:g} Hz" if args.elicitation is not None else "",
+                     ", trapped (static) people" if args.trapped else ""])
+    print(f"the search for real phones on '{args.scenario}'{extra}: {args.people} people, {args.runs} paired world(s) "
           f"(seeds {seeds[0]}-{seeds[-1]}), POD target {args.pod:g}")
     for line in table(rows, args.runs):
         print(line)

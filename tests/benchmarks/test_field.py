@@ -32,3 +32,15 @@ def test_the_table_reads_located_of_present_and_time_against_the_clairvoyant():
     assert "8:20" in by["clairvoyant"]
     assert field._kind("given up: not located after 2 orbit looks of 236 s (heard on the last one)") == \
         "given up: not located after N orbit looks of N s"
+
+
+def test_an_access_point_and_trapped_people_are_options_of_the_worlds():
+    import argparse
+
+    p = argparse.ArgumentParser()
+    field.add_arguments(p)
+    assert field.overrides(p.parse_args([])) == {}
+    ch = field.overrides(p.parse_args(["--elicitation", "2", "--trapped"]))
+    sc = load_scenario(scenario_path("field")).replace(**ch)
+    assert sc.emission.elicitation_rate_hz == 2.0 and sc.people.max_speed_m_s == 0.0
+    assert sc.simulation.motion == "static"

@@ -128,14 +128,33 @@ def orbit_speed_m_s(form: str, radius_m: float, cruise_m_s: float,
 _HEARD_CACHE: dict = {}
 
 
-def _p_heard_table(sc):
-    """p_burst_heard at the scenario's altitude on a grid of horizontal distances (cached)."""
-    from .pod import p_burst_heard
+def elicited(sc) -> bool:
+    """Whether the scenario's phones answer an on-board access point (``emission.elicitation_rate_hz``):
+    then a look waits for frames the access point asks for, not for the phone's next bursts."""
+    return (sc.emission.model == "probe-bursts" and sc.emission.elicitation_rate_hz > 0
+            and sc.channel.receiver_sensitivity_dbm is not None)
 
-    key = (repr(sc.channel), repr(sc.emission), repr(sc.simulation), sc.fleet.comm_range_m, sc.fleet.altitude_m)
+
+def _heard_key(sc) -> tuple:
+    return (repr(sc.channel), repr(sc.emission), repr(sc.simulation), sc.fleet.comm_range_m, sc.fleet.altitude_m)
+
+
+def _p_heard_table(sc):
+    """At the scenario's altitude on a grid of horizontal distances (cached): p_burst_heard, or
+    under elicitation the probability that one elicited frame is heard (pod.elicited_rate_hz over
+    the rate: the phone answers within the access point's range, each frame heard above the
+    sensitivity)."""
+    from .pod import elicited_rate_hz, p_burst_heard
+
+    key = _heard_key(sc)
     if key not in _HEARD_CACHE:
         grid = np.linspace(0.0, 4.0 * max(float(sc.horizontal_range_m), 50.0) + 200.0, 241)
-        _HEARD_CACHE[key] = (grid, np.asarray(p_burst_heard(sc, grid, float(sc.fleet.altitude_m)), float))
+        h = float(sc.fleet.altitude_m)
+        if elicited(sc):
+            table = elicited_rate_hz(sc, np.hypot(grid, h)) / sc.emission.elicitation_rate_hz
+        else:
+            table = p_burst_heard(sc, grid, h)
+        _HEARD_CACHE[key] = (grid, np.asarray(table, float))
     return _HEARD_CACHE[key]
 
 
@@ -165,7 +184,7 @@ def orbit_radius_m(sc, spread_m: float, *, draws: int = 300, seed: int = 0) -> f
     and scores low). Deterministic; cached per 5 m of spread."""
     h = float(sc.fleet.altitude_m)
     spread = 5.0 * round(max(float(spread_m), 0.0) / 5.0)
-    key = (id(sc), spread)
+    key = (_heard_key(sc), spread)  # not id(sc): a new scenario may get a collected one's id
     if key in _RADIUS_CACHE:
         return _RADIUS_CACHE[key]
     rng_h = max(float(sc.horizontal_range_m), MIN_RADIUS_M + 1.0)
@@ -207,15 +226,52 @@ def dwell_s(sc, p_heard: float, k: int = ORBIT_BURSTS, p: float = ORBIT_P) -> fl
     return float(min(w / max(p_heard, 1e-3), MAX_DWELL_S))
 
 
+# Frames an elicited look asks for, as a multiple of what the position alone would need for the
+# required accuracy (elicited_dwell_s): the estimator also fits the person's velocity and transmit
+# power from the same frames.
+ELICITED_INFO_MARGIN = 1.0
+
+
+def elicited_dwell_s(sc, radius_m: float, spread_m: float, *, draws: int = 300, seed: int = 0) -> float:
+    """Seconds on the circle for the frames an on-board access point elicits to place the person
+    within ``people.required_accuracy_m`` (95 %): per frame the phone is asked for, the Fisher
+    information about its horizontal position, averaged over the circle and where the person may
+    be, is E[p_heard(d) (rho/d^2)^2 u u^T] / sigma_ln^2 (sigma_ln: one frame's log-range std); the
+    frames needed are the worst axis's variance over the target's ((required/2.45)^2, a 2-D
+    normal's 95 % circle), times ELICITED_INFO_MARGIN; divided by the elicitation rate; at most
+    MAX_DWELL_S. At 2 Hz, 100 m up, 4 dB: about 6 minutes for 15 m (the paper's continuous
+    emitter, 400 samples/s, needs about a second)."""
+    from ..estimation.model import ChannelModel
+
+    rel, rho, ph = _circle_geometry(sc, radius_m, spread_m, draws, seed)
+    h = float(sc.fleet.altitude_m)
+    d2 = rho * rho + h * h
+    s_ln = ChannelModel.from_scenario(sc).log_range_sigma
+    w = ph / (d2 * d2) / (s_ln * s_ln)
+    j = np.array([[np.mean(w * rel[..., 0] ** 2), np.mean(w * rel[..., 0] * rel[..., 1])],
+                  [np.mean(w * rel[..., 0] * rel[..., 1]), np.mean(w * rel[..., 1] ** 2)]])
+    lo = float(np.min(np.linalg.eigvalsh(j)))
+    if lo <= 0:
+        return MAX_DWELL_S
+    target = sc.people.required_accuracy_m / 2.45
+    frames = ELICITED_INFO_MARGIN / (lo * target * target)
+    return float(min(frames / sc.emission.elicitation_rate_hz, MAX_DWELL_S))
+
+
 def plan_orbit(sc, centre_xy_m, spread_m: float, autopilot: str | None = None,
                k: int = ORBIT_BURSTS, p: float = ORBIT_P) -> OrbitLook:
-    """The orbit look at ``centre_xy_m`` for a person known to ``spread_m`` (1-sigma) [m]."""
+    """The orbit look at ``centre_xy_m`` for a person known to ``spread_m`` (1-sigma) [m]: long
+    enough to catch ``k`` bursts with probability ``p``, or under elicitation the frames the
+    required accuracy needs (:func:`elicited_dwell_s`)."""
     form = ORBIT_FORM.get(autopilot or sc.fleet.autopilot, "ring")
     spread = float(min(max(spread_m, 0.0), sc.horizontal_range_m)) if math.isfinite(spread_m) else sc.horizontal_range_m
     r = orbit_radius_m(sc, spread)
-    ph = mean_p_heard(sc, r, spread)
+    if elicited(sc):
+        dwell = elicited_dwell_s(sc, r, spread)
+    else:
+        dwell = dwell_s(sc, mean_p_heard(sc, r, spread), k, p)
     v = orbit_speed_m_s(form, r, sc.fleet.speed_m_s)
-    return OrbitLook((float(centre_xy_m[0]), float(centre_xy_m[1])), r, dwell_s(sc, ph, k, p), v, form)
+    return OrbitLook((float(centre_xy_m[0]), float(centre_xy_m[1])), r, dwell, v, form)
 
 
 # -- missions -----------------------------------------------------------------------------------
@@ -373,15 +429,17 @@ def expand_path(points_xy_m, orbits, start_xy_m) -> tuple[np.ndarray, np.ndarray
 
 # -- the search policy's orbit looks (called from search/policy.py) ----------------------------------
 
-# Orbit looks instead of fly-bys for people whose phones send probe bursts (no elicitation); False:
-# fly-bys as before. The paper's continuous world never gets orbits.
+# Orbit looks instead of fly-bys for people whose phones send probe bursts, or answer an on-board
+# access point at a few frames a second (a fly-by at 25 m/s hears ~20 of them: nobody was located
+# that way in the field demo at 2 Hz); False: fly-bys as before. The paper's continuous world never
+# gets orbits.
 ORBIT_LOOKS = True
 # Orbit looks per person that did not locate them before the person is given up.
 MAX_ORBIT_LOOKS = 2
 
 
 def _uses_orbits(policy) -> bool:
-    return bool(ORBIT_LOOKS and getattr(policy, "_bursts", False))
+    return bool(ORBIT_LOOKS and (getattr(policy, "_bursts", False) or elicited(policy.scenario)))
 
 
 def orbit_targets(policy, t_s: float, targets: list) -> list:
