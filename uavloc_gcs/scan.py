@@ -24,7 +24,10 @@ Layout, in a frame rotated so that lanes are horizontal ("along" = lane directio
   contiguous groups, one per vehicle, by an exact dynamic programme, each group flown in the best
   of its four boustrophedon entries; (b) one serpentine over all rows cut into consecutive pieces
   anywhere, mid-lane too (bisection on the makespan with a greedy cut), which balances finer.
-  All hull-edge directions (plus east and north) are tried as lane directions.
+  All hull-edge directions (plus east and north) are tried as lane directions. Over terrain
+  (``terrain.dem``) also the direction along the area's mean contour lines, and the direction is
+  chosen by how much of the area its lanes, flown along their climb- and descent-limited
+  terrain-following profile, keep within hearing of enough lanes (then by length).
 
 Time and energy use a constant cruise speed (``energy.route_cost``): climb, descent and turns are
 not modelled, so they are a lower bound on what the battery needs.

@@ -654,10 +654,14 @@ def scan_coverage(sc, step_s: float = 0.5) -> Coverage:
         xy = np.column_stack([np.interp(s, cum, pts[:, 0]), np.interp(s, cum, pts[:, 1])])
         z = np.full(len(t), sc.fleet.altitude_m)
         if sc.dem is not None:  # the planned scan follows the ground as the climb and descent limits let it
-            from ..terrain_missions import route_profile  # noqa: PLC0415
+            from ..terrain_missions import TerrainRefused, route_profile  # noqa: PLC0415
 
-            prof = route_profile(flown, np.vstack([pts, np.zeros((1, 2))]), speed_m_s=speed)
-            z = np.interp(s, prof.s, prof.z) - sc.dem.height_at(0.0, 0.0, clamp=True)
+            home = sc.dem.height_at(0.0, 0.0, clamp=True)
+            try:
+                prof = route_profile(flown, np.vstack([pts, np.zeros((1, 2))]), speed_m_s=speed)
+                z = np.interp(s, prof.s, prof.z) - home
+            except TerrainRefused:  # a leg off the DEM: the mission planner says so; here, its aim
+                z = z + sc.dem.height_xy(xy, clamp=True) - home
         cov.add_track(vs.index + 1, t, np.column_stack([xy, z]))
     return cov
 

@@ -226,9 +226,10 @@ def dwell_s(sc, p_heard: float, k: int = ORBIT_BURSTS, p: float = ORBIT_P) -> fl
     return float(min(w / max(p_heard, 1e-3), MAX_DWELL_S))
 
 
-# Frames an elicited look asks for, as a multiple of what the position alone would need for the
-# required accuracy (elicited_dwell_s): the estimator also fits the person's velocity and transmit
-# power from the same frames.
+# Frames an elicited look asks for, as a multiple of what the horizontal position alone would need
+# for the required accuracy (elicited_dwell_s). The estimator also fits velocity and transmit power
+# from them, but the look's frames add to those the scan heard; 1 was measured (docs/readme/orbits.md:
+# `uavloc bench field --elicitation 2 --trapped`), 2 asked for about 10 minutes a look.
 ELICITED_INFO_MARGIN = 1.0
 
 
@@ -239,8 +240,8 @@ def elicited_dwell_s(sc, radius_m: float, spread_m: float, *, draws: int = 300, 
     be, is E[p_heard(d) (rho/d^2)^2 u u^T] / sigma_ln^2 (sigma_ln: one frame's log-range std); the
     frames needed are the worst axis's variance over the target's ((required/2.45)^2, a 2-D
     normal's 95 % circle), times ELICITED_INFO_MARGIN; divided by the elicitation rate; at most
-    MAX_DWELL_S. At 2 Hz, 100 m up, 4 dB: about 6 minutes for 15 m (the paper's continuous
-    emitter, 400 samples/s, needs about a second)."""
+    MAX_DWELL_S. At 2 Hz, 100 m up, 4 dB: about 280 s for 15 m (the paper's continuous
+    emitter, 400 samples/s, would need about a second)."""
     from ..estimation.model import ChannelModel
 
     rel, rho, ph = _circle_geometry(sc, radius_m, spread_m, draws, seed)
