@@ -84,6 +84,7 @@ def test_slots_low_over_the_launch_point_but_high_over_the_ground_below_are_kept
     assert len(survey_slots(slots, 100.0)) == 0  # the flat rule would drop it as a vehicle on the ground
 
 
+@pytest.mark.slow  # about 5 s: six estimates over terrain
 def test_a_walker_s_ground_is_taken_where_they_were_at_each_slot(mountains):
     """A walker (1.4 m/s, any heading) heard from two pairs of passes 200 s apart: their earlier
     slots were heard over ground tens of metres higher or lower than where they end. With one
