@@ -335,10 +335,9 @@ def contour_angle(scenario, area_xy: np.ndarray) -> float | None:
     gradient of the least-squares plane through the ground under the area; None on level ground."""
     dem = scenario.dem
     lo, hi = area_xy.min(axis=0), area_xy.max(axis=0)
-    step = max(dem.resolution_m, float(np.max(hi - lo)) / 60.0)
-    gx, gy = np.meshgrid(np.arange(lo[0], hi[0] + step / 2, step), np.arange(lo[1], hi[1] + step / 2, step))
-    xy = np.column_stack([gx.ravel(), gy.ravel()])
-    g = dem.height_xy(xy, clamp=True)
+    xs, ys, z = dem.grid_xy(lo, hi, max(dem.resolution_m, float(np.max(hi - lo)) / 60.0))
+    gx, gy = np.meshgrid(xs, ys)
+    xy, g = np.column_stack([gx.ravel(), gy.ravel()]), z.ravel()
     ok = np.isfinite(g)
     if ok.sum() < 3:
         return None
@@ -355,17 +354,17 @@ def hearing_share(scenario, routes_xy: list, *, need: int, speed_m_s: float) -> 
     profiles -- the height the climb and descent limits leave them at, not the aim. Lanes flown up
     and down a steep slope end high above a valley (the descent cannot follow the ground) and hear
     less there than lanes along the contours."""
-    from shapely.geometry import Point, Polygon  # noqa: PLC0415
-    from shapely.prepared import prep  # noqa: PLC0415
+    import shapely  # noqa: PLC0415
+    from shapely.geometry import Polygon  # noqa: PLC0415
 
     dem = scenario.dem
     area_xy = scenario.area_xy_m()
-    poly = prep(Polygon(area_xy))
+    poly = Polygon(area_xy)
     lo, hi = area_xy.min(axis=0), area_xy.max(axis=0)
-    step = max(scenario.horizontal_range_m / 6.0, math.sqrt(Polygon(area_xy).area / 3000.0))
+    step = max(scenario.horizontal_range_m / 6.0, math.sqrt(poly.area / 3000.0))
     gx, gy = np.meshgrid(np.arange(lo[0] + step / 2, hi[0], step), np.arange(lo[1] + step / 2, hi[1], step))
     pts = np.column_stack([gx.ravel(), gy.ravel()])
-    pts = pts[[poly.contains(Point(p)) for p in pts]]
+    pts = pts[shapely.contains_xy(poly, pts[:, 0], pts[:, 1])]
     if not len(pts):
         return 1.0
     ground = dem.height_xy(pts, clamp=True)

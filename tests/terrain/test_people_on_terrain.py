@@ -20,12 +20,13 @@ def mountains():
     return load_scenario(EXAMPLES / "mountains.toml")
 
 
-def two_passes(sc, person):
-    """Two terrain-following passes 80 m and 70 m either side of ``person``, 100 m above the ground
-    under the vehicle (z above the launch point, as telemetry gives it)."""
+def two_passes(sc, person, *, t0_s=0.0, offsets_m=(-80.0, 70.0)):
+    """Two terrain-following passes ``offsets_m`` (80 m and 70 m) either side of ``person`` from
+    ``t0_s``, 100 m above the ground under the vehicle (z above the launch point, as telemetry
+    gives it)."""
     dem, home = sc.dem, sc.dem.height_at(0.0, 0.0)
-    t, xyz, tt = [], [], 0.0
-    for dy in (-80.0, 70.0):
+    t, xyz, tt = [], [], float(t0_s)
+    for dy in offsets_m:
         for x in np.arange(person[0] - 300.0, person[0] + 300.0, 1.5):
             p = np.array([x, person[1] + dy])
             t.append(tt)
@@ -91,30 +92,17 @@ def test_a_walker_s_ground_is_taken_where_they_were_at_each_slot(mountains):
     height for all slots (the ground under the final estimate) these six walkers were placed
     3-320 m off (RMSE 131 m); with each slot's ground on the estimate's track, 4-31 m."""
     sc = mountains
-    dem, home = sc.dem, sc.dem.height_at(0.0, 0.0)
     ch = ChannelModel.from_scenario(sc)
-
-    def passes(center, t0, offsets):
-        t, xyz, tt = [], [], t0
-        for dy in offsets:
-            for x in np.arange(center[0] - 300.0, center[0] + 300.0, 1.5):
-                p = np.array([x, center[1] + dy])
-                t.append(tt)
-                xyz.append([p[0], p[1], dem.height_at(*p) - home + sc.fleet.altitude_m])
-                tt += 0.1
-            tt += 20.0
-        return np.array(t), np.array(xyz)
-
     errors = []
     for seed in range(6):
         rng = np.random.default_rng(seed)
         start = np.array([rng.uniform(300, 800), rng.uniform(200, 450)])
         ang = rng.uniform(0, 2 * np.pi)
         w = World.with_people(sc, start[None], 1.4 * np.array([[np.cos(ang), np.sin(ang)]]), seed=seed)
-        t1, x1 = passes(start, 0.0, (-80.0, 70.0))
-        t2, x2 = passes(w.positions(200.0)[0], 200.0, (-60.0, 90.0))
+        t1, x1 = two_passes(sc, start)
+        t2, x2 = two_passes(sc, w.positions(200.0)[0], t0_s=200.0, offsets_m=(-60.0, 90.0))
         slots = w.hear_track(1, np.concatenate([t1, t2]), np.vstack([x1, x2]))
         t_ref = float(slots.t_s.max())
-        est = estimate_on_terrain(slots, ch, dem, estimate=estimate_emitter, max_speed_m_s=1.5, t_ref_s=t_ref)
+        est = estimate_on_terrain(slots, ch, sc.dem, estimate=estimate_emitter, max_speed_m_s=1.5, t_ref_s=t_ref)
         errors.append(float(np.linalg.norm(est.position_xy_m - w.positions(t_ref)[0])))
     assert np.sqrt(np.mean(np.square(errors))) < 40.0, np.round(errors)

@@ -106,8 +106,8 @@ def _signals_held():
     finally:
         for signum, handler in previous.items():
             signal.signal(signum, handler)
-        for signum in dict.fromkeys(held):
-            signal.raise_signal(signum)
+        if held:
+            signal.raise_signal(signal.SIGTERM)
 
 
 def start_fleet_process(scenario, **kwargs) -> FleetProcess:

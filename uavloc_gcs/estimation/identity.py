@@ -19,7 +19,11 @@ knows, and relabels the slots so that ``emitter_id`` is a person:
   a receiver sensitivity the outer range of a reading given that it was heard; plus a
   transmit-power margin when phones differ; capped at ``channel.gate_m``, the paper world's sure
   range). Two bursts can be one person only when their annuli, grown by ``max_speed_m_s * dt``,
-  intersect. A person is a candidate for a new burst only when every burst of theirs passes it.
+  intersect. A person is a candidate for a new burst only when every burst of theirs passes it;
+- **streams**: a phone sends one probe burst at a time, each at most a few seconds long, and
+  answers an on-board access point under the one address it uses for that network, so two bursts
+  under different addresses heard at once for more than :data:`CONCURRENT_S`, or both longer than
+  that, are two phones.
 
 Among the candidates (and "a new person") the most likely is chosen: each linkable person carries
 a particle belief of where they are (moved uniformly within ``max_speed_m_s * dt`` between bursts,

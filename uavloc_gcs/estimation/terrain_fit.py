@@ -10,8 +10,9 @@ above or below the launch point, so
 which depends on the position p being estimated. :func:`estimate_on_terrain` solves it by a fixed
 point: estimate with the launch point's height, take the DEM's height where the estimate puts the
 person at each slot's time (a walker's track: position plus velocity times the time from the
-reference), re-estimate with those heights above the person, and again (``ITERATIONS`` refits; the height at a position off
-by e metres is off by e x the local slope, a second-order error in the slant range). A vehicle
+reference), re-estimate with those heights above the person, and again (``ITERATIONS`` refits;
+the height at a position off by e metres is off by e x the local slope, a second-order error in
+the slant range). A vehicle
 lower than the ground at the estimate (a phone up a slope above it) keeps h = 0, as the model's
 own floor does.
 
