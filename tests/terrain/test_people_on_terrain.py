@@ -85,16 +85,22 @@ def test_slots_low_over_the_launch_point_but_high_over_the_ground_below_are_kept
     assert len(survey_slots(slots, 100.0)) == 0  # the flat rule would drop it as a vehicle on the ground
 
 
-@pytest.mark.slow  # about 5 s: six estimates over terrain
-def test_a_walker_s_ground_is_taken_where_they_were_at_each_slot(mountains):
-    """A walker (1.4 m/s, any heading) heard from two pairs of passes 200 s apart: their earlier
-    slots were heard over ground tens of metres higher or lower than where they end. With one
-    height for all slots (the ground under the final estimate) these six walkers were placed
-    3-320 m off (RMSE 131 m); with each slot's ground on the estimate's track, 4-31 m."""
+@pytest.mark.slow  # about 10 s: twelve estimates over terrain
+def test_a_walker_is_kept_on_the_ground_wherever_the_fit_moves_them(mountains):
+    """Walkers (1.4 m/s, any heading) heard from two pairs of passes 200 s apart: their earlier
+    slots were heard over ground tens of metres higher or lower than where they end.
+
+    With one height for all slots (the ground under the final estimate) six of these walkers were
+    placed 3-320 m off (RMSE 131 m). With each slot's ground taken on the estimate's track but held
+    fixed while fitting, 8 of 12 ended outside their 95 % circle (RMSE 43 m): the fixed point
+    settled where the heights it had assumed agreed with a wrong position, and its radius knew
+    nothing of how the ground changes under a moved person. The fit now keeps the person on the
+    DEM's ground wherever it moves them (``Prepared.ground``): 12 of 12 inside, RMSE 7 m (and 47
+    of 48 over seeds 0-47, against 38 of 48)."""
     sc = mountains
     ch = ChannelModel.from_scenario(sc)
-    errors = []
-    for seed in range(6):
+    errors, radii = [], []
+    for seed in range(12):
         rng = np.random.default_rng(seed)
         start = np.array([rng.uniform(300, 800), rng.uniform(200, 450)])
         ang = rng.uniform(0, 2 * np.pi)
@@ -105,4 +111,9 @@ def test_a_walker_s_ground_is_taken_where_they_were_at_each_slot(mountains):
         t_ref = float(slots.t_s.max())
         est = estimate_on_terrain(slots, ch, sc.dem, estimate=estimate_emitter, max_speed_m_s=1.5, t_ref_s=t_ref)
         errors.append(float(np.linalg.norm(est.position_xy_m - w.positions(t_ref)[0])))
-    assert np.sqrt(np.mean(np.square(errors))) < 40.0, np.round(errors)
+        radii.append(est.radius95_m)
+    errors, radii = np.array(errors), np.array(radii)
+    inside = int(np.sum(errors <= radii))
+    # 95 % circles: 11 of 12 allows one outside (a calibrated estimator passes 88 % of the time)
+    assert inside >= 11, (np.round(errors), np.round(radii))
+    assert np.sqrt(np.mean(np.square(errors))) < 20.0, np.round(errors)

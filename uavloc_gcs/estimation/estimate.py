@@ -175,6 +175,8 @@ class Estimate:
     model_motion: bool = True
     inflation: float = 1.0  # information deflation applied (1 = i.i.d. model held)
     process_noise_m2_s3: float = 0.0  # maneuver intensity q per axis (see .maneuver); 0 = pure CV
+    log_mass: float = math.nan  # the estimate's mode: Laplace log posterior mass (model prior included)
+    data_cost: float = math.nan  # its sum of squared standardized data residuals (before deflation)
 
     @property
     def ok(self) -> bool:
@@ -252,6 +254,7 @@ def estimate_emitter(
     maneuver_time_s: float = MANEUVER_TIME_S,
     silence: Silence | None = None,
     censored: Censored | None = None,
+    ground=None,
 ) -> Estimate:
     """Estimate one emitter from its slots (all rows must carry the same emitter id).
 
@@ -276,6 +279,11 @@ def estimate_emitter(
     truncated normal, see :mod:`.fit`), and ``censored`` (from :func:`.evidence.censored_silence`:
     vehicles that listened while the phone sent a burst another vehicle heard, and heard nothing)
     adds the probability of hearing none of the frames sent. ``censored`` needs the threshold.
+
+    ``ground`` (over terrain, from :mod:`.terrain_fit`): ``ground(t_s, xy)`` gives how much higher
+    the ground is at positions xy (N, 2) at times t_s than where the slots' heights above the
+    person were taken, and its gradient there (N, 2): the fit keeps the person on the ground
+    wherever it moves them (the heard slots; censored rows and silences keep their heights).
     """
     if max_speed_m_s < 0 or not math.isfinite(max_speed_m_s):
         raise EstimationError(f"max_speed_m_s must be a finite non-negative number, got {max_speed_m_s}")
@@ -292,9 +300,11 @@ def estimate_emitter(
     moving = bool(model_motion) and max_speed_m_s > 0
     if len(slots) < MIN_SLOTS:
         return _not_enough(emitter, slots, t_ref, last, max_speed_m_s, moving)
-    data = prepare(slots, channel)
+    data = prepare(slots, channel, height_floor=ground is None)
     if len(data.t_s) < MIN_SLOTS:  # e.g. three slots within 0.1 s are one observation
         return _not_enough(emitter, slots, t_ref, last, max_speed_m_s, moving)
+    if ground is not None:
+        data = replace(data, ground=ground)
     q = intensity_m2_s3(max_speed_m_s, maneuver_time_s) if moving else 0.0
     t_anchor = min(max(t_ref, float(data.t_s.min())), float(data.t_s.max()))
     main = _solve(data, channel, q, t_anchor, moving, bool(estimate_tx_power), float(max_speed_m_s),
@@ -303,7 +313,8 @@ def estimate_emitter(
         log.info("emitter %d: the data contradict the nominal transmit power; estimating it", emitter)
         return estimate_emitter(slots, channel, max_speed_m_s=max_speed_m_s, t_ref_s=t_ref_s,
                                 model_motion=model_motion, estimate_tx_power=True, previous=previous,
-                                maneuver_time_s=maneuver_time_s, silence=silence, censored=censored)
+                                maneuver_time_s=maneuver_time_s, silence=silence, censored=censored,
+                                ground=ground)
     solutions = [(main, 0.0)]
     lag = t_anchor - float(data.t_s.min())
     if TURN_MIXTURE and main.problem.passes is not None and lag > 0 and math.isfinite(maneuver_time_s):
@@ -365,7 +376,8 @@ def estimate_emitter(
                             channel.log_range_sigma, max_speed_m_s)
     return Estimate(
         emitter, "ok", t_ref, pos, vel, cov, radius, bound, ambiguous, mirror, len(slots), last,
-        beta / channel.nepers_per_db, mode_r, float(max_speed_m_s), moving, factor, q,
+        beta / channel.nepers_per_db, mode_r, float(max_speed_m_s), moving, factor, q, float(logmass),
+        float(np.sum(problem.data_residuals(theta) ** 2)),
     )
 
 

@@ -74,15 +74,24 @@ class Prepared:
     w: np.ndarray  # precision n / s^2
     n_samples: np.ndarray
     center: np.ndarray  # weighted mean vehicle ground position
+    # Over terrain (see .terrain_fit): ground(t_s, xy) -> (rise (N,), gradient (N, 2)), how much
+    # higher the ground is at the person's position xy (N, 2) at each row's time than where h_m was
+    # taken, and its gradient there; the height above the person is h_m - rise. None: the
+    # person's height does not depend on where they are.
+    ground: object = None
 
 
-def prepare(slots, channel: ChannelModel, *, merge_s: float = MERGE_S) -> Prepared:
+def prepare(slots, channel: ChannelModel, *, merge_s: float = MERGE_S, height_floor: bool = True) -> Prepared:
     """The slots as log-range observations, time-sorted.
 
     Consecutive slots of one vehicle within ``merge_s`` are merged into one observation (sample-
     weighted mean of ln r, position and time; summed precision). Over 0.1 s a vehicle moves ~2.5 m,
     so ln d changes by ~1e-4 of its curvature term while a slot's noise is ~0.15: the likelihood is
     unchanged to that order and the fit is ~4x cheaper.
+
+    Heights below 0 (a vehicle under the person) are taken as 0 unless ``height_floor`` is False:
+    over terrain the fit moves the person on the ground (``Prepared.ground``) and needs the
+    heights as they are.
     """
     y_all = channel.log_range(slots.rssi_dbm)
     n_all = np.maximum(slots.n_samples, 1).astype(float)
@@ -106,7 +115,8 @@ def prepare(slots, channel: ChannelModel, *, merge_s: float = MERGE_S) -> Prepar
         t, y, a, veh, n = t[by_time], y[by_time], a[by_time], veh[by_time], n[by_time]
     w = n / channel.log_range_sigma**2
     t_c = float(np.sum(w * t) / np.sum(w))
-    return Prepared(t, t - t_c, t_c, a[:, :2].copy(), np.maximum(a[:, 2], 0.0), veh, y, w, n,
+    return Prepared(t, t - t_c, t_c, a[:, :2].copy(), np.maximum(a[:, 2], 0.0) if height_floor else a[:, 2].copy(),
+                    veh, y, w, n,
                     np.average(a[:, :2], axis=0, weights=w))
 
 
@@ -210,7 +220,9 @@ class Problem:
 
     def _geometry(self, theta: np.ndarray):
         """Offsets g (N, 2) person - vehicle and squared 3-D distances (N,); the last evaluation is
-        cached (MINPACK asks for the residuals and the Jacobian at the same point)."""
+        cached (MINPACK asks for the residuals and the Jacobian at the same point). Over terrain
+        (``data.ground``) g is half the gradient of d^2 with respect to the person's position,
+        which is all the Jacobian uses it for."""
         key = theta.tobytes()
         cache = self.__dict__.get("_cache")
         if cache is not None and cache[0] == key:
@@ -223,7 +235,13 @@ class Problem:
         if self.turn_at_s is not None:
             pos = pos + np.outer(self.turn_lead(d.t_s), theta[self.offsets_end:])
         g = pos - d.a_xy
-        d2 = g[:, 0] * g[:, 0] + g[:, 1] * g[:, 1] + d.h_m * d.h_m
+        if d.ground is None:
+            d2 = g[:, 0] * g[:, 0] + g[:, 1] * g[:, 1] + d.h_m * d.h_m
+        else:  # the person on the ground where they are: d(d^2)/d(position) = 2 (g - h grad)
+            rise, grad = d.ground(d.t_s, pos)
+            h = d.h_m - rise
+            d2 = g[:, 0] * g[:, 0] + g[:, 1] * g[:, 1] + h * h
+            g = g - h[:, None] * grad  # what the Jacobian takes as the offset
         object.__setattr__(self, "_cache", (key, g, d2))
         return g, d2
 
