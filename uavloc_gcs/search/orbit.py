@@ -529,6 +529,9 @@ def judge_orbit(policy, eid: int, p, heard: bool) -> str | None:
     if n[int(eid)] < MAX_ORBIT_LOOKS:
         return ""
     r95 = policy._radius95(p) if p.estimate is not None else math.nan
-    what = "heard" if heard else "not heard"
-    return (f"not located after {n[int(eid)]} orbit looks of {orb.flown_s:.0f} s ({what} on the last one; 95 % "
+    if heard:  # the phone is there: what ends the looks is the cap, and the sentence says so
+        return (f"not located after {n[int(eid)]} orbit looks of {orb.flown_s:.0f} s (heard on the last one; 95 % "
+                f"radius {r95:.0f} m): the orbits did not narrow it to the accuracy asked for, and no more "
+                f"looks are flown for one person (at most {MAX_ORBIT_LOOKS})")
+    return (f"not located after {n[int(eid)]} orbit looks of {orb.flown_s:.0f} s (not heard on the last one; 95 % "
             f"radius {r95:.0f} m); its phone may be in a long silence or gone")

@@ -2,6 +2,7 @@
 estimates, and a person given up after fly-by looks is not said to be gone."""
 
 import numpy as np
+import pytest
 
 from uavloc_gcs.examples import scenario_path
 from uavloc_gcs.observations import SlotBatch
@@ -180,3 +181,25 @@ def test_an_orbit_around_a_person_predicted_outside_stays_inside_the_stated_marg
         assert reach.contains(Point(o.centre_xy_m).buffer(o.radius_m)), (o.centre_xy_m, o.radius_m)
         for q in task.waypoints_xy_m:
             assert reach.contains(Point(q)), q
+
+
+@pytest.mark.parametrize("heard", [True, False])
+def test_the_reason_an_orbit_looked_person_is_given_up_says_whether_they_were_heard(heard):
+    """The PX4 field search on SITL gave people up "after 2 orbit looks (heard on the last one ...);
+    its phone may be in a long silence or gone": heard on the look, so not gone. A person heard on
+    the last orbit is given up because of the cap on orbit looks, and the reason says that."""
+    import types
+
+    from uavloc_gcs.search import orbit
+
+    sc = load_scenario(scenario_path("field"))
+    policy = SearchPolicy(sc, seed=0, time_limit_s=5.0, max_iter=5)
+    person = types.SimpleNamespace(estimate=None)
+    look = orbit.plan_orbit(sc, (300.0, 200.0), 60.0)
+    for k in range(orbit.MAX_ORBIT_LOOKS):
+        policy.__dict__.setdefault("_orbits", {})[7] = look
+        why = orbit.judge_orbit(policy, 7, person, heard)
+        assert (why == "") == (k + 1 < orbit.MAX_ORBIT_LOOKS)
+    assert ("heard on the last one" in why and "not heard" not in why) == heard
+    assert ("gone" in why) != heard
+    assert heard == (f"at most {orbit.MAX_ORBIT_LOOKS}" in why)
