@@ -342,7 +342,10 @@ def estimate_emitter(
     beta = theta[problem.beta_index] if problem.tx else 0.0
     mode_r = _mode_radius(cov, moving, max_speed_m_s, t_ref - data.t_c)
     # where the phone was heard at all bounds everything, e.g. the lateral error right under a track
-    reach = reach_bound_m(pos, t_ref, data.t_s, data.a_xy, data.h_m, channel.gate_m, max_speed_m_s)
+    # (over terrain the ground under the person changes each slot's disc wherever they are: the
+    # discs are taken at their widest, the person as high as the vehicle, which still bounds)
+    reach = reach_bound_m(pos, t_ref, data.t_s, data.a_xy, data.h_m if data.ground is None else 0.0 * data.h_m,
+                          channel.gate_m, max_speed_m_s)
     mirror = None
     if len(entries) > 1:
         other = entries[1]
@@ -464,7 +467,7 @@ def _solve(data, channel: ChannelModel, q: float, t_anchor: float, moving: bool,
                                                      else 0.0), data.t_s)
     bounds = build_bounds(data.t_c, t_anchor, data.t_s, heard_xyz, heard_pass, heard_mid, silence,
                           channel.gate_m, q,
-                          np.array([m[0][:2] for m in modes]), vmax, moving)
+                          np.array([m[0][:2] for m in modes]), vmax, moving, ground=data.ground)
     if bounds is not None and silence is not None:
         problem = replace(problem, bounds=bounds)
         modes = _refit_bounded(problem, modes)
@@ -582,6 +585,8 @@ def _mirror_starts(problem: Problem, theta: np.ndarray) -> list[np.ndarray]:
         center, direction, _ = principal_line(problem.data)
         legs = [(center, direction, problem.data.t_c)]
     out = [_mirror_state(problem, theta, c, d, t - problem.data.t_c) for c, d, t in legs]
+    if problem.data.ground is not None:  # over terrain the mirror's ground differs: see _slant_mirrors
+        out += [m for c, d, t in legs for m in _slant_mirrors(problem, theta, c, d, t - problem.data.t_c)]
     if problem.passes is not None:  # maneuver model: also mirror one pass alone, the others kept in place
         base = problem.offset_prior_cost(theta)
         for c, d, t in legs:
@@ -650,6 +655,42 @@ def _mirror_state(problem: Problem, theta: np.ndarray, center, direction, tau: f
     b = problem.base_size
     for k in range(b, problem.size, 2):  # the pass offsets are vectors: reflect them too
         out[k: k + 2] = mirror_point(theta[k: k + 2], np.zeros(2), direction)
+    return out
+
+
+def _slant_mirrors(problem: Problem, theta: np.ndarray, center, direction, tau: float) -> list[np.ndarray]:
+    """Over terrain: the mirror across a leg where the ground there puts the person at the same
+    slant range from the leg as ``theta`` does (the plain reflection keeps the horizontal offset,
+    and on a slope its ground is tens of metres higher or lower). Along the perpendicular on the
+    mirror side, every crossing of that slant range (at most two, nearest first) gives a start:
+    a fit from the plain reflection can descend the wrong way, as the slant range along a slope
+    first falls and then rises (the mountains demo located a walker 114 m from the truth, the
+    truth's side never fitted)."""
+    d = problem.data
+    v = theta[2:4] if problem.moving else np.zeros(2)
+    q = theta[:2] + v * tau
+    normal = np.array([-direction[1], direction[0]])
+    lateral = float(np.dot(q - center, normal))
+    foot = q - lateral * normal
+    k = int(np.argmin(np.abs(d.tau_s - tau)))
+    t_k = d.t_s[k: k + 1]
+    rise_q, _ = d.ground(t_k, q[None, :])
+    target = float(np.sum((q - d.a_xy[k]) ** 2) + (d.h_m[k] - rise_q[0]) ** 2)
+    side = -1.0 if lateral > 0 else 1.0
+    offsets = side * np.arange(1.0, math.sqrt(target) + 2.0, 2.0)
+    pts = foot + offsets[:, None] * normal
+    rise, _ = d.ground(np.full(len(pts), t_k[0]), pts)
+    excess = np.sum((pts - d.a_xy[k]) ** 2, axis=1) + (d.h_m[k] - rise) ** 2 - target
+    cross = np.flatnonzero(np.sign(excess[1:]) != np.sign(excess[:-1]))[:2]
+    plain = _mirror_state(problem, theta, center, direction, tau)
+    p_plain = mirror_point(q, center, direction)
+    out = []
+    for i in cross:
+        f = excess[i] / (excess[i] - excess[i + 1])
+        at = pts[i] + f * (pts[i + 1] - pts[i])
+        start = plain.copy()
+        start[:2] = plain[:2] + (at - p_plain)
+        out.append(start)
     return out
 
 

@@ -73,39 +73,64 @@ class Bounds:
     sign: np.ndarray
     sigma_m: np.ndarray
     pass_index: np.ndarray  # (K,) the maneuver pass of a heard row (its offset applies); -1: none
+    # Over terrain (see .terrain_fit, fit.Prepared.ground): the rows' heights above the person h_m
+    # (K,) as taken, the range, the fit's reference time and ground(t_s, xy) -> (rise, gradient):
+    # the reach then follows the ground under the person wherever the fit moves them.
+    h_m: np.ndarray | None = None
+    range_m: float = math.inf
+    t_c: float = 0.0
+    ground: object = None
 
     def __len__(self) -> int:
         return len(self.tau_s)
 
+    def _reach(self, g: np.ndarray, where: np.ndarray):
+        """Each row's ground reach (K,) and its gradient by the person's position (K, 2)."""
+        if self.ground is None:
+            return self.reach_m, None
+        rise, grad = self.ground(self.tau_s + self.t_c, where)
+        h = self.h_m - rise
+        reach = np.sqrt(np.maximum(self.range_m**2 - h * h, 0.0))
+        # d reach / d position = h grad / reach (h falls as the ground under the person rises)
+        d = (h / np.maximum(reach, 1.0))[:, None] * grad
+        return reach, np.where((reach > 0)[:, None], d, 0.0)
+
     def residuals(self, p: np.ndarray, v: np.ndarray | None, shift: np.ndarray | None = None) -> np.ndarray:
-        g = self._offsets(p, v, shift)
+        g, where = self._offsets(p, v, shift)
         ground = np.hypot(g[:, 0], g[:, 1])
-        return np.maximum(self.sign * (ground - self.reach_m), 0.0) / self.sigma_m
+        reach, _ = self._reach(g, where)
+        return np.maximum(self.sign * (ground - reach), 0.0) / self.sigma_m
 
     def jacobian(self, p: np.ndarray, v: np.ndarray | None, shift: np.ndarray | None = None) -> np.ndarray:
         """(K, 4) d residual / d (x, y, vx, vy) (the velocity columns zero for the static model); the
         derivative by a row's pass offset equals its position columns."""
-        g = self._offsets(p, v, shift)
+        g, where = self._offsets(p, v, shift)
         ground = np.maximum(np.hypot(g[:, 0], g[:, 1]), 1e-9)
-        active = self.sign * (ground - self.reach_m) > 0
-        u = (g / ground[:, None]) * (active * self.sign / self.sigma_m)[:, None]
+        reach, d_reach = self._reach(g, where)
+        active = self.sign * (ground - reach) > 0
+        u = g / ground[:, None]
+        if d_reach is not None:
+            u = u - d_reach
+        u = u * (active * self.sign / self.sigma_m)[:, None]
         return np.column_stack([u, u * self.tau_s[:, None]]) if v is not None else np.column_stack([u, 0 * u])
 
     def _offsets(self, p, v, shift=None):
-        where = p + (np.outer(self.tau_s, v) if v is not None else 0.0)
+        """Person - vehicle ground offsets (K, 2) and the person's positions (K, 2)."""
+        where = p + (np.outer(self.tau_s, v) if v is not None else np.zeros_like(self.a_xy))
         if shift is not None:  # (K, 2) the rows' pass offsets
             where = where + shift
-        return where - self.a_xy
+        return where - self.a_xy, where
 
 
 def build_bounds(t_c: float, t_anchor: float, heard_t_s, heard_xyz_m, heard_pass, heard_pass_t_s,
                  silence: Silence | None,
                  comm_range_m: float, q_m2_s3: float, near_xy_m: np.ndarray, max_speed_m_s: float,
-                 moving: bool) -> Bounds | None:
+                 moving: bool, ground=None) -> Bounds | None:
     """The constraints worth fitting: heard slots spread over the data (``MAX_HEARD``) and the
     silent slots that could bind near any of ``near_xy_m`` (candidate positions at t_c). Softness:
     ``TOLERANCE_FLOOR_M`` plus the maneuver deviation since the anchor (and for the static model
-    the walk v_max |tau|)."""
+    the walk v_max |tau|). ``ground``: over terrain, ``fit.Prepared.ground`` (the reach follows
+    the ground under the person)."""
     if not math.isfinite(comm_range_m):
         return None
     ht = np.asarray(heard_t_s, float)
@@ -135,6 +160,9 @@ def build_bounds(t_c: float, t_anchor: float, heard_t_s, heard_xyz_m, heard_pass
     if not moving:
         sigma = sigma + max_speed_m_s * np.abs(t - t_c)
     reach = np.sqrt(np.maximum(comm_range_m**2 - xyz[:, 2] ** 2, 0.0))
+    if ground is not None:
+        return Bounds(t - t_c, xyz[:, :2].copy(), reach, sign, sigma, index, xyz[:, 2].copy(), float(comm_range_m),
+                      float(t_c), ground)
     return Bounds(t - t_c, xyz[:, :2].copy(), reach, sign, sigma, index)
 
 
