@@ -118,10 +118,22 @@ def estimate_on_terrain(slots: SlotBatch, channel, dem, *, estimate, censored=No
         else None
 
     def surface(e):  # for the fit: the ground anywhere, against the ground on the estimate's track
+        bases: dict = {}  # the ground on the track, per set of times (the slots', the bounds')
+        last: list = []  # the last answer: the fit asks for residuals and Jacobian at one point
+
         def rise(t_s, xy):
-            pts = track(e, t_s)
+            t, xy = np.asarray(t_s, dtype=float), np.asarray(xy, dtype=float)
+            kt, kx = t.tobytes(), xy.tobytes()
+            if last and last[0] == kt and last[1] == kx:
+                return last[2]
+            base = bases.get(kt)
+            if base is None:
+                if len(bases) > 16:
+                    bases.clear()
+                base = bases[kt] = local.height_gradient(track(e, t))[0]
             z, grad = local.height_gradient(xy)
-            return z - local.height_gradient(pts)[0], grad
+            last[:] = [kt, kx, (z - base, grad)]
+            return last[2]
         return rise if local is not None and track(e, slots.t_s[:1]) is not None else None
 
     def rows(e):  # the ground for the slots, the censored rows and the silences
