@@ -4,7 +4,7 @@ the field world (daemon_run.field_check: what it claims against its telemetry); 
 ``uavloc sitl`` stops every autopilot it started. Two ArduCopters search together in the field
 world; one PX4 searches in the field world (issue 24 item 5; on 2026-11-26 its search there did
 not end within the 900 s wall budget, flying look missions of 119-159 items one after another;
-since the orbit looks and their limit it ends: 635 s wall on 2026-11-28, beside a benchmark) and
+since the orbit looks and their limit it ends: 635 s wall on 2026-11-27, beside a benchmark) and
 in the paper world (the two commands where people are located). Two PX4
 SIH in lockstep did not keep up at speed-up 5 on the shared 2-core machine (load 16: mission
 transfers timed out), so PX4's system ids 1..N whatever its instance numbers are checked on their
