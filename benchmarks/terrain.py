@@ -1,5 +1,5 @@
-"""``python -m benchmarks.terrain [--people N]``: what terrain does to the missions and the estimator
-(docs/readme/terrain.md).
+"""``python -m benchmarks.terrain [--people N] [--walkers N]``: what terrain does to the missions and
+the estimator (docs/readme/terrain.md).
 
 1. The scan of ``examples/mountains.toml`` (Mount Washington's west flank, SRTM3): per vehicle the
    waypoints before and after ``terrain_safe``, the least and median height above the DEM along the
@@ -9,6 +9,9 @@
    from two terrain-following passes 70-80 m either side: the static estimator's RMSE with everyone
    at the launch point's height (the flat model) and with the person's height from the DEM, and
    what the terrain fit costs (estimator fits and CPU seconds), first and on a later update.
+3. Walkers (1.4 m/s, any heading; world seeds 0..N-1) heard from two pairs of terrain-following
+   passes 200 s apart, as in ``tests/terrain/test_people_on_terrain.py``: how many end inside
+   their 95 % circle, the RMSE, and the CPU the terrain fit took.
 """
 
 from __future__ import annotations
@@ -23,6 +26,7 @@ import numpy as np
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python -m benchmarks.terrain", description=__doc__.splitlines()[0])
     ap.add_argument("--people", type=int, default=20, help="people for the estimator part (default 20)")
+    ap.add_argument("--walkers", type=int, default=24, help="walkers for the third part (default 24; 0: none)")
     ap.add_argument("--verbose", action="store_true", help="one line per person")
     args = ap.parse_args(argv)
 
@@ -101,7 +105,48 @@ def main(argv=None) -> int:
         print(f"{(~b).sum()} heard from one pass only (the ground there put the other pass beyond "
               f"{sc.fleet.comm_range_m:g} m): a pass's mirror ambiguity, errors flat "
               f"{', '.join(f'{e:.0f}' for e in fe[~b])} m, terrain {', '.join(f'{e:.0f}' for e in te[~b])} m")
+    if args.walkers > 0:
+        _walkers(sc, ch, args.walkers, args.verbose)
     return 0
+
+
+def _passes(sc, centre, t0_s: float, offsets_m) -> tuple[np.ndarray, np.ndarray]:
+    """Terrain-following passes along x at ``offsets_m`` north of ``centre``, 100 m above the ground."""
+    dem, home = sc.dem, sc.dem.height_at(0.0, 0.0)
+    t, xyz, tt = [], [], float(t0_s)
+    for dy in offsets_m:
+        for x in np.arange(centre[0] - 300.0, centre[0] + 300.0, 1.5):
+            t.append(tt)
+            xyz.append([x, centre[1] + dy, dem.height_at(x, centre[1] + dy) - home + sc.fleet.altitude_m])
+            tt += 0.1
+        tt += 20.0
+    return np.array(t), np.array(xyz)
+
+
+def _walkers(sc, ch, n: int, verbose: bool) -> None:
+    from sim_link.world import World
+    from uavloc_gcs.estimation import estimate_emitter
+    from uavloc_gcs.estimation.terrain_fit import estimate_on_terrain
+
+    errors, radii, c0 = [], [], time.process_time()
+    for seed in range(n):
+        rng = np.random.default_rng(seed)
+        start = np.array([rng.uniform(300, 800), rng.uniform(200, 450)])
+        ang = rng.uniform(0, 2 * np.pi)
+        w = World.with_people(sc, start[None], 1.4 * np.array([[np.cos(ang), np.sin(ang)]]), seed=seed)
+        t1, x1 = _passes(sc, start, 0.0, (-80.0, 70.0))
+        t2, x2 = _passes(sc, w.positions(200.0)[0], 200.0, (-60.0, 90.0))
+        slots = w.hear_track(1, np.concatenate([t1, t2]), np.vstack([x1, x2]))
+        t_ref = float(slots.t_s.max())
+        est = estimate_on_terrain(slots, ch, sc.dem, estimate=estimate_emitter, max_speed_m_s=1.5, t_ref_s=t_ref)
+        errors.append(float(np.linalg.norm(est.position_xy_m - w.positions(t_ref)[0])))
+        radii.append(float(est.radius95_m))
+        if verbose:
+            print(f"  walker {seed}: error {errors[-1]:.1f} m, 95 % radius {radii[-1]:.1f} m")
+    e, r = np.array(errors), np.array(radii)
+    print(f"{n} walkers (1.4 m/s) heard from two pairs of passes 200 s apart: {int(np.sum(e <= r))} of {n} inside "
+          f"their 95 % circle, RMSE {float(np.sqrt(np.mean(e * e))):.1f} m, median radius {float(np.median(r)):.0f} m, "
+          f"{time.process_time() - c0:.1f} s CPU")
 
 
 if __name__ == "__main__":

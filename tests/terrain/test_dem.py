@@ -1,4 +1,4 @@
-"""The DEM: reading GeoTIFF and SRTM .hgt, bilinear sampling, the scenario key and its errors."""
+"""The DEM: reading GeoTIFF, SRTM .hgt and DTED, bilinear sampling, the scenario key and its errors."""
 
 from __future__ import annotations
 
@@ -66,6 +66,32 @@ def test_an_srtm_hgt_tile_is_read_with_its_cells_where_srtm_puts_them(tmp_path):
     half_e = frame.to_local(44.5, -71.75 + 1.5 / 3600)[0]
     assert dem.height_at(half_e, 0.0) == pytest.approx(500.0, abs=1.0)
     assert 60.0 < dem.resolution_m < 70.0  # 3 arc-seconds east-west at 44.5 N
+
+
+def test_a_dted_tile_is_read_through_the_scenario_key(tmp_path):
+    """DTED level 0 (30" posts on a 1-degree tile, written by GDAL's DTED driver from a GeoTIFF):
+    a west-east plane 1000 m + 200 m per degree of longitude from 71.5 W, read back through
+    ``[terrain] dem`` where the plane puts it (DTED stores whole metres)."""
+    import rasterio
+    import rasterio.shutil
+    from affine import Affine
+
+    n = 121
+    step = 1.0 / (n - 1)
+    lon = -72.0 + step * np.arange(n)
+    z = np.tile(np.round(1000.0 + 200.0 * (lon + 71.5)).astype("int16"), (n, 1))
+    src = tmp_path / "plane.tif"
+    with rasterio.open(src, "w", driver="GTiff", height=n, width=n, count=1, dtype="int16", crs="EPSG:4326",
+                       transform=Affine(step, 0.0, -72.0 - step / 2, 0.0, -step, 45.0 + step / 2)) as ds:
+        ds.write(z, 1)
+    rasterio.shutil.copy(src, tmp_path / "n44.dt0", driver="DTED")
+    toml = AREA.format(lat=44.5, lon=-71.75) + '\n[terrain]\ndem = "n44.dt0"\n'
+    sc = loads_scenario(toml, source=str(tmp_path / "s.toml"), base_dir=tmp_path)
+    assert sc.dem is not None and "n44.dt0" in describe(sc)
+    assert sc.dem.height_at(0.0, 0.0) == pytest.approx(950.0, abs=1.0)
+    east = sc.frame.to_local(44.5, -71.70)[0]  # 0.05 degree east: 10 m higher
+    assert sc.dem.height_at(east, 0.0) == pytest.approx(960.0, abs=1.0)
+    assert 600.0 < sc.dem.resolution_m < 700.0  # 30" of longitude at 44.5 N
 
 
 def test_the_shipped_srtm_crop_puts_mount_washington_summit_at_its_height():
