@@ -176,7 +176,6 @@ class Estimate:
     inflation: float = 1.0  # information deflation applied (1 = i.i.d. model held)
     process_noise_m2_s3: float = 0.0  # maneuver intensity q per axis (see .maneuver); 0 = pure CV
     log_mass: float = math.nan  # the estimate's mode: Laplace log posterior mass (model prior included)
-    data_cost: float = math.nan  # its sum of squared standardized data residuals (before deflation)
 
     @property
     def ok(self) -> bool:
@@ -380,7 +379,6 @@ def estimate_emitter(
     return Estimate(
         emitter, "ok", t_ref, pos, vel, cov, radius, bound, ambiguous, mirror, len(slots), last,
         beta / channel.nepers_per_db, mode_r, float(max_speed_m_s), moving, factor, q, float(logmass),
-        float(np.sum(problem.data_residuals(theta) ** 2)),
     )
 
 

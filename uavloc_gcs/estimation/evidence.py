@@ -131,8 +131,8 @@ def build_bounds(t_c: float, t_anchor: float, heard_t_s, heard_xyz_m, heard_pass
     """The constraints worth fitting: heard slots spread over the data (``MAX_HEARD``) and the
     silent slots that could bind near any of ``near_xy_m`` (candidate positions at t_c). Softness:
     ``TOLERANCE_FLOOR_M`` plus the maneuver deviation since the anchor (and for the static model
-    the walk v_max |tau|). ``ground``: over terrain, ``fit.Prepared.ground`` (the reach follows
-    the ground under the person)."""
+    the walk v_max |tau|). ``ground``: over terrain, ``fit.Prepared.ground`` (each row then bounds
+    the slant range to the person on the ground where the fit puts them)."""
     if not math.isfinite(comm_range_m):
         return None
     ht = np.asarray(heard_t_s, float)
