@@ -49,11 +49,13 @@ _FP_CACHE_MAX = 65_536
 def probe_fields(frame: bytes, snapped: bool) -> tuple[int, int, int, int] | None:
     """(source address, sequence number, fingerprint, DS channel) of a probe request, None for any
     other frame. Raises Malformed when the header or an element length does not fit."""
-    if len(frame) < HEADER_LEN:
+    if not frame:
         raise Malformed("short_80211")
     fc = frame[0]
     if (fc >> 2) & 3 != MGMT or fc >> 4 != PROBE_REQUEST or fc & 3:
-        return None
+        return None  # control frames (ACK, CTS: 10-16 bytes) are short by design, not malformed
+    if len(frame) < HEADER_LEN:
+        raise Malformed("short_80211")
     start = HEADER_LEN + (4 if frame[1] & 0x80 else 0)  # +HT Control when the Order bit is set
     address = int.from_bytes(frame[10:16], "big")
     seq = (frame[22] | frame[23] << 8) >> 4

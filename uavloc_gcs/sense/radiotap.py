@@ -4,7 +4,8 @@ Radiotap (https://www.radiotap.org): ``version u8 = 0, pad u8, length u16 LE, pr
 more present words while bit 31 is set, then the fields of the set bits in bit order, each aligned
 to its natural size counted from the header's start. Bit 29 starts a new radiotap namespace (how
 drivers report each antenna separately), bit 30 a vendor namespace whose data is skipped by the
-length its header gives. The layout of a given run of present words is computed once and cached, so
+length its header gives; a word after one with neither goes on with bits 32-63 of the same
+namespace (a real capture in tcpdump's tests sets some: no field is defined there, so parsing stops). The layout of a given run of present words is computed once and cached, so
 a capture from one adapter costs one dict look-up per frame.
 
 Returned per frame: :class:`RadioInfo` with the signal in dBm (the first antenna-signal field, the
@@ -75,10 +76,12 @@ def _layout(data: bytes, hlen: int) -> tuple[tuple | None, int]:
     off = pos
     sig: list[int] = []
     flags = chan = xchan = -1
+    base = 0  # bit number of this word's bit 0 in its namespace
     for w in words:
-        for bit in range(29):
-            if not w & (1 << bit):
+        for b in range(29):
+            if not w & (1 << b):
                 continue
+            bit = base + b
             spec = FIELDS.get(bit)
             if spec is None:  # a field we cannot size (TLVs, new bits): what follows is unreachable
                 return _finish(key, sig, flags, chan, xchan), pos
@@ -104,6 +107,9 @@ def _layout(data: bytes, hlen: int) -> tuple[tuple | None, int]:
             # the skip depends on this frame's data: the layout is not cached, and fields after the
             # vendor namespace (rare: drivers put it last) are not read
             return (tuple(sig), flags, chan, xchan), pos
+        # bit 29: the next word starts the radiotap namespace again (another antenna's fields);
+        # otherwise it goes on with bits 32-63 of this one (none is defined: parsing stops there)
+        base = 0 if w & (1 << 29) else base + 32
     if off > hlen:
         raise Malformed("bad_radiotap")
     return _finish(key, sig, flags, chan, xchan), pos
