@@ -61,6 +61,9 @@ class VehicleConfig:
     slot_s: float = 0.025
     epoch_unix_s: float = 0.0
     rssi: bool = True  # generate UAVLOC_RSSI_BATCH from the world (off when a companion does it)
+    # send what the real Wi-Fi sensor (uavloc_gcs.sense) makes of the radiotap frames behind the
+    # world's slots, as the companion emulator's via_sense does (sensor_feed.through_sensor)
+    via_sense: bool = False
     # A real companion also sends a 1 Hz HEARTBEAT (MAV_TYPE_ONBOARD_CONTROLLER, MAV_AUTOPILOT_INVALID)
     # from component 191. Off by default: with it, MAVSDK 4.1 on a lossy link intermittently takes
     # the system for a non-ArduPilot one and NACKs ArduPilot's MISSION_REQUEST (seen in our tests).
@@ -594,6 +597,10 @@ class FakeVehicle(TelemetryMixin):
             return
         if ts:
             heard = self.world.hear_track(self.sysid, np.array(ts), np.vstack(xyz))
+            if self.cfg.via_sense:
+                from .sensor_feed import through_sensor
+
+                heard = through_sensor(heard, self.cfg.slot_s, self.cfg.epoch_unix_s)
             self.rssi_slots += len(heard)
             for m in self.batcher.add(heard):
                 self._out.append(Reply(m, None, COMPANION_COMPONENT_ID))

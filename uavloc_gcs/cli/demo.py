@@ -38,6 +38,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--base-port", type=number(int, min=0, max=65000), default=14560, metavar="PORT",
                    help="vehicle i listens on UDP port PORT+i (default 14560: 14561, 14562, ...; 0 = any free)")
     p.add_argument("--signing-key", metavar="HEX", help="sign every link with this 32-byte key (64 hex digits)")
+    p.add_argument("--direct-rssi", action="store_true",
+                   help="the fake vehicles send the simulated slots as they are; by default each slot becomes the "
+                        "radiotap probe requests behind it and goes through uavloc sense's parser and aggregator")
     add_web_options(p)
     p.set_defaults(func=run)
 
@@ -112,9 +115,12 @@ def _run(args, sc, key, out: Path, web) -> int:
 
     faults = FaultConfig(loss=args.loss) if args.loss else None
     print(f"uavloc demo: scenario '{sc.name}', {sc.fleet.vehicles} {sc.fleet.autopilot} vehicles, "
-          f"{sc.simulation.people} simulated people, speed-up {sc.simulation.speedup:g}x")
+          f"{sc.simulation.people} simulated people, speed-up {sc.simulation.speedup:g}x, "
+          + ("RSSI straight from the simulated slots" if args.direct_rssi
+             else "RSSI through the Wi-Fi sensor's parser (radiotap probe requests)"))
     fleet = start_fleet_process(sc, speedup=sc.simulation.speedup, seed=sc.simulation.seed,
-                                base_port=args.base_port, faults=faults, signing_key=key)
+                                base_port=args.base_port, faults=faults, signing_key=key,
+                                vehicle_options=None if args.direct_rssi else {"via_sense": True})
     try:
         world = World(sc, seed=sc.simulation.seed)  # the fleet's world, rebuilt from the same seed
 

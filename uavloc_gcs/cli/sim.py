@@ -43,8 +43,9 @@ def register(sub) -> None:
                         "udpout:127.0.0.1:14600, the daemon's [link] rssi_connections entry) instead of "
                         "through it; PX4 drops the RSSI message, ArduPilot forwards it only with MAVn_OPTIONS bit 3")
     p.add_argument("--via-sense", action="store_true",
-                   help="with --companion: turn the simulated slots into radiotap probe requests and send what "
-                        "uavloc sense's parser and aggregator make of them (docs/readme/sense.md)")
+                   help="turn the simulated slots into radiotap probe requests and send what uavloc sense's parser "
+                        "and aggregator make of them (the companion's, or the fake vehicles' onboard RSSI; "
+                        "docs/readme/sense.md)")
     p.set_defaults(func=run)
 
 
@@ -127,7 +128,8 @@ async def _run_fleet(args, scenario, key, stop) -> None:
     faults = FaultConfig(loss=args.loss, latency_s=args.latency_ms / 1000.0)
     fleet = FakeFleet(scenario, speedup=args.speedup, seed=args.seed, base_port=args.base_port, host=args.host,
                       faults=faults, signing_key=key, gcs_address=_address(args.gcs),
-                      onboard_rssi=not args.no_rssi, route=args.no_rssi)
+                      onboard_rssi=not args.no_rssi, route=args.no_rssi,
+                      vehicle_options={"via_sense": True} if args.via_sense else None)
     async with fleet:
         f = scenario.fleet
         print(f"uavloc sim: {f.vehicles} fake {f.autopilot} vehicles, speed-up {fleet.speedup:g}x, seed {fleet.seed}, "

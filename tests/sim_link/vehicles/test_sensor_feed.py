@@ -80,3 +80,36 @@ def test_companion_via_sense_on_a_fake_autopilot():
             assert np.abs(slots.xyz_m[:, :2]).max() < 1.0
             gcs.close()
     asyncio.run(asyncio.wait_for(main(), 90))
+
+
+def test_fake_vehicles_onboard_rssi_via_sense():
+    """The demo's path (FakeFleet with vehicle_options via_sense, the default of ``uavloc demo``): the
+    onboard RSSI the fake vehicle sends is the parser's output, not the world's slots. The world's
+    RSSI is continuous and its fingerprints are the world's; through the sensor every slot's mean
+    is of whole-dBm frames and every fingerprint is the sensor's hash of the frames' elements."""
+    from uavloc_gcs.sense.dot11 import fingerprint_elements
+    from sim_link.vehicles.sensor_feed import _elements
+
+    world = World.with_people(SC, [[0.0, 60.0], [30.0, -40.0], [900.0, 500.0]], seed=3)
+
+    async def main():
+        async with FakeFleet(SC, speedup=20, seed=1, base_port=0, world=world,
+                             vehicle_options={"via_sense": True}) as fleet:
+            url = fleet.endpoints[0][1]
+            gcs = await MavClient.connect(url)
+            await gcs.recv("HEARTBEAT")
+            assert (await gcs.command(1, mav.MAV_CMD_DO_SET_MODE, 1, 4)).result == 0
+            assert (await gcs.command(1, mav.MAV_CMD_COMPONENT_ARM_DISARM, 1)).result == 0
+            assert (await gcs.command(1, mav.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, 100)).result == 0
+            await asyncio.sleep(1.2)
+            msgs = [m for m in gcs.log if m.get_type().startswith("UAVLOC_RSSI_BATCH")]
+            gcs.close()
+            return msgs, fleet.epoch_unix_s
+
+    msgs, epoch = asyncio.run(asyncio.wait_for(main(), 90))
+    slots = decode_rssi_batches(msgs, SC.frame, epoch_unix_s=epoch)
+    assert len(slots) > 10
+    assert set(slots.address.tolist()) == set(world.emitter_ids[:2].tolist())
+    sensor_fp = {fingerprint_elements(b"".join(_elements(int(f))))[0] for f in world.fingerprints[:2]}
+    assert set(slots.fingerprint.tolist()) <= sensor_fp
+    assert np.allclose(slots.rssi_dbm, np.round(slots.rssi_dbm), atol=0.01)
