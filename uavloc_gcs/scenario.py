@@ -175,9 +175,13 @@ class ScanSpec:
 class SearchSpec:
     """What the search must achieve. ``pod_target``: the probability of detection (0-1) the scan is
     planned for, for one and for two heard bursts (``uavloc plan --pod``; search/pod_plan.py).
-    None: the scan as ``[scan]`` lays it out."""
+    None: the scan as ``[scan]`` lays it out. ``max_orbit_looks``: the most orbit looks flown for
+    one person (burst world) before they are given up even though their phone was heard on the last
+    one; None (the default): no such cap, a heard person is looked at again until no vehicle has
+    the energy (search/orbit.py ``judge_orbit``)."""
 
     pod_target: float | None = None
+    max_orbit_looks: int | None = None
 
 
 @dataclass(frozen=True)
@@ -499,6 +503,9 @@ def _resolve(sc: Scenario, base_dir: Path | None = None) -> Scenario:
     if sc.search.pod_target is not None:
         _check(0.0 < sc.search.pod_target < 1.0, f"must be a probability between 0 and 1 (exclusive), got "
                f"{sc.search.pod_target}", sc, "search.pod_target")
+    if sc.search.max_orbit_looks is not None:
+        _check(sc.search.max_orbit_looks >= 1, f"must be 1 or more orbit looks per person, got "
+               f"{sc.search.max_orbit_looks}", sc, "search.max_orbit_looks")
     _check(pl.particles >= 2, "must be at least 2", sc, "planner.particles")
     _check(pl.iterations >= 1, "must be at least 1", sc, "planner.iterations")
     _check(pl.time_limit_s > 0, "must be positive", sc, "planner.time_limit_s")

@@ -435,8 +435,11 @@ def expand_path(points_xy_m, orbits, start_xy_m) -> tuple[np.ndarray, np.ndarray
 # that way in the field demo at 2 Hz); False: fly-bys as before. The paper's continuous world never
 # gets orbits.
 ORBIT_LOOKS = True
-# Orbit looks per person that did not locate them before the person is given up.
-MAX_ORBIT_LOOKS = 2
+# Orbit looks without hearing the phone on the last one before the person is given up as "in a
+# long silence or gone" (the first may just fall between two bursts). A person heard on their last
+# orbit is looked at again (issue 26: give up only when the evidence says gone or the energy is
+# spent), up to the scenario's optional cap, [search] max_orbit_looks.
+SILENT_ORBIT_LOOKS = 2
 
 
 def _uses_orbits(policy) -> bool:
@@ -525,13 +528,17 @@ def judge_orbit(policy, eid: int, p, heard: bool) -> str | None:
     if orb is None:
         return None
     n = policy.__dict__.setdefault("_orbit_looks", {})
-    n[int(eid)] = n.get(int(eid), 0) + 1
-    if n[int(eid)] < MAX_ORBIT_LOOKS:
+    n[int(eid)] = k = n.get(int(eid), 0) + 1
+    cap = policy.scenario.search.max_orbit_looks
+    capped = cap is not None and k >= cap
+    if heard and not capped:  # the phone is there: look again while a vehicle has the energy
+        return ""
+    if not heard and k < SILENT_ORBIT_LOOKS and not capped:
         return ""
     r95 = policy._radius95(p) if p.estimate is not None else math.nan
     if heard:  # the phone is there: what ends the looks is the cap, and the sentence says so
-        return (f"not located after {n[int(eid)]} orbit looks of {orb.flown_s:.0f} s (heard on the last one; 95 % "
-                f"radius {r95:.0f} m): the orbits did not narrow it to the accuracy asked for, and no more "
-                f"looks are flown for one person (at most {MAX_ORBIT_LOOKS})")
-    return (f"not located after {n[int(eid)]} orbit looks of {orb.flown_s:.0f} s (not heard on the last one; 95 % "
+        return (f"not located after {k} orbit looks of {orb.flown_s:.0f} s (heard on the last one; 95 % "
+                f"radius {r95:.0f} m): the orbits did not narrow it to the accuracy asked for, and the "
+                f"scenario flies at most {cap} for one person ([search] max_orbit_looks)")
+    return (f"not located after {k} orbit looks of {orb.flown_s:.0f} s (not heard on the last one; 95 % "
             f"radius {r95:.0f} m); its phone may be in a long silence or gone")

@@ -155,7 +155,7 @@ def test_an_orbit_flown_across_a_replan_is_judged_once_as_an_orbit():
     p = policy._people[a]
     assert p.looks == 1, (p.looks, p.gave_up)
     assert "fly-by" not in p.gave_up
-    assert orbit.MAX_ORBIT_LOOKS >= 2
+    assert orbit.SILENT_ORBIT_LOOKS >= 2
 
 
 def test_an_orbit_around_a_person_predicted_outside_stays_inside_the_stated_margin():
@@ -184,22 +184,46 @@ def test_an_orbit_around_a_person_predicted_outside_stays_inside_the_stated_marg
 
 
 @pytest.mark.parametrize("heard", [True, False])
-def test_the_reason_an_orbit_looked_person_is_given_up_says_whether_they_were_heard(heard):
-    """The PX4 field search on SITL gave people up "after 2 orbit looks (heard on the last one ...);
-    its phone may be in a long silence or gone": heard on the look, so not gone. A person heard on
-    the last orbit is given up because of the cap on orbit looks, and the reason says that."""
+@pytest.mark.parametrize("cap", [None, 3])
+def test_a_person_heard_on_their_orbit_is_looked_at_again_unless_capped(heard, cap):
+    """Issue 26: give up only when the evidence says the phone is gone or the energy is spent. The
+    PX4 field search on SITL gave all six people up after 2 orbit looks although each was heard on
+    the last one, with 51 % of the battery left. Now a person heard on their last orbit is looked at
+    again (the energy check ends it), one not heard on their last of at least SILENT_ORBIT_LOOKS is
+    given up as possibly gone, and a scenario may cap the looks ([search] max_orbit_looks), in which
+    case the reason names the cap and whether the phone was heard."""
     import types
 
     from uavloc_gcs.search import orbit
 
     sc = load_scenario(scenario_path("field"))
+    sc = sc.replace(search={"pod_target": sc.search.pod_target, "max_orbit_looks": cap})
     policy = SearchPolicy(sc, seed=0, time_limit_s=5.0, max_iter=5)
     person = types.SimpleNamespace(estimate=None)
     look = orbit.plan_orbit(sc, (300.0, 200.0), 60.0)
-    for k in range(orbit.MAX_ORBIT_LOOKS):
+    whys = []
+    for _ in range(8):
         policy.__dict__.setdefault("_orbits", {})[7] = look
-        why = orbit.judge_orbit(policy, 7, person, heard)
-        assert (why == "") == (k + 1 < orbit.MAX_ORBIT_LOOKS)
+        whys.append(orbit.judge_orbit(policy, 7, person, heard))
+        if whys[-1]:
+            break
+    ends = cap if cap is not None and (heard or cap < orbit.SILENT_ORBIT_LOOKS) else (
+        None if heard else orbit.SILENT_ORBIT_LOOKS)
+    if ends is None:
+        assert whys == [""] * 8  # heard every time, no cap: never given up by the orbits
+        return
+    assert whys[:-1] == [""] * (ends - 1) and whys[-1], whys
+    why = whys[-1]
     assert ("heard on the last one" in why and "not heard" not in why) == heard
     assert ("gone" in why) != heard
-    assert heard == (f"at most {orbit.MAX_ORBIT_LOOKS}" in why)
+    assert heard == ("max_orbit_looks" in why)
+
+
+def test_max_orbit_looks_is_checked_and_named():
+    from uavloc_gcs.errors import ConfigError
+
+    sc = load_scenario(scenario_path("field"))
+    assert sc.search.max_orbit_looks is None
+    with pytest.raises(ConfigError) as err:
+        sc.replace(search={"max_orbit_looks": 0})
+    assert "search.max_orbit_looks" in str(err.value) and "1 or more" in str(err.value)
