@@ -322,6 +322,7 @@ class VehicleCommands:
         them. Whether it is on the ground is read before the upload to plan, and again at the start
         (``_switch``): a vehicle that landed while a look without a take-off was uploaded gets the
         look again with one; if it still cannot be started safely it holds where it is."""
+        self._report_vehicle_looks(v, self.now_s())  # the current mission's passed looks, read now
         latlon = self.frame.to_wgs84_latlon(pts)
         f = self.sc.fleet
         first = 1 if v.agent.flavour.home_at_seq0 else 0  # the takeoff (on the ground) or the speed item
@@ -382,6 +383,7 @@ class VehicleCommands:
             v.home = False
 
     async def _send_home(self, v: _Vehicle) -> None:
+        self._report_vehicle_looks(v, self.now_s())  # its passed looks, before they are forgotten
         v.purpose, v.targets, v.look_xy_m = "home", (), None
         a = v.agent
         if a.on_ground():

@@ -317,6 +317,7 @@ class Daemon(FleetPreparation, VehicleCommands):
                     self.policy.ingest(new)
                 self._report_looks(t)
                 changed = await asyncio.to_thread(self.policy.update, t)
+                self._report_looks(self.now_s())  # passed during the update, before anything acts on it
                 people = self.policy.people(t)
                 self._people_cache = people
                 if changed:
@@ -331,24 +332,31 @@ class Daemon(FleetPreparation, VehicleCommands):
         """Tell the policy which looks the vehicles have flown: a look waypoint is flown once the
         mission has moved past it (MISSION_CURRENT) or the vehicle is within WAYPOINT_TOLERANCE_M
         of it. A look passed also re-opens the vehicle to one more upload (search/uploads.py)."""
-        report = getattr(self.policy, "look_flown", None)
         for v in self._active():
-            if v.purpose != "look" or v.look_xy_m is None or self.wall() < v.ignore_seq_until_wall:
-                continue
-            seq = v.agent.tel.mission_seq
-            passed = 0 if seq is None else (sum(k < seq for k in v.look_seqs) if v.look_seqs else
-                                             int(np.clip(seq - v.look_first_seq, 0, len(v.look_xy_m))))
-            xy = v.agent.position_xy_m()
-            if passed < len(v.look_xy_m) and xy is not None and \
-                    math.dist(xy, v.look_xy_m[passed]) <= WAYPOINT_TOLERANCE_M:
-                passed += 1
-            while v.looks_reported < min(passed, len(v.targets)):  # (then passes: search/coverage.py)
-                if report is not None:
-                    report(v.targets[v.looks_reported], t)
-                v.looks_reported += 1
-                v.uploads_since_look = 0
-                if v.deferred:
-                    self._replan_due = True  # a plan it was not given can be uploaded now
+            self._report_vehicle_looks(v, t)
+
+    def _report_vehicle_looks(self, v: _Vehicle, t: float) -> None:
+        """:meth:`_report_looks` for one vehicle. Also called, with the state read then, just before
+        its look mission is replaced or it is sent home: a look passed since the brain last looked
+        (a policy update can take 20 s of CPU over terrain) was otherwise lost with the mission, and
+        the policy said "look not flown ...; planned again" of a look the vehicle had flown."""
+        report = getattr(self.policy, "look_flown", None)
+        if v.agent is None or v.purpose != "look" or v.look_xy_m is None or self.wall() < v.ignore_seq_until_wall:
+            return
+        seq = v.agent.tel.mission_seq
+        passed = 0 if seq is None else (sum(k < seq for k in v.look_seqs) if v.look_seqs else
+                                         int(np.clip(seq - v.look_first_seq, 0, len(v.look_xy_m))))
+        xy = v.agent.position_xy_m()
+        if passed < len(v.look_xy_m) and xy is not None and \
+                math.dist(xy, v.look_xy_m[passed]) <= WAYPOINT_TOLERANCE_M:
+            passed += 1
+        while v.looks_reported < min(passed, len(v.targets)):  # (then passes: search/coverage.py)
+            if report is not None:
+                report(v.targets[v.looks_reported], t)
+            v.looks_reported += 1
+            v.uploads_since_look = 0
+            if v.deferred:
+                self._replan_due = True  # a plan it was not given can be uploaded now
 
     def _active(self) -> list[_Vehicle]:
         """The usable vehicles: in contact and commandable."""

@@ -178,6 +178,36 @@ def test_a_look_is_reported_from_the_mission_sequence_alone(tmp_path):
         d.store.close()
 
 
+def test_a_look_passed_before_its_mission_is_replaced_or_the_vehicle_sent_home_is_reported(tmp_path):
+    """The mountains demo said "look not flown 180 s after its time; planned again" of looks the
+    vehicle had flown (its telemetry reached both look waypoints, then it landed). The brain reports
+    passed looks before each policy update, which took 2-20 s of CPU over terrain; a vehicle that
+    passed its look meanwhile and was then given a new look mission, or sent home, lost the pass
+    with its old mission. Both now report the passes they read at that moment."""
+    sc = small_scenario()
+    for how in ("home", "new look"):
+        policy = _ReportingPolicy()
+        d = Daemon(sc, [(1, "udpout:127.0.0.1:26990")], DaemonOptions(store_path=tmp_path / f"{how}.sqlite"),
+                   policy=policy)
+        d.store = Store(tmp_path / f"{how}.sqlite")
+        try:
+            v = d.vehicles[1]
+            v.agent = _Agent((50.0, 100.0))
+            v.scan_done, v.phase = True, "hovering (scan done)"
+            asyncio.run(d._step(100.0, {7}))
+            v.ignore_seq_until_wall = 0.0
+            assert v.targets == (7,) and policy.flown == []
+            v.agent.tel.mission_seq = v.look_first_seq + 1  # passed while the brain was busy
+            if how == "home":
+                asyncio.run(d._send_home(v))
+            else:
+                asyncio.run(d._upload_look(v, np.array([[300.0, 300.0], [0.0, 0.0]]), (8,)))
+                assert v.targets == (8,) and v.looks_reported == 0
+            assert [e for e, _ in policy.flown] == [7], how
+        finally:
+            d.store.close()
+
+
 class _DriftingPolicy(_Policy):
     """Every replan moves the look a little (an estimate settling), as the SITL runs showed; or adds
     a person when told to."""
