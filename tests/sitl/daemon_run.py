@@ -62,10 +62,12 @@ motion = "static"
 """
 
 # examples/field.toml's receiver and phones (docs/readme/world.md): a -90 dBm threshold with the
-# obstructed path loss (a frame is heard with probability 1/2 at about 150 m), probe bursts. At
-# most 2 orbit looks per person: by default a person heard on their orbit is looked at again until
-# the energy is spent, and the 400 kJ these vehicles carry would take the PX4 search past its wall
-# budget (on 2026-11-27 it gave 6 of 6 up after 2 looks with 51 % of the battery left, 635 s wall).
+# obstructed path loss (a frame is heard with probability 1/2 at about 150 m), probe bursts. One
+# orbit look per person: by default a person heard on their orbit is looked at again until the
+# energy is spent, and the 400 kJ these vehicles carry would take the PX4 search past its wall
+# budget. On 2026-11-27, with 2 looks, it gave 6 reported people up with 51 % of the battery left
+# (2,939 s of mission, 635 s wall); on 2026-11-28, beside a benchmark, 2 looks each for more
+# reported people were still flying at 4,253 s of mission when the 900 s wall budget ran out.
 FIELD_WORLD = """tx_power_spread_db = 3.0
 [channel]
 path_loss_exponent = 2.3
@@ -74,7 +76,7 @@ receiver_sensitivity_dbm = -90.0
 [emission]
 model = "probe-bursts"
 [search]
-max_orbit_looks = 2
+max_orbit_looks = 1
 """
 
 Vehicle = SitlVehicle  # .sitl, .connection, .companion_url, .rssi_url, .daemon_rssi

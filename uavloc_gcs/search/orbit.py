@@ -540,5 +540,8 @@ def judge_orbit(policy, eid: int, p, heard: bool) -> str | None:
         return (f"not located after {k} orbit looks of {orb.flown_s:.0f} s (heard on the last one; 95 % "
                 f"radius {r95:.0f} m): the orbits did not narrow it to the accuracy asked for, and the "
                 f"scenario flies at most {cap} for one person ([search] max_orbit_looks)")
+    if k < SILENT_ORBIT_LOOKS:  # the cap came first: one silent orbit is no evidence of anything
+        return (f"not located after {k} orbit look(s) of {orb.flown_s:.0f} s (not heard on the last one; 95 % "
+                f"radius {r95:.0f} m): the scenario flies at most {cap} for one person ([search] max_orbit_looks)")
     return (f"not located after {k} orbit looks of {orb.flown_s:.0f} s (not heard on the last one; 95 % "
             f"radius {r95:.0f} m); its phone may be in a long silence or gone")
