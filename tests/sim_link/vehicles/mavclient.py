@@ -89,6 +89,13 @@ class MavClient(asyncio.DatagramProtocol):
         self.send(mav.MAVLink_command_long_message(target, 1, command, 0, *p))
         return await self.recv("COMMAND_ACK", timeout=timeout, where=lambda m: m.command == command)
 
+    async def take_off(self, target: int = 1, alt_m: float = 100.0) -> None:
+        """GUIDED (ArduPilot custom mode 4), arm and take off to ``alt_m``; each must be accepted."""
+        for cmd, params in ((mav.MAV_CMD_DO_SET_MODE, (1, 4)), (mav.MAV_CMD_COMPONENT_ARM_DISARM, (1,)),
+                            (mav.MAV_CMD_NAV_TAKEOFF, (0, 0, 0, 0, 0, 0, alt_m))):
+            ack = await self.command(target, cmd, *params)
+            assert ack.result == 0, f"command {cmd} refused (result {ack.result})"
+
     async def upload(self, target: int, items, *, timeout: float = 3.0):
         """A plain mission upload (answers MISSION_REQUEST and MISSION_REQUEST_INT with
         MISSION_ITEM_INT); returns the final MISSION_ACK."""

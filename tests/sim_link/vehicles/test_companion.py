@@ -35,9 +35,7 @@ def test_companion_on_a_fake_autopilot_reaches_the_ground_station():
             task = asyncio.create_task(comp.run(stop))
             gcs = await MavClient.connect(url)
             await gcs.recv("HEARTBEAT")
-            assert (await gcs.command(1, mav.MAV_CMD_DO_SET_MODE, 1, 4)).result == 0
-            assert (await gcs.command(1, mav.MAV_CMD_COMPONENT_ARM_DISARM, 1)).result == 0
-            assert (await gcs.command(1, mav.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, 100)).result == 0
+            await gcs.take_off()
             await asyncio.sleep(1.2)  # 24 s of mission time: the climb to 100 m
             stop.set()
             await task
@@ -207,9 +205,7 @@ def test_cli_companion_against_a_fake_autopilot():
         async def main():
             c = await MavClient.connect(f"udpout:127.0.0.1:{port_base + 1}")
             await c.recv("HEARTBEAT")
-            assert (await c.command(1, mav.MAV_CMD_DO_SET_MODE, 1, 4)).result == 0
-            assert (await c.command(1, mav.MAV_CMD_COMPONENT_ARM_DISARM, 1)).result == 0
-            assert (await c.command(1, mav.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, 100)).result == 0
+            await c.take_off()
             lat, lon = sc.frame.to_wgs84(560.0, 320.0)  # the middle of the area: people around
             c.send(mav.MAVLink_set_position_target_global_int_message(
                 0, 1, 1, 6, 0b110111111000, int(lat * 1e7), int(lon * 1e7), 100.0, 0, 0, 0, 0, 0, 0, 0, 0))
@@ -260,9 +256,7 @@ def test_companion_sends_rssi_beside_the_autopilot_when_given_its_own_connection
             task = asyncio.create_task(comp.run(stop))
             gcs = await MavClient.connect(url)
             await gcs.recv("HEARTBEAT")
-            assert (await gcs.command(1, mav.MAV_CMD_DO_SET_MODE, 1, 4)).result == 0
-            assert (await gcs.command(1, mav.MAV_CMD_COMPONENT_ARM_DISARM, 1)).result == 0
-            assert (await gcs.command(1, mav.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, 100)).result == 0
+            await gcs.take_off()
             await asyncio.sleep(1.2)
             stop.set()
             await task

@@ -150,9 +150,7 @@ def test_rssi_decodes_to_the_vehicle_track():
         async with FakeFleet(sc, speedup=50, seed=2, base_port=0) as fleet:
             c = await MavClient.connect(fleet.endpoints[0][1])
             await c.recv("HEARTBEAT")
-            assert (await c.command(1, mav.MAV_CMD_DO_SET_MODE, 1, 4)).result == 0
-            assert (await c.command(1, mav.MAV_CMD_COMPONENT_ARM_DISARM, 1)).result == 0
-            assert (await c.command(1, mav.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, 100)).result == 0
+            await c.take_off()
             lat, lon = sc.frame.to_wgs84(500.0, 300.0)  # then over the area (GUIDED goto)
             c.send(mav.MAVLink_set_position_target_global_int_message(
                 0, 1, 1, 6, 0b110111111000, int(lat * 1e7), int(lon * 1e7), 100.0, 0, 0, 0, 0, 0, 0, 0, 0))

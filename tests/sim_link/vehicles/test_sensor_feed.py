@@ -6,7 +6,6 @@ import asyncio
 
 import numpy as np
 
-from uavloc_gcs.dialect import mavlink as mav
 from uavloc_gcs.dialect.rssi import decode_rssi_batches
 from uavloc_gcs.observations import SlotBatch
 from uavloc_gcs.scenario import load_scenario
@@ -65,9 +64,7 @@ def test_companion_via_sense_on_a_fake_autopilot():
             task = asyncio.create_task(comp.run(stop))
             gcs = await MavClient.connect(url)
             await gcs.recv("HEARTBEAT")
-            assert (await gcs.command(1, mav.MAV_CMD_DO_SET_MODE, 1, 4)).result == 0
-            assert (await gcs.command(1, mav.MAV_CMD_COMPONENT_ARM_DISARM, 1)).result == 0
-            assert (await gcs.command(1, mav.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, 100)).result == 0
+            await gcs.take_off()
             await asyncio.sleep(1.2)
             stop.set()
             await task
@@ -98,9 +95,7 @@ def test_fake_vehicles_onboard_rssi_via_sense():
             url = fleet.endpoints[0][1]
             gcs = await MavClient.connect(url)
             await gcs.recv("HEARTBEAT")
-            assert (await gcs.command(1, mav.MAV_CMD_DO_SET_MODE, 1, 4)).result == 0
-            assert (await gcs.command(1, mav.MAV_CMD_COMPONENT_ARM_DISARM, 1)).result == 0
-            assert (await gcs.command(1, mav.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, 100)).result == 0
+            await gcs.take_off()
             await asyncio.sleep(1.2)
             msgs = [m for m in gcs.log if m.get_type().startswith("UAVLOC_RSSI_BATCH")]
             gcs.close()
