@@ -5,8 +5,9 @@ more present words while bit 31 is set, then the fields of the set bits in bit o
 to its natural size counted from the header's start. Bit 29 starts a new radiotap namespace (how
 drivers report each antenna separately), bit 30 a vendor namespace whose data is skipped by the
 length its header gives; a word after one with neither goes on with bits 32-63 of the same
-namespace (a real capture in tcpdump's tests sets some: no field is defined there, so parsing stops). The layout of a given run of present words is computed once and cached, so
-a capture from one adapter costs one dict look-up per frame.
+namespace (a real capture in tcpdump's tests sets some: no field is defined there, so parsing
+stops). The layout of a given run of present words is computed once and cached, so a capture from
+one adapter costs one dict look-up per frame.
 
 Returned per frame: :class:`RadioInfo` with the signal in dBm (the first antenna-signal field, the
 combined one where the driver gives several), the per-antenna signals, the channel frequency, the
