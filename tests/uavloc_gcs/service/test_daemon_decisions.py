@@ -133,18 +133,25 @@ class _ReportingPolicy(_Policy):
         self.flown.append((emitter_id, t_s))
 
 
-def test_the_daemon_reports_a_look_when_the_vehicle_passes_it(tmp_path):
-    sc = small_scenario()
+def _looking(tmp_path, name="s"):
+    """One vehicle, done with its scan, given a look at person 7 by a reporting policy:
+    (daemon, policy, vehicle), the store open (close it)."""
     policy = _ReportingPolicy()
-    d = Daemon(sc, [(1, "udpout:127.0.0.1:26990")], DaemonOptions(store_path=tmp_path / "s.sqlite"), policy=policy)
+    d = Daemon(small_scenario(), [(1, "udpout:127.0.0.1:26990")],
+               DaemonOptions(store_path=tmp_path / f"{name}.sqlite"), policy=policy)
+    d.store = Store(tmp_path / f"{name}.sqlite")
+    v = d.vehicles[1]
+    v.agent = _Agent((50.0, 100.0))
+    v.scan_done, v.phase = True, "hovering (scan done)"
+    asyncio.run(d._step(100.0, {7}))
+    v.ignore_seq_until_wall = 0.0
+    return d, policy, v
+
+
+def test_the_daemon_reports_a_look_when_the_vehicle_passes_it(tmp_path):
+    d, policy, v = _looking(tmp_path)
     assert policy.look_reports  # the daemon says it will report looks
-    d.store = Store(tmp_path / "s.sqlite")
     try:
-        v = d.vehicles[1]
-        v.agent = _Agent((50.0, 100.0))
-        v.scan_done, v.phase = True, "hovering (scan done)"
-        asyncio.run(d._step(100.0, {7}))
-        v.ignore_seq_until_wall = 0.0
         look = v.look_xy_m[0]
         d._report_looks(110.0)
         assert policy.flown == []  # on its way
@@ -161,16 +168,8 @@ def test_the_daemon_reports_a_look_when_the_vehicle_passes_it(tmp_path):
 
 
 def test_a_look_is_reported_from_the_mission_sequence_alone(tmp_path):
-    sc = small_scenario()
-    policy = _ReportingPolicy()
-    d = Daemon(sc, [(1, "udpout:127.0.0.1:26990")], DaemonOptions(store_path=tmp_path / "s.sqlite"), policy=policy)
-    d.store = Store(tmp_path / "s.sqlite")
+    d, policy, v = _looking(tmp_path)
     try:
-        v = d.vehicles[1]
-        v.agent = _Agent((50.0, 100.0))
-        v.scan_done, v.phase = True, "hovering (scan done)"
-        asyncio.run(d._step(100.0, {7}))
-        v.ignore_seq_until_wall = 0.0
         v.agent.tel.mission_seq = v.look_first_seq + 1  # e.g. a MISSION_ITEM_REACHED we did not see
         d._report_looks(140.0)
         assert policy.flown == [(7, 140.0)]
@@ -184,18 +183,9 @@ def test_a_look_passed_before_its_mission_is_replaced_or_the_vehicle_sent_home_i
     passed looks before each policy update, which took 2-20 s of CPU over terrain; a vehicle that
     passed its look meanwhile and was then given a new look mission, or sent home, lost the pass
     with its old mission. Both now report the passes they read at that moment."""
-    sc = small_scenario()
     for how in ("home", "new look"):
-        policy = _ReportingPolicy()
-        d = Daemon(sc, [(1, "udpout:127.0.0.1:26990")], DaemonOptions(store_path=tmp_path / f"{how}.sqlite"),
-                   policy=policy)
-        d.store = Store(tmp_path / f"{how}.sqlite")
+        d, policy, v = _looking(tmp_path, how)
         try:
-            v = d.vehicles[1]
-            v.agent = _Agent((50.0, 100.0))
-            v.scan_done, v.phase = True, "hovering (scan done)"
-            asyncio.run(d._step(100.0, {7}))
-            v.ignore_seq_until_wall = 0.0
             assert v.targets == (7,) and policy.flown == []
             v.agent.tel.mission_seq = v.look_first_seq + 1  # passed while the brain was busy
             if how == "home":
