@@ -29,12 +29,13 @@ Without a DEM nothing here is called: the flat estimator is bit-identical (paper
 from __future__ import annotations
 
 import dataclasses
+import functools
 
 import numpy as np
 
 from ..observations import SlotBatch
 
-__all__ = ["estimate_on_terrain", "above_person", "LocalGround", "ITERATIONS", "CONVERGED_M"]
+__all__ = ["estimate_on_terrain", "fit_for", "above_person", "LocalGround", "ITERATIONS", "CONVERGED_M"]
 
 ITERATIONS = 4
 CONVERGED_M = 2.0  # the ground under the estimate moved less than this: a further refit changes nothing
@@ -81,6 +82,17 @@ class LocalGround:
         dzdy = ((1 - tx) * (h10 - h00) + tx * (h11 - h01)) / self.step
         grad = np.where(inside[:, None], np.column_stack([dzdx, dzdy]), 0.0)
         return z, grad
+
+
+def fit_for(dem):
+    """The estimator to call for a scenario: ``estimate_emitter`` on flat ground (``dem`` None),
+    else :func:`estimate_on_terrain` on ``dem``'s ground, with the same arguments. Read from the
+    package at each call, so that what the package holds is what runs."""
+    from . import estimate_emitter
+
+    if dem is None:
+        return estimate_emitter
+    return functools.partial(estimate_on_terrain, dem=dem, estimate=estimate_emitter)
 
 
 def estimate_on_terrain(slots: SlotBatch, channel, dem, *, estimate, censored=None, silence=None, **options):

@@ -31,7 +31,6 @@ daemon does) -- R/V after the vehicle really passed it.
 
 from __future__ import annotations
 
-import functools
 import logging
 import math
 import time
@@ -413,8 +412,7 @@ class SearchPolicy:
     def update(self, t_s: float) -> set[int]:
         """Re-estimate emitters with new slots; return the ids whose state changed materially
         (new person, located, ambiguity, estimate moved, a planned look happened or failed)."""
-        from ..estimation import estimate_emitter
-        from ..estimation.terrain_fit import estimate_on_terrain
+        from ..estimation.terrain_fit import fit_for
 
         changed: set[int] = set()
         if len(self._raw) > 1 or (self._raw and self.linking is None):
@@ -428,9 +426,7 @@ class SearchPolicy:
             before = self._signature(p)
             t0 = time.perf_counter()
             try:
-                fit = estimate_emitter if self.scenario.dem is None else functools.partial(
-                    estimate_on_terrain, dem=self.scenario.dem, estimate=estimate_emitter)  # people on the ground
-                est = fit(
+                est = fit_for(self.scenario.dem)(  # over terrain, people on the ground
                     p.batches[0], self.channel, max_speed_m_s=self.model_speed_m_s,
                     t_ref_s=p.last_slot_t_s, model_motion=self.model_motion, previous=p.estimate,
                     silence=self._silence(p), censored=self._censored(p))

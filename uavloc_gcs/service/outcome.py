@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import dataclasses
-import functools
 import logging
 import math
 import re
@@ -150,15 +149,12 @@ def _fit(data, channel, max_speed_m_s: float, dem=None):
     Over terrain (``dem``) the person stands on its ground, as in the policy's fits: a flat-ground
     refit misreads the slant ranges by the ground's rise, and at the end of a mountains demo it
     reported a walker 142 m from the truth with a 0.35 m radius."""
-    from ..estimation import estimate_emitter  # noqa: PLC0415
-    from ..estimation.terrain_fit import estimate_on_terrain  # noqa: PLC0415
+    from ..estimation.terrain_fit import fit_for  # noqa: PLC0415
 
     if len(data) == 0:
         return None
-    fit = estimate_emitter if dem is None else functools.partial(estimate_on_terrain, dem=dem,
-                                                                 estimate=estimate_emitter)
     try:
-        est = fit(data, channel, max_speed_m_s=max_speed_m_s, model_motion=True)
+        est = fit_for(dem)(data, channel, max_speed_m_s=max_speed_m_s, model_motion=True)
     except UavlocError:
         return None
     # An ambiguous estimate's radius95_m is centred on its primary and reaches over the mirror,
