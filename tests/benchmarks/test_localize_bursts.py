@@ -43,3 +43,17 @@ def test_the_benchs_world_is_the_estimators_prior():
         crossing = np.array([xb[0, 0], xa[0, 1]])
         far += np.max(np.abs(where(0.0) - crossing)) > 120.0  # beyond the old placement
     assert far >= 1
+
+
+def test_coverage_interval_says_what_the_runs_rule_out():
+    from benchmarks.localize_bursts import coverage_interval
+
+    lo, hi = coverage_interval(36, 36)  # 36 of 36 covered does not rule out a calibrated 0.95
+    assert lo < 0.95 < hi == 1.0
+    lo, hi = coverage_interval(190, 200)  # 0.95 itself: a symmetric-ish band about it
+    assert lo < 0.95 < hi and hi - lo < 0.07
+    lo, hi = coverage_interval(200, 200)  # 200 of 200 does
+    assert lo > 0.98
+    lo, hi = coverage_interval(170, 200)  # 0.85 does too, from below
+    assert hi < 0.95
+    assert all(np.isnan(coverage_interval(0, 0)))
