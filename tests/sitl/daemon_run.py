@@ -202,8 +202,11 @@ async def _vehicle_state(connection: str, sysid: int, seconds: float) -> tuple[b
         pos = await link.recv_match(types="GLOBAL_POSITION_INT", source_system=sysid, timeout_s=seconds)
         # the autopilot's own (a companion's forwarded HEARTBEAT has the same system id, no autopilot)
         hb = await link.recv_match(lambda m: m.autopilot != mavlink.MAV_AUTOPILOT_INVALID, types="HEARTBEAT",
-                                   source_system=sysid, timeout_s=seconds) or hb
-        ext = await link.recv_match(types="EXTENDED_SYS_STATE", source_system=sysid, timeout_s=3.0)
+                                   source_system=sysid, timeout_s=seconds)
+        try:  # recv_match raises on a timeout; not every autopilot streams it unasked
+            ext = await link.recv_match(types="EXTENDED_SYS_STATE", source_system=sysid, timeout_s=3.0)
+        except TimeoutError:
+            ext = None
         return (bool(hb.base_mode & 128), pos.relative_alt / 1000.0, pos.lat / 1e7, pos.lon / 1e7,
                 None if ext is None else int(ext.landed_state))
 
