@@ -174,6 +174,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="--emission bursts: the estimator is told the world's frames-per-burst distribution and "
                              "uses every listening vehicle's hearing counts ('world', the default), or only the "
                              "silences with a conservative frame count ('none')")
+    parser.add_argument("--no-exposure", action="store_true",
+                        help="--emission bursts: leave out the bursts nobody heard (estimation.evidence.Exposure), "
+                             "as the estimator did before 2026-11-28, to compare")
     parser.add_argument("--switch", choices=sorted(ESTIMATOR_SWITCHES), action="append", default=[],
                         help="run with this estimator switch of `uavloc bench looks --variants` turned on "
                              "(give it again for another)")
@@ -476,7 +479,7 @@ def main(args: argparse.Namespace) -> int:
         bfams = [f for f in BURST_FAMILIES if not args.family or any(s in f.name for s in args.family)]
         print(f"uavloc bench localize --emission bursts: {args.runs} runs per family")
         print_burst_table(bfams, args.runs, args.seed, Progress(args.runs * len(bfams)), args.mmse,
-                          args.frames_prior == "world")
+                          args.frames_prior == "world", exposure=not args.no_exposure)
         return 0
     sc = load_scenario(scenario_path(args.scenario))
     fams = [f for f in FAMILIES if not args.family or any(s in f.name for s in args.family)]

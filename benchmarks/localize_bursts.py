@@ -44,7 +44,7 @@ import numpy as np
 from uavloc_gcs.estimation.estimate import TX_PRIOR_SIGMA_DB
 from uavloc_gcs.estimation import ChannelModel, estimate_emitter, position_rmse_bound_m, prior_information
 from uavloc_gcs.estimation.crb import frames_information
-from uavloc_gcs.estimation.evidence import FramesPrior, censored_silence
+from uavloc_gcs.estimation.evidence import FramesPrior, burst_rate_prior, censored_silence
 from uavloc_gcs.estimation.fit import censored_rows, prepare
 from uavloc_gcs.observations import SlotBatch
 
@@ -80,6 +80,13 @@ def frames_prior() -> FramesPrior:
     lo = np.clip((k - 0.5) / CHANNEL_SHARE, lo_s, hi_s)
     hi = np.clip((k + 0.5) / CHANNEL_SHARE, lo_s, hi_s)
     return FramesPrior(np.log(hi) - np.log(lo))
+
+
+def burst_rates() -> tuple[np.ndarray, np.ndarray]:
+    """This world's burst-rate law, what the estimator is told for the bursts nobody heard
+    (evidence.Exposure): median gap uniform in GAP_MEDIAN_S, log-normal gaps with p90 / median
+    GAP_P90_OVER_MEDIAN."""
+    return burst_rate_prior(GAP_MEDIAN_S, math.log(GAP_P90_OVER_MEDIAN) / 1.2816)
 
 
 # The phones' transmit-power spread: the estimator's prior (estimate.TX_PRIOR_SIGMA_DB, 6 dB), so that
@@ -229,7 +236,8 @@ def draw_run(fam: BurstFamily, rng, channel=FIELD_CHANNEL):
     return None
 
 
-def run_burst_family(fam: BurstFamily, runs: int, seed: int, bar=None, mmse: bool = True, counts: bool = True) -> dict:
+def run_burst_family(fam: BurstFamily, runs: int, seed: int, bar=None, mmse: bool = True, counts: bool = True,
+                     exposure: bool = True) -> dict:
     channel = FIELD_CHANNEL
     rng = np.random.default_rng(seed)
     prior = prior_information(channel, max_speed_m_s=MAX_SPEED_M_S, model_motion=True,
@@ -244,7 +252,8 @@ def run_burst_family(fam: BurstFamily, runs: int, seed: int, bar=None, mmse: boo
         slots, tracks, (tf, xf), where, n_try = run
         tries.append(n_try)
         heard_frames.append(len(slots))
-        cens = censored_silence(tracks, slots, frames_prior=frames_prior() if counts else None)
+        cens = censored_silence(tracks, slots, frames_prior=frames_prior() if counts else None,
+                                exposure_rates=burst_rates() if counts and exposure else None)
         t0 = time.thread_time()
         est = estimate_emitter(slots, channel, max_speed_m_s=MAX_SPEED_M_S, estimate_tx_power=fam.estimate_tx,
                                censored=cens)
@@ -295,13 +304,15 @@ def coverage_interval(covered: int, runs: int, z: float = 1.96) -> tuple[float, 
     return centre - half, centre + half
 
 
-def print_burst_table(families, runs: int, seed: int, bar=None, mmse: bool = True, counts: bool = True) -> None:
+def print_burst_table(families, runs: int, seed: int, bar=None, mmse: bool = True, counts: bool = True,
+                      exposure: bool = True) -> None:
     ch = FIELD_CHANNEL
     print(f"field world (bursts): P0 {ch.reference_power_dbm:g} dBm at 1 m, eta {ch.path_loss_exponent:g}, "
           f"sigma {ch.shadowing_sigma_db:g} dB, sensitivity {ch.sensitivity_dbm:g} dBm (50 % at "
           f"{math.exp(ch.threshold_log_range):.0f} m slant), h 60-100 m, v_max {MAX_SPEED_M_S} m/s; truncated "
           f"likelihood + " + ("the hearing counts of every listening vehicle within heard bursts (frames prior: this "
-                              "world's)" if counts else "censored silences within heard bursts (conservative frame "
+                              "world's)" + (" and the bursts nobody heard (burst-rate prior: this world's)"
+                                            if exposure else "") if counts else "censored silences within heard bursts (conservative frame "
                                                          "count, no frames prior)") + f". BCRB: Tobit information of every frame of the "
           f"heard bursts at every listening vehicle; MMSE: posterior mean of the same likelihood (the floor)")
     head = (f"{'family':42s} {'runs':>4s} {'frames':>6s} {'RMSE m':>7s} {'med e':>6s} {'BCRB m':>7s} {'ratio':>6s} "
@@ -312,7 +323,7 @@ def print_burst_table(families, runs: int, seed: int, bar=None, mmse: bool = Tru
     covered = kept = 0
     off = []
     for fam in families:
-        r = run_burst_family(fam, runs, seed + 1000 * BURST_FAMILIES.index(fam), bar, mmse, counts)
+        r = run_burst_family(fam, runs, seed + 1000 * BURST_FAMILIES.index(fam), bar, mmse, counts, exposure)
         lo, hi = coverage_interval(r["covered"], r["runs"])
         covered, kept = covered + r["covered"], kept + r["runs"]
         if not lo <= 0.95 <= hi:

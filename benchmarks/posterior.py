@@ -168,6 +168,15 @@ def burst_log_posterior(x: np.ndarray, data: Prepared, t_ref: float, max_speed_m
                                              censored.log_p)[0].sum(axis=1)
             else:
                 lp = lp + log_ndtr(tc) @ censored.frames
+            e = censored.exposure
+            if e is not None:  # the bursts nobody heard (evidence.exposure_loglik)
+                from uavloc_gcs.estimation.evidence import exposure_loglik
+
+                ex = p[:, :1] + v[:, :1] * e.tau_s - e.a_xy[:, 0]
+                ey = p[:, 1:2] + v[:, 1:2] * e.tau_s - e.a_xy[:, 1]
+                te = (0.5 * np.log(ex * ex + ey * ey + e.h_m**2) - y_s) / s
+                src = e.source
+                lp = lp + exposure_loglik(te, src.cell, src.dt_s, src.rates, src.log_w, src.log_p, src.bursts)[0]
         if x.shape[1] == 4:
             lp = np.where(np.hypot(v[:, 0], v[:, 1]) <= max_speed_m_s, lp, -np.inf)
         out[i:i + CHUNK] = lp
@@ -188,6 +197,8 @@ def burst_posterior_mean(data: Prepared, t_ref: float, candidates: list[tuple[np
         from dataclasses import replace
 
         censored = replace(censored, tau_s=censored.t_s - t_ref)
+        if censored.exposure is not None:
+            censored = replace(censored, exposure=replace(censored.exposure, tau_s=censored.exposure.t_s - t_ref))
     floor = np.diag([1.0, 1.0, 0.01, 0.01])[:dim, :dim]
     widen = np.diag([100.0, 100.0, 0.25, 0.25])[:dim, :dim]
     lines = [(c, d, t) for c, d, t in leg_lines(data)]

@@ -177,3 +177,36 @@ def test_the_final_refit_keeps_the_person_on_the_ground(mountains):
     (r,) = final_results([st], slots, mountains, mountains.frame)
     err = math.hypot(r.east_m - truth[0], r.north_m - truth[1])
     assert r.located and err <= r.radius95_m, (err, r.radius95_m, r.east_m, r.north_m)
+
+
+def test_the_bursts_nobody_heard_are_taken_above_the_person_on_the_ground_too(mountains):
+    """Under a receiver threshold the exposure's rows (evidence.Exposure: where the vehicles
+    listened around the heard bursts) are vehicle heights above the launch point, as telemetry
+    gives them; each refit over terrain takes them above the ground under the person, as it does
+    the censored rows."""
+    from dataclasses import replace
+
+    from uavloc_gcs.estimation.evidence import FramesPrior, burst_rate_prior, censored_silence
+
+    sc = mountains
+    ch = replace(ChannelModel.from_scenario(sc), sensitivity_dbm=-92.0)
+    person = np.array([600.0, 300.0])
+    t, xyz = two_passes(sc, person)
+    slots = World.with_people(sc, person[None], seed=3).hear_track(1, t, xyz)
+    slots = slots.take(np.flatnonzero(np.asarray(slots.rssi_dbm) > -92.0))  # what the receiver hears
+    cens = censored_silence([(1, t, xyz)], slots, frames_prior=FramesPrior(np.ones(10)),
+                            exposure_rates=burst_rate_prior((20.0, 135.0), 0.5))
+    seen = []
+
+    def spy(s, channel, **kw):
+        c = kw.get("censored")
+        seen.append((c.exposure.xyz_m[:, 2].copy(), kw.get("ground") is not None))
+        return estimate_emitter(s, channel, **kw)
+
+    est = estimate_on_terrain(slots, ch, sc.dem, estimate=spy, max_speed_m_s=0.0, model_motion=False, censored=cens)
+    assert est.ok and np.linalg.norm(est.position_xy_m - person) <= max(est.radius95_m, 30.0)
+    refits = [z for z, on_ground in seen if on_ground]
+    assert refits, "no refit over terrain"
+    ground = sc.dem.height_at(*person) - sc.dem.height_at(0.0, 0.0)  # the person's ground above launch
+    # the rows' heights are now above the person's ground (within the estimate's error on the slope)
+    np.testing.assert_allclose(refits[-1], cens.exposure.xyz_m[:, 2] - ground, atol=25.0)

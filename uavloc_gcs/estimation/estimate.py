@@ -726,6 +726,8 @@ def _laplace(problem: Problem, theta: np.ndarray, cost: float, factor: float) ->
         if BOUND_SHRINK_MAX is not None:
             extra = _capped(info, extra, BOUND_SHRINK_MAX)
         info = info + extra
+    if problem.censored is not None and problem.censored.exposure is not None:
+        info = _with_exposure(info, problem.exposure_information(theta) / factor)
     cov = _inverse(info)
     data_cost = float(np.sum(problem.data_residuals(theta) ** 2))
     prior_cost = cost - data_cost
@@ -746,6 +748,22 @@ def _capped(info: np.ndarray, extra: np.ndarray, shrink: float) -> np.ndarray:
     d = np.clip(d, 0.0, shrink**2 - 1.0)
     root = v @ np.diag(np.sqrt(w)) @ v.T
     return root @ (u @ np.diag(d) @ u.T) @ root
+
+
+# The exposure's curvature may widen the posterior (it is not positive definite), but by at most
+# this factor of the information in any direction (the standard deviation at most doubles).
+EXPOSURE_FLOOR = 0.25
+
+
+def _with_exposure(info: np.ndarray, h: np.ndarray, floor: float = EXPOSURE_FLOOR) -> np.ndarray:
+    """info + h with h (symmetric, indefinite) limited so the sum stays >= ``floor`` x info."""
+    w, v = np.linalg.eigh(0.5 * (info + info.T))
+    w = np.maximum(w, 1e-12 * max(float(w.max()), 1e-300))
+    white = v / np.sqrt(w)  # white.T @ info @ white = I
+    m = white.T @ (0.5 * (h + h.T)) @ white
+    mw, mv = np.linalg.eigh(0.5 * (m + m.T))
+    root = v * np.sqrt(w)  # info = root @ root.T
+    return root @ (np.eye(len(w)) + (mv * np.maximum(mw, floor - 1.0)) @ mv.T) @ root.T
 
 
 def _inverse(info: np.ndarray) -> np.ndarray:

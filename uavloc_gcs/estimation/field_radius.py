@@ -5,7 +5,8 @@ Laplace Gaussian at a mode reaches far along the arcs' tangents where the poster
 away, so its 95 % circle is several times too large (``bench localize --emission bursts``: the
 radius 2-4x what 95 % coverage needs, coverage 1.00). Here the Laplace Gaussians of the candidates,
 widened, are a proposal for self-normalised importance sampling of the constant-velocity
-posterior (the truncated slots, the censored silences, the velocity prior with the speed bound,
+posterior (the truncated slots, the censored silences and the bursts nobody heard, the velocity
+prior with the speed bound,
 the transmit-offset prior; the data deflated by the estimator's inflation factor), and the radius
 is the weighted 95 % quantile of the distance from the estimate. Fixed standard-normal draws make
 it a deterministic function of its inputs. Used only under a receiver threshold.
@@ -16,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.special import log_ndtr
 
-from .evidence import burst_count_loglik
+from .evidence import burst_count_loglik, exposure_loglik
 
 SAMPLES = 4096
 PROPOSAL_SCALE = 2.0  # the proposal's standard deviations, in those of the Laplace Gaussian
@@ -128,6 +129,14 @@ def _log_posterior(problem, x: np.ndarray, beta: np.ndarray, t_ref_s: float, fac
             data = data + burst_count_loglik(tc, c.heard, c.burst, c.n_bursts, c.log_p)[0].sum(axis=1)
         else:
             data = data + log_ndtr(tc) @ c.frames
+        e = c.exposure
+        if e is not None:  # the bursts nobody heard (evidence.Exposure)
+            etau = e.t_s - t_ref_s
+            ex = p[:, :1] + v[:, :1] * etau - e.a_xy[:, 0]
+            ey = p[:, 1:2] + v[:, 1:2] * etau - e.a_xy[:, 1]
+            te = (0.5 * np.log(ex * ex + ey * ey + e.h_m**2) - beta[:, None] - y_s) / s
+            src = e.source
+            data = data + exposure_loglik(te, src.cell, src.dt_s, src.rates, src.log_w, src.log_p, src.bursts)[0]
     lp = data / factor
     if x.shape[1] == 4:
         lp = lp - 0.5 * np.sum(v * v, axis=1) / problem.sigma_v**2

@@ -17,6 +17,13 @@ and vehicles that listened while the phone sent and heard nothing are censored o
                                                         phi / P(heard), P(heard) = Phi(-z_i)
   + sum_j 2 k_j (-ln Phi(z_j))                          censoring: P(none of k_j frames heard)
 
+With a frames prior the censored rows become every listening vehicle's hearing counts per burst
+(``evidence.burst_count_loglik``), and with a burst-rate prior the bursts nobody heard add
+  + 2 (ln F(0) - ln F(A))                               exposure: F(A) = E_lam[lam^N exp(-lam A)],
+                                                        A = the time a burst would have been heard
+(``evidence.exposure_loglik``; one residual, its square that, and in the Laplace covariance its
+curvature by differences, which may widen it: ``estimate.EXPOSURE_FLOOR``).
+
 The truncation lowers the cost where hearing is unlikely, so it cannot be a residual of its own:
 per slot it joins the Gaussian term into one convex function of z_i written as a signed root
 (``model.truncated_slot_residual``); each censored row is sqrt(-2 k_j ln Phi(z_j))
@@ -38,7 +45,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.optimize import leastsq
 
-from .evidence import Bounds, Censored, burst_count_loglik
+from .evidence import Bounds, Censored, Exposure, burst_count_loglik, exposure_loglik
 from .maneuver import Passes, offset_jacobian
 from .model import (
     ChannelModel,
@@ -135,6 +142,7 @@ class CensoredRows:
     heard: np.ndarray | None = None
     burst: np.ndarray | None = None
     log_p: np.ndarray | None = None
+    exposure: "ExposureRows | None" = None  # the bursts nobody heard (evidence.Exposure)
 
     def __len__(self) -> int:
         return len(self.t_s)
@@ -145,8 +153,20 @@ class CensoredRows:
 
     @property
     def residual_rows(self) -> int:
-        """One residual per burst with the counts' model, else one per silence."""
-        return self.n_bursts if self.log_p is not None else len(self.t_s)
+        """One residual per burst with the counts' model, else one per silence; one for the exposure."""
+        return (self.n_bursts if self.log_p is not None else len(self.t_s)) + (self.exposure is not None)
+
+
+@dataclass(frozen=True)
+class ExposureRows:
+    """:class:`.evidence.Exposure` in the fit's time frame (rows as in :class:`CensoredRows`)."""
+
+    t_s: np.ndarray
+    tau_s: np.ndarray
+    a_xy: np.ndarray
+    h_m: np.ndarray
+    pass_index: np.ndarray
+    source: Exposure
 
 
 def censored_rows(censored: Censored | None, data: Prepared, passes: Passes | None,
@@ -166,6 +186,16 @@ def censored_rows(censored: Censored | None, data: Prepared, passes: Passes | No
         counts = dict(heard=np.asarray(censored.heard, float),
                       burst=np.unique(np.asarray(censored.burst, int), return_inverse=True)[1].reshape(-1),
                       log_p=censored.prior.log_p)
+        ex = censored.exposure
+        if ex is not None and len(ex):
+            te = np.asarray(ex.t_s, float)
+            xe = np.asarray(ex.xyz_m, float).reshape(-1, 3)
+            ie = np.full(len(te), -1, dtype=int)
+            if passes is not None and len(data.t_s):
+                k = np.argmin(np.abs(te[:, None] - data.t_s[None, :]), axis=1)
+                near = np.abs(data.t_s[k] - te) <= same_burst_s
+                ie[near] = passes.index[k[near]]
+            counts["exposure"] = ExposureRows(te, te - data.t_c, xe[:, :2].copy(), np.maximum(xe[:, 2], 0.0), ie, ex)
     return CensoredRows(t, t - data.t_c, xyz[:, :2].copy(), np.maximum(xyz[:, 2], 0.0),
                         np.maximum(np.asarray(censored.frames, float), 0.0), index, **counts)
 
@@ -260,9 +290,10 @@ class Problem:
             jac = np.hstack([jac, np.column_stack([g[:, 0] * lead, g[:, 1] * lead])])
         return jac
 
-    def _censored_geometry(self, theta: np.ndarray):
-        """Offsets (K, 2) and squared 3-D distances (K,) of the censored rows."""
-        c = self.censored
+    def _censored_geometry(self, theta: np.ndarray, rows=None):
+        """Offsets (K, 2) and squared 3-D distances (K,) of the censored rows (or of ``rows``, the
+        exposure's)."""
+        c = self.censored if rows is None else rows
         pos = np.outer(c.tau_s, theta[2:4]) + theta[:2] if self.moving else np.broadcast_to(theta[:2], c.a_xy.shape)
         if self.passes is not None:
             off = np.vstack([theta[self.base_size:self.offsets_end].reshape(-1, 2), np.zeros((1, 2))])
@@ -312,6 +343,45 @@ class Problem:
         object.__setattr__(self, "_counts_cache", (key, out))
         return out
 
+    def _exposure(self, theta: np.ndarray):
+        """The exposure's ln F, d ln F / dz per row and ln F(0) at theta (the last evaluation cached)."""
+        key = theta.tobytes()
+        cache = self.__dict__.get("_exposure_cache")
+        if cache is not None and cache[0] == key:
+            return cache[1]
+        e = self.censored.exposure
+        src = e.source
+        _, d2 = self._censored_geometry(theta, e)
+        logf, dz, logf0 = exposure_loglik(self._z(d2, theta), src.cell, src.dt_s, src.rates, src.log_w,
+                                          src.log_p, src.bursts)
+        out = (float(logf[0]), dz[0], logf0)
+        object.__setattr__(self, "_exposure_cache", (key, out))
+        return out
+
+    def _exposure_gradient(self, theta: np.ndarray) -> np.ndarray:
+        """d ln F / d theta (P,)."""
+        e = self.censored.exposure
+        g, d2 = self._censored_geometry(theta, e)
+        _, dz, _ = self._exposure(theta)
+        return (dz / self.log_range_sigma) @ self._rows_jacobian(g, d2, e.tau_s, e.t_s, e.pass_index)
+
+    def exposure_information(self, theta: np.ndarray) -> np.ndarray:
+        """The exposure term's curvature -d2 ln F / d theta2 (P, P), by central differences of its
+        gradient. Not positive definite in general: away from where the vehicles listened most the
+        term widens the posterior, which is the point."""
+        p = self.size
+        step = np.full(p, 0.5)
+        if self.moving:
+            step[2:4] = 0.005
+        if self.tx:
+            step[self.beta_index] = 0.005
+        h = np.zeros((p, p))
+        for i in range(p):
+            d = np.zeros(p)
+            d[i] = step[i]
+            h[i] = (self._exposure_gradient(theta + d) - self._exposure_gradient(theta - d)) / (2.0 * step[i])
+        return -0.5 * (h + h.T)
+
     def _truncated(self, theta: np.ndarray):
         """The slots' signed roots and their derivatives at theta (the last evaluation cached)."""
         key = theta.tobytes()
@@ -330,7 +400,11 @@ class Problem:
             return []
         if c.log_p is not None:
             logp, _ = self._counts(theta)
-            return [np.sqrt(np.maximum(-2.0 * logp[0], 0.0))]
+            out = [np.sqrt(np.maximum(-2.0 * logp[0], 0.0))]
+            if c.exposure is not None:
+                logf, _, logf0 = self._exposure(theta)
+                out.append([math.sqrt(max(2.0 * (logf0 - logf), 0.0))])
+            return out
         _, d2c = self._censored_geometry(theta)
         return [log_probability_residual(self._z(d2c, theta), c.frames)[0]]
 
@@ -353,6 +427,10 @@ class Problem:
             per_burst = np.zeros((c.n_bursts, grad.shape[1]))
             np.add.at(per_burst, c.burst, grad)
             out.append(-per_burst / np.maximum(r, 1e-12)[:, None])
+            if c.exposure is not None:
+                logf, _, logf0 = self._exposure(theta)
+                re = math.sqrt(max(2.0 * (logf0 - logf), 0.0))
+                out.append(-self._exposure_gradient(theta)[None, :] / max(re, 1e-12))
         elif self.censored is not None:
             c = self.censored
             g, d2c = self._censored_geometry(theta)

@@ -153,9 +153,11 @@ def estimate_on_terrain(slots: SlotBatch, channel, dem, *, estimate, censored=No
         if g is None:
             return None
         gc = ground(e, censored.t_s) if censored is not None and len(censored) else None
+        ge = (ground(e, censored.exposure.t_s) if censored is not None and getattr(censored, "exposure", None)
+              is not None and len(censored.exposure) else None)
         gs = ground(e, silence.t_s) if silence is not None and hasattr(silence, "xyz_m") and len(silence.xyz_m) \
             else None
-        return g, gc, gs
+        return g, (gc, ge), gs
 
     # Start from the ground under the previous estimate when there is one: the flat first pass put
     # a phone 300 m up the slope at the launch point's height, its ranges "contradicted the nominal
@@ -176,10 +178,13 @@ def estimate_on_terrain(slots: SlotBatch, channel, dem, *, estimate, censored=No
             return est
     best = None
     for _ in range(ITERATIONS):
-        g, gc, gs = offset
+        g, (gc, ge), gs = offset
         moved = dataclasses.replace(slots, xyz_m=above_person(slots.xyz_m, g))
         cen = (dataclasses.replace(censored, xyz_m=above_person(censored.xyz_m, gc))
                if gc is not None else censored)
+        if ge is not None:  # the bursts nobody heard: the vehicles above the person there too
+            cen = dataclasses.replace(cen, exposure=dataclasses.replace(
+                cen.exposure, xyz_m=above_person(cen.exposure.xyz_m, ge)))
         sil = dataclasses.replace(silence, xyz_m=above_person(silence.xyz_m, gs)) if gs is not None else silence
         opts = dict(options)
         if est is not None:

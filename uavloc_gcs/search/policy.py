@@ -119,6 +119,20 @@ def frames_prior(scenario: Scenario):
     return FramesPrior(counts + 0.5)  # no count impossible
 
 
+def burst_rates(scenario: Scenario):
+    """The burst-rate law of the scenario's phones, for the bursts nobody heard
+    (estimation.evidence.Exposure): a phone's median gap log-uniform between
+    ``burst_gap_median_min_s`` and ``_max_s``, its gaps log-normal with the 90th percentile the
+    scenario gives at either end. The world's rare long silences are left out (about 1 gap in 100)."""
+    from ..estimation.evidence import burst_rate_prior
+
+    em = scenario.emission
+    z90 = 1.2816
+    sigma = (math.log(em.burst_gap_p90_min_s / em.burst_gap_median_min_s) / z90,
+             math.log(em.burst_gap_p90_max_s / em.burst_gap_median_max_s) / z90)
+    return burst_rate_prior((em.burst_gap_median_min_s, em.burst_gap_median_max_s), sigma, log_uniform=True)
+
+
 def _sideways(centre: np.ndarray, radius: float, starts: np.ndarray, unresolved: int) -> tuple[np.ndarray, float]:
     """The disk of a repeated look moved beside the person (see SIDEWAYS_LOOK_FRACTION)."""
     start = starts[int(np.argmin(np.linalg.norm(starts - centre, axis=1)))]
@@ -262,6 +276,7 @@ class SearchPolicy:
         self._bursts = scenario.emission.model == "probe-bursts" and scenario.emission.elicitation_rate_hz == 0
         self._reach_poly = None  # the area grown by LOOK_AREA_MARGIN (_inside_reach)
         self._frames_prior = None  # estimation.evidence.FramesPrior of the scenario's bursts (frames_prior)
+        self._burst_rates = None  # and their rate law (burst_rates), for the bursts nobody heard
 
     # -- data in ---------------------------------------------------------------------------
     def ingest(self, slots: SlotBatch) -> None:
@@ -402,12 +417,14 @@ class SearchPolicy:
             return None
         if self._frames_prior is None and self._bursts:
             self._frames_prior = frames_prior(self.scenario)
+            self._burst_rates = burst_rates(self.scenario)
         tracks = []
         for v, parts in self._tracks.items():
             if len(parts) > 1:
                 self._tracks[v] = parts = [(np.concatenate([a for a, _ in parts]), np.vstack([b for _, b in parts]))]
             tracks.append((v, parts[0][0], parts[0][1]))
-        return censored_silence(tracks, p.batches[0], frames_prior=self._frames_prior or None)
+        return censored_silence(tracks, p.batches[0], frames_prior=self._frames_prior or None,
+                                exposure_rates=self._burst_rates if self._frames_prior else None)
 
     def update(self, t_s: float) -> set[int]:
         """Re-estimate emitters with new slots; return the ids whose state changed materially

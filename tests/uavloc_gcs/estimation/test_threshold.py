@@ -1,6 +1,7 @@
 """The field world's receiver: frames heard above a sensitivity (truncated likelihood) and silences
 within heard bursts (censored observations)."""
 
+from dataclasses import replace
 from types import SimpleNamespace
 
 import numpy as np
@@ -76,6 +77,12 @@ def _problem(tx: bool, rng, counts: bool = False) -> tuple[Problem, np.ndarray]:
         cens = Censored(np.array([5.0, 5.0, 70.0]), np.array([[0.0, -120.0, ALT_M], [30.0, 10.0, ALT_M],
                                                              [10.0, 300.0, ALT_M]]),
                         np.zeros(3), np.array([0.0, 3.0, 1.0]), np.array([4, 4, 9]), FramesPrior(np.ones(12)))
+    if counts == "exposure":  # and the bursts nobody heard, along both legs
+        from uavloc_gcs.estimation.evidence import burst_exposure, burst_rate_prior
+
+        ex = burst_exposure([(1, t1, x1), (2, t2, x2)], slots, frames_prior=cens.prior,
+                            rates=burst_rate_prior((20.0, 135.0), 0.54))
+        cens = replace(cens, exposure=ex)
     p = Problem(data, True, tx, 1.5, 0.3, passes, threshold_y=FIELD.threshold_log_range,
                 log_range_sigma=FIELD.log_range_sigma, censored=censored_rows(cens, data, passes),
                 turn_at_s=30.0)
@@ -88,7 +95,7 @@ def _problem(tx: bool, rng, counts: bool = False) -> tuple[Problem, np.ndarray]:
     return p, theta
 
 
-@pytest.mark.parametrize("tx,counts", [(False, False), (True, False), (True, True)])
+@pytest.mark.parametrize("tx,counts", [(False, False), (True, False), (True, True), (True, "exposure")])
 def test_truncated_and_censored_jacobian_matches_finite_differences(tx, counts):
     p, theta = _problem(tx, np.random.default_rng(4), counts)
     jac = p.jacobian(theta)
@@ -99,7 +106,7 @@ def test_truncated_and_censored_jacobian_matches_finite_differences(tx, counts):
         e[k] = h
         num[:, k] = (p.residuals(theta + e) - p.residuals(theta - e)) / (2 * h)
     rows = slice(0, p.data_rows)  # the truncated slots and the censoring rows
-    assert p.data_rows == len(p.data.t_s) + 2  # two silences, or two bursts
+    assert p.data_rows == len(p.data.t_s) + 2 + (counts == "exposure")  # two silences, or two bursts (+ exposure)
     np.testing.assert_allclose(jac[rows], num[rows], rtol=1e-5, atol=1e-7)
     np.testing.assert_allclose(jac, num, rtol=1e-5, atol=1e-7)
     # the cost is the data's -2 ln likelihood: Gaussian + 2 n (-ln Phi(-z)) + 2 k (-ln Phi(z))
@@ -243,3 +250,82 @@ def test_hearing_counts_with_a_frames_prior_rule_out_the_far_side_too():
     est = estimate_emitter(slots, FIELD, max_speed_m_s=1.5, model_motion=False, censored=cens)
     assert est.position_xy_m[1] > 0 and not est.ambiguous
     assert np.linalg.norm(est.position_xy_m - truth) <= est.radius95_m <= plain.radius95_m
+
+
+# -- the bursts nobody heard (evidence.Exposure) ------------------------------------------------
+
+
+def test_exposure_loglik_gradient_matches_finite_differences_and_the_table_matches_the_sum():
+    from uavloc_gcs.estimation.evidence import burst_rate_prior, exposure_loglik
+
+    rng = np.random.default_rng(3)
+    rates, log_w = burst_rate_prior((20.0, 135.0), (0.86, 0.54), log_uniform=True)
+    log_p = FramesPrior(np.ones(27)).log_p
+    cell = np.repeat(np.arange(20), 2)  # two vehicles listening in each of 20 cells
+    z = rng.normal(0.5, 1.5, (1, 40))
+    args = (cell, 2.0, rates, log_w, log_p, 3)
+    logf, dz, logf0 = exposure_loglik(z, *args)
+    assert logf[0] < logf0  # F(A) is largest where nothing could have been heard
+    num = [(exposure_loglik(z + e, *args)[0] - exposure_loglik(z - e, *args)[0])[0] / 2e-6 for e in 1e-6 * np.eye(40)]
+    np.testing.assert_allclose(dz[0], num, rtol=1e-5, atol=1e-9)
+    assert np.all(dz[0] > 0)  # farther from every vehicle (z up): fewer bursts missed, more likely
+    many = z + rng.normal(0.0, 0.3, (200, 40))  # the samplers' path (interpolated table)
+    exact = [exposure_loglik(many[i:i + 1], *args)[0][0] for i in range(200)]
+    np.testing.assert_allclose(exposure_loglik(many, *args)[0], exact, atol=1e-6)
+
+
+def test_burst_rate_prior_refuses_gaps_that_are_not_positive_and_ordered():
+    from uavloc_gcs.estimation.evidence import burst_rate_prior
+
+    rates, log_w = burst_rate_prior((20.0, 135.0), 0.54)
+    assert np.isclose(np.exp(log_w).sum(), 1.0) and rates.max() < 1 / 20.0 and rates.min() > 1 / 160.0
+    assert np.exp(log_w[-1]) > np.exp(log_w[0])  # uniform in the gap: long gaps weigh more on a log grid
+    for bad in ((0.0, 10.0), (30.0, 20.0), (-5.0, 10.0)):
+        with pytest.raises(ValueError, match="median gap"):
+            burst_rate_prior(bad)
+
+
+def _orbit_one_burst(rng):
+    """A vehicle circles (110 m, 12 m/s, 80 m up) for 600 s and hears one burst 260 m from the
+    orbit's centre, with another vehicle's lane far away."""
+    t = np.arange(0.0, 600.0, 0.1)
+    ang = t * 12.0 / 110.0
+    orbit = np.column_stack([110.0 * np.cos(ang), 110.0 * np.sin(ang), np.full(len(t), ALT_M)])
+    truth = np.array([260.0, 0.0])
+    at = int(np.argmin(np.abs(t - 300.0) + 1e6 * (np.cos(ang) < 0.999)))  # near 300 s, over the truth's side
+    tf = t[at] + np.sort(rng.uniform(0.0, 1.0, 12))
+    xyz = np.column_stack([np.interp(tf, t, orbit[:, c]) for c in range(3)])
+    slots = frames_heard(FIELD, truth, tf, xyz, rng)
+    return truth, slots, [(1, t, orbit)]
+
+
+def test_the_bursts_nobody_heard_push_the_person_away_from_where_the_vehicle_listened_longest():
+    """Ten minutes of orbiting heard one burst: a person that close to the orbit would have been
+    heard more often, so with the exposure the estimate moves away from the orbit's centre, and
+    the fit's Jacobian holds the exposure's row."""
+    from uavloc_gcs.estimation.evidence import burst_rate_prior
+
+    rng = np.random.default_rng(11)
+    truth, slots, tracks = _orbit_one_burst(rng)
+    assert len(slots) >= 2
+    prior = FramesPrior(np.ones(12))
+    rates = burst_rate_prior((20.0, 135.0), 0.54)
+    plain = estimate_emitter(slots, FIELD, max_speed_m_s=1.5, model_motion=False,
+                             censored=censored_silence(tracks, slots, frames_prior=prior))
+    cens = censored_silence(tracks, slots, frames_prior=prior, exposure_rates=rates)
+    ex = cens.exposure
+    assert ex is not None and ex.bursts == 1
+    # the rows: one per 2 s, from 150 s before the burst to 150 s after it
+    assert len(ex) == pytest.approx(151, abs=2) and ex.t_s.min() >= slots.t_s.min() - 151.0
+    est = estimate_emitter(slots, FIELD, max_speed_m_s=1.5, model_motion=False, censored=cens)
+    assert np.linalg.norm(est.position_xy_m) > np.linalg.norm(plain.position_xy_m) + 20.0
+    assert np.linalg.norm(est.position_xy_m - truth) < np.linalg.norm(plain.position_xy_m - truth)
+
+    data = prepare(slots, FIELD)
+    p = Problem(data, False, True, 1.5, 0.5, threshold_y=FIELD.threshold_log_range,
+                log_range_sigma=FIELD.log_range_sigma, censored=censored_rows(cens, data, None))
+    theta = np.array([150.0, 40.0, 0.1])
+    assert p.data_rows == len(data.t_s) + 1 + 1  # one burst's counts, one exposure
+    jac = p.jacobian(theta)
+    num = np.column_stack([(p.residuals(theta + e) - p.residuals(theta - e)) / 2e-6 for e in 1e-6 * np.eye(3)])
+    np.testing.assert_allclose(jac, num, rtol=1e-5, atol=1e-7)
