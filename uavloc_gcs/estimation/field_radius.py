@@ -6,9 +6,8 @@ away, so its 95 % circle is several times too large (``bench localize --emission
 radius 2-4x what 95 % coverage needs, coverage 1.00). Here the Laplace Gaussians of the candidates,
 widened, are a proposal for self-normalised importance sampling of the constant-velocity
 posterior (the truncated slots, the censored silences and the bursts nobody heard, the velocity
-prior with the speed bound,
-the transmit-offset prior; the data deflated by the estimator's inflation factor), and the radius
-is the weighted 95 % quantile of the distance from the estimate. Fixed standard-normal draws make
+prior with the speed bound, the transmit-offset prior; the data deflated by the estimator's
+inflation factor), and the radius is the weighted 95 % quantile of the distance from the estimate. Fixed standard-normal draws make
 it a deterministic function of its inputs. Used only under a receiver threshold.
 """
 
