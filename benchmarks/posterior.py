@@ -169,14 +169,11 @@ def burst_log_posterior(x: np.ndarray, data: Prepared, t_ref: float, max_speed_m
             else:
                 lp = lp + log_ndtr(tc) @ censored.frames
             e = censored.exposure
-            if e is not None:  # the bursts nobody heard (evidence.exposure_loglik)
-                from uavloc_gcs.estimation.evidence import exposure_loglik
-
+            if e is not None:  # the bursts nobody heard (evidence.Exposure)
                 ex = p[:, :1] + v[:, :1] * e.tau_s - e.a_xy[:, 0]
                 ey = p[:, 1:2] + v[:, 1:2] * e.tau_s - e.a_xy[:, 1]
                 te = (0.5 * np.log(ex * ex + ey * ey + e.h_m**2) - y_s) / s
-                src = e.source
-                lp = lp + exposure_loglik(te, src.cell, src.dt_s, src.rates, src.log_w, src.log_p, src.bursts)[0]
+                lp = lp + e.source.loglik(te, gradient=False)[0]
         if x.shape[1] == 4:
             lp = np.where(np.hypot(v[:, 0], v[:, 1]) <= max_speed_m_s, lp, -np.inf)
         out[i:i + CHUNK] = lp

@@ -371,6 +371,11 @@ class Exposure:
     def __len__(self) -> int:
         return len(self.t_s)
 
+    def loglik(self, z: np.ndarray, *, gradient: bool = True) -> tuple[np.ndarray, np.ndarray | None, float]:
+        """:func:`exposure_loglik` of these rows at z (S, M)."""
+        return exposure_loglik(z, self.cell, self.dt_s, self.rates, self.log_w, self.log_p, self.bursts,
+                               gradient=gradient)
+
 
 def burst_rate_prior(median_gap_s: tuple[float, float], gap_log_sigma: float | tuple[float, float] = 0.0, *,
                      log_uniform: bool = False, points: int = EXPOSURE_RATES) -> tuple[np.ndarray, np.ndarray]:
@@ -429,28 +434,36 @@ def burst_exposure(tracks, heard, *, frames_prior: "FramesPrior", rates: tuple[n
 
 
 def exposure_loglik(z: np.ndarray, cell: np.ndarray, dt_s: float, rates: np.ndarray, log_w: np.ndarray,
-                    log_p: np.ndarray, bursts: int) -> tuple[np.ndarray, np.ndarray, float]:
+                    log_p: np.ndarray, bursts: int, *, gradient: bool = True
+                    ) -> tuple[np.ndarray, np.ndarray | None, float]:
     """ln F(A) for states of rows z (S, M) (z = (S - mu) / sigma per row, cells ``cell`` (M,)), its
-    derivative d ln F / d z_r (S, M), and ln F(0), the largest it can be."""
-    from scipy.special import log_ndtr, logsumexp
-
-    from .model import mills_ratio
+    derivative d ln F / d z_r (S, M) (None without ``gradient``: the samplers need only ln F), and
+    ln F(0), the largest it can be."""
+    from scipy.special import log_ndtr
 
     z = np.atleast_2d(np.asarray(z, float))
-    cells, inv = np.unique(np.asarray(cell, int), return_inverse=True)
-    inv = inv.reshape(-1)
+    cell = np.asarray(cell, int).reshape(-1)
+    order = np.argsort(cell, kind="stable")
+    first = np.r_[True, cell[order][1:] != cell[order][:-1]]
+    inv = np.empty(len(cell), int)
+    inv[order] = np.cumsum(first) - 1  # each row's cell, numbered 0..C-1
     lm = log_ndtr(z)  # ln P(a frame unheard) per row
-    L = np.zeros((z.shape[0], len(cells)))
-    np.add.at(L.T, inv, lm.T)
+    L = np.add.reduceat(lm[:, order], np.flatnonzero(first), axis=1)  # (S, C): per cell, every vehicle
     miss, dmiss = _burst_miss(np.minimum(L, 0.0), log_p)  # P(the burst unheard) per cell, d / d L
     A = dt_s * np.sum(1.0 - miss, axis=1)  # (S,)
-    a = log_w[None, :] + bursts * np.log(rates)[None, :]  # (1, J)
-    per = a - np.outer(A, rates)
-    logF = logsumexp(per, axis=1)
-    post = np.exp(per - logF[:, None])
-    dlogF_dA = -(post @ rates)  # (S,)
-    dA_dz = -dt_s * dmiss[:, inv] * mills_ratio(z)  # (S, M)
-    return logF, dlogF_dA[:, None] * dA_dz, float(logsumexp(a))
+    a = log_w + bursts * np.log(rates)  # (J,)
+    per = a[None, :] - np.outer(A, rates)
+    top = per.max(axis=1, keepdims=True)
+    e = np.exp(per - top)
+    total = e.sum(axis=1)
+    logF = top[:, 0] + np.log(total)
+    logF0 = float(a.max() + np.log(np.sum(np.exp(a - a.max()))))
+    if not gradient:
+        return logF, None, logF0
+    dlogF_dA = -((e / total[:, None]) @ rates)  # (S,)
+    mills = np.exp(-0.5 * z * z - 0.5 * math.log(2.0 * math.pi) - lm)  # phi(z) / Phi(z)
+    dA_dz = -dt_s * dmiss[:, inv] * mills  # (S, M)
+    return logF, dlogF_dA[:, None] * dA_dz, logF0
 
 
 _MISS_TABLE: dict = {}
@@ -475,4 +488,7 @@ def _burst_miss(L: np.ndarray, log_p: np.ndarray) -> tuple[np.ndarray, np.ndarra
         if len(_MISS_TABLE) > 8:
             _MISS_TABLE.pop(next(iter(_MISS_TABLE)))
     grid, m, dm = table
-    return np.interp(x, grid, m), np.interp(x, grid, dm)
+    u = x * (len(grid) - 1)  # the grid is uniform on [0, 1]: linear interpolation by index
+    i = np.minimum(u.astype(int), len(grid) - 2)
+    f = u - i
+    return m[i] + f * (m[i + 1] - m[i]), dm[i] + f * (dm[i + 1] - dm[i])

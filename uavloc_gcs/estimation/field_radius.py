@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.special import log_ndtr
 
-from .evidence import burst_count_loglik, exposure_loglik
+from .evidence import burst_count_loglik
 
 SAMPLES = 4096
 PROPOSAL_SCALE = 2.0  # the proposal's standard deviations, in those of the Laplace Gaussian
@@ -134,8 +134,7 @@ def _log_posterior(problem, x: np.ndarray, beta: np.ndarray, t_ref_s: float, fac
             ex = p[:, :1] + v[:, :1] * etau - e.a_xy[:, 0]
             ey = p[:, 1:2] + v[:, 1:2] * etau - e.a_xy[:, 1]
             te = (0.5 * np.log(ex * ex + ey * ey + e.h_m**2) - beta[:, None] - y_s) / s
-            src = e.source
-            data = data + exposure_loglik(te, src.cell, src.dt_s, src.rates, src.log_w, src.log_p, src.bursts)[0]
+            data = data + e.source.loglik(te, gradient=False)[0]
     lp = data / factor
     if x.shape[1] == 4:
         lp = lp - 0.5 * np.sum(v * v, axis=1) / problem.sigma_v**2

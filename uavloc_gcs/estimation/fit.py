@@ -45,7 +45,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.optimize import leastsq
 
-from .evidence import Bounds, Censored, Exposure, burst_count_loglik, exposure_loglik
+from .evidence import Bounds, Censored, Exposure, burst_count_loglik
 from .maneuver import Passes, offset_jacobian
 from .model import (
     ChannelModel,
@@ -350,10 +350,8 @@ class Problem:
         if cache is not None and cache[0] == key:
             return cache[1]
         e = self.censored.exposure
-        src = e.source
         _, d2 = self._censored_geometry(theta, e)
-        logf, dz, logf0 = exposure_loglik(self._z(d2, theta), src.cell, src.dt_s, src.rates, src.log_w,
-                                          src.log_p, src.bursts)
+        logf, dz, logf0 = e.source.loglik(self._z(d2, theta))
         out = (float(logf[0]), dz[0], logf0)
         object.__setattr__(self, "_exposure_cache", (key, out))
         return out
