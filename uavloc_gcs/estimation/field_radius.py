@@ -7,8 +7,12 @@ radius 2-4x what 95 % coverage needs, coverage 1.00). Here the Laplace Gaussians
 widened, are a proposal for self-normalised importance sampling of the constant-velocity
 posterior (the truncated slots, the censored silences and the bursts nobody heard, the velocity
 prior with the speed bound, the transmit-offset prior; the data deflated by the estimator's
-inflation factor), and the radius is the weighted 95 % quantile of the distance from the estimate. Fixed standard-normal draws make
-it a deterministic function of its inputs. Used only under a receiver threshold.
+inflation factor), and the radius is the weighted 95 % quantile of the distance from the estimate.
+An estimated transmit offset is drawn with the state: first from its prior about the fit, then, in
+the one adaptation, jointly with the position (louder is farther: the two are correlated, and
+drawing them apart left the radius 9 % short, tests/uavloc_gcs/estimation/test_field_radius.py).
+Fixed standard-normal draws make it a deterministic function of its inputs. Used only under a
+receiver threshold.
 """
 
 from __future__ import annotations
@@ -21,6 +25,7 @@ from .evidence import burst_count_loglik
 SAMPLES = 4096
 PROPOSAL_SCALE = 2.0  # the proposal's standard deviations, in those of the Laplace Gaussian
 MIN_ESS = 100.0  # below this the samples do not represent the posterior; the Laplace radius stands
+_JITTER = (4.0, 4.0, 0.01, 0.01)  # added to the proposal's covariance [m^2, m^2, m^2/s^2, m^2/s^2]
 _DRAWS = np.random.default_rng(20261125).standard_normal((SAMPLES, 5))
 _DRAWS2 = np.random.default_rng(20261126).standard_normal((SAMPLES, 5))
 
@@ -39,15 +44,19 @@ def sampled_posterior(problem, modes: list[tuple[np.ndarray, np.ndarray]], t_ref
     parts = []
     for state, cov in modes:
         c = 0.5 * (np.asarray(cov, float) + np.asarray(cov, float).T)[:dim, :dim]
-        c = PROPOSAL_SCALE**2 * c + np.diag([4.0, 4.0, 0.01, 0.01])[:dim, :dim]
+        c = PROPOSAL_SCALE**2 * c + np.diag(_JITTER[:dim])
         if not np.all(np.isfinite(c)):
             return None
         try:
             chol = np.linalg.cholesky(c)
         except np.linalg.LinAlgError:
             return None
-        parts.append((np.asarray(state, float)[:dim], chol))
-    x, w, ess = _weighted(problem, parts, 0, t_ref_s, factor, beta0, dim)
+        mean = np.asarray(state, float)[:dim]
+        if problem.tx:  # the transmit offset drawn with the state, first from its prior about the fit
+            mean = np.r_[mean, beta0]
+            chol = np.block([[chol, np.zeros((dim, 1))], [np.zeros((1, dim)), np.full((1, 1), problem.tx_sigma_nepers)]])
+        parts.append((mean, chol))
+    x, w, ess = _weighted(problem, parts, 0, t_ref_s, factor, dim)
     if x is None:
         return None
     # one adaptation: each component refitted to the weighted samples nearest it (the posterior's
@@ -60,13 +69,13 @@ def sampled_posterior(problem, modes: list[tuple[np.ndarray, np.ndarray]], t_ref
             continue
         mj = wj @ x / wj.sum()
         dj = x - mj
-        cj = 1.5**2 * (dj * wj[:, None]).T @ dj / wj.sum() + np.diag([4.0, 4.0, 0.01, 0.01])[:dim, :dim]
+        cj = 1.5**2 * (dj * wj[:, None]).T @ dj / wj.sum() + np.diag(_JITTER[:dim] + (1e-4,) * problem.tx)
         try:
             refit.append((mj, np.linalg.cholesky(cj)))
         except np.linalg.LinAlgError:
             pass
     if refit:
-        x2, w2, ess2 = _weighted(problem, refit + parts[:1], SAMPLES, t_ref_s, factor, beta0, dim)
+        x2, w2, ess2 = _weighted(problem, refit + parts[:1], SAMPLES, t_ref_s, factor, dim)
         if x2 is not None and ess2 > ess:
             x, w, ess = x2, w2, ess2
     if ess < MIN_ESS:
@@ -76,25 +85,24 @@ def sampled_posterior(problem, modes: list[tuple[np.ndarray, np.ndarray]], t_ref
     cdf = np.cumsum(w[order])
     radius = float(dist[order][min(int(np.searchsorted(cdf, prob)), len(dist) - 1)])
     full = np.zeros((len(x), 4))
-    full[:, :dim] = x
+    full[:, :dim] = x[:, :dim]
     mean = w @ full
     dev = full - mean
     cov4 = (dev * w[:, None]).T @ dev
     return radius, cov4, ess
 
 
-def _weighted(problem, parts, offset: int, t_ref_s: float, factor: float, beta0: float, dim: int):
-    """Samples from the mixture of ``parts`` (mean, Cholesky factor), their normalised importance
-    weights and effective sample size; (None, None, 0) when every weight is zero."""
+def _weighted(problem, parts, offset: int, t_ref_s: float, factor: float, dim: int):
+    """Samples from the mixture of ``parts`` (mean, Cholesky factor; the state's ``dim`` entries,
+    then the transmit offset [nepers] when estimated), their normalised importance weights and
+    effective sample size; (None, None, 0) when every weight is zero."""
     n = SAMPLES // len(parts)
+    width = len(parts[0][0])
     z = _DRAWS[: n * len(parts)] if offset == 0 else _DRAWS2[: n * len(parts)]
-    x = np.vstack([m + z[i * n:(i + 1) * n, :dim] @ l.T for i, (m, l) in enumerate(parts)])
+    x = np.vstack([m + z[i * n:(i + 1) * n, :width] @ l.T for i, (m, l) in enumerate(parts)])
     lq = np.logaddexp.reduce(np.stack([_mvn_logpdf(x, m, l) for m, l in parts]), axis=0)
-    beta = np.zeros(len(x))
-    if problem.tx:  # the offset drawn from its prior about its fit (a nuisance, integrated out)
-        beta = beta0 + problem.tx_sigma_nepers * z[: len(x), 4]
-        lq = lq - 0.5 * ((beta - beta0) / problem.tx_sigma_nepers) ** 2
-    lw = _log_posterior(problem, x, beta, t_ref_s, factor) - lq
+    beta = x[:, dim] if problem.tx else np.zeros(len(x))
+    lw = _log_posterior(problem, x[:, :dim], beta, t_ref_s, factor) - lq
     if not np.any(np.isfinite(lw)):
         return None, None, 0.0
     w = np.exp(lw - np.max(lw))
