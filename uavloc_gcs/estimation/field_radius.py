@@ -25,6 +25,8 @@ from .evidence import burst_count_loglik
 SAMPLES = 4096
 PROPOSAL_SCALE = 2.0  # the proposal's standard deviations, in those of the Laplace Gaussian
 MIN_ESS = 100.0  # below this the samples do not represent the posterior; the Laplace radius stands
+ADAPTATIONS = 3  # refits of the proposal at most: the first always, the others below RESCUE_ESS
+RESCUE_ESS = 300.0
 _JITTER = (4.0, 4.0, 0.01, 0.01)  # added to the proposal's covariance [m^2, m^2, m^2/s^2, m^2/s^2]
 _DRAWS = np.random.default_rng(20261125).standard_normal((SAMPLES, 5))
 _DRAWS2 = np.random.default_rng(20261126).standard_normal((SAMPLES, 5))
@@ -59,25 +61,20 @@ def sampled_posterior(problem, modes: list[tuple[np.ndarray, np.ndarray]], t_ref
     x, w, ess = _weighted(problem, parts, 0, t_ref_s, factor, dim)
     if x is None:
         return None
-    # one adaptation: each component refitted to the weighted samples nearest it (the posterior's
-    # arcs are narrower than the Laplace Gaussians, so the first round's weights are uneven)
-    near = np.argmin(np.stack([np.linalg.norm(x[:, :2] - m[:2], axis=1) for m, _ in parts]), axis=0)
-    refit = []
-    for j in range(len(parts)):
-        wj = w * (near == j)
-        if wj.sum() < 0.02:
-            continue
-        mj = wj @ x / wj.sum()
-        dj = x - mj
-        cj = 1.5**2 * (dj * wj[:, None]).T @ dj / wj.sum() + np.diag(_JITTER[:dim] + (1e-4,) * problem.tx)
-        try:
-            refit.append((mj, np.linalg.cholesky(cj)))
-        except np.linalg.LinAlgError:
-            pass
-    if refit:
+    # adaptation: each component refitted to the weighted samples nearest it (the posterior's arcs
+    # are narrower than the Laplace Gaussians, so the first round's weights are uneven); further
+    # rounds only to rescue a posterior the samples still represent poorly (RESCUE_ESS)
+    anchors = parts
+    for k in range(ADAPTATIONS):
+        if k > 0 and ess >= RESCUE_ESS:
+            break
+        refit = _refit(x, w, anchors, dim, problem.tx)
+        if not refit:
+            break
         x2, w2, ess2 = _weighted(problem, refit + parts[:1], SAMPLES, t_ref_s, factor, dim)
-        if x2 is not None and ess2 > ess:
-            x, w, ess = x2, w2, ess2
+        if x2 is None or ess2 <= ess:
+            break
+        x, w, ess, anchors = x2, w2, ess2, refit
     if ess < MIN_ESS:
         return None
     dist = np.hypot(x[:, 0] - center_xy[0], x[:, 1] - center_xy[1])
@@ -90,6 +87,24 @@ def sampled_posterior(problem, modes: list[tuple[np.ndarray, np.ndarray]], t_ref
     dev = full - mean
     cov4 = (dev * w[:, None]).T @ dev
     return radius, cov4, ess
+
+
+def _refit(x: np.ndarray, w: np.ndarray, anchors, dim: int, tx: bool) -> list:
+    """Each anchor component's Gaussian refitted (widened 1.5x) to the weighted samples nearest its mean."""
+    near = np.argmin(np.stack([np.linalg.norm(x[:, :2] - m[:2], axis=1) for m, _ in anchors]), axis=0)
+    out = []
+    for j in range(len(anchors)):
+        wj = w * (near == j)
+        if wj.sum() < 0.02:
+            continue
+        mj = wj @ x / wj.sum()
+        dj = x - mj
+        cj = 1.5**2 * (dj * wj[:, None]).T @ dj / wj.sum() + np.diag(_JITTER[:dim] + (1e-4,) * tx)
+        try:
+            out.append((mj, np.linalg.cholesky(cj)))
+        except np.linalg.LinAlgError:
+            pass
+    return out
 
 
 def _weighted(problem, parts, offset: int, t_ref_s: float, factor: float, dim: int):
