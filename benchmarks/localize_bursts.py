@@ -307,14 +307,17 @@ def coverage_interval(covered: int, runs: int, z: float = 1.96) -> tuple[float, 
 def print_burst_table(families, runs: int, seed: int, bar=None, mmse: bool = True, counts: bool = True,
                       exposure: bool = True) -> None:
     ch = FIELD_CHANNEL
+    if not counts:
+        evidence = "censored silences within heard bursts (conservative frame count, no frames prior)"
+    else:
+        evidence = "the hearing counts of every listening vehicle within heard bursts (frames prior: this world's)"
+        if exposure:
+            evidence += " and the bursts nobody heard (burst-rate prior: this world's)"
     print(f"field world (bursts): P0 {ch.reference_power_dbm:g} dBm at 1 m, eta {ch.path_loss_exponent:g}, "
           f"sigma {ch.shadowing_sigma_db:g} dB, sensitivity {ch.sensitivity_dbm:g} dBm (50 % at "
           f"{math.exp(ch.threshold_log_range):.0f} m slant), h 60-100 m, v_max {MAX_SPEED_M_S} m/s; truncated "
-          f"likelihood + " + ("the hearing counts of every listening vehicle within heard bursts (frames prior: this "
-                              "world's)" + (" and the bursts nobody heard (burst-rate prior: this world's)"
-                                            if exposure else "") if counts else "censored silences within heard bursts (conservative frame "
-                                                         "count, no frames prior)") + f". BCRB: Tobit information of every frame of the "
-          f"heard bursts at every listening vehicle; MMSE: posterior mean of the same likelihood (the floor)")
+          f"likelihood + {evidence}. BCRB: Tobit information of every frame of the heard bursts at every listening "
+          f"vehicle; MMSE: posterior mean of the same likelihood (the floor)")
     head = (f"{'family':42s} {'runs':>4s} {'frames':>6s} {'RMSE m':>7s} {'med e':>6s} {'BCRB m':>7s} {'ratio':>6s} "
             f"{'eff':>6s} {'MMSE m':>7s} {'R/MMSE':>6s} {'cov95':>6s} {'95 % CI':>9s} {'r95 med':>7s} {'need':>5s} "
             f"{'ambig':>5s} {'ms':>5s}")
