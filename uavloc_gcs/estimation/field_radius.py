@@ -9,7 +9,7 @@ posterior (the truncated slots, the censored silences and the bursts nobody hear
 prior with the speed bound, the transmit-offset prior; the data deflated by the estimator's
 inflation factor), and the radius is the weighted 95 % quantile of the distance from the estimate.
 An estimated transmit offset is drawn with the state: first from its prior about the fit, then, in
-the one adaptation, jointly with the position (louder is farther: the two are correlated, and
+the adaptation rounds, jointly with the position (louder is farther: the two are correlated, and
 drawing them apart left the radius 9 % short, tests/uavloc_gcs/estimation/test_field_radius.py).
 Fixed standard-normal draws make it a deterministic function of its inputs. Used only under a
 receiver threshold.
