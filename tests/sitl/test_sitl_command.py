@@ -31,8 +31,9 @@ from .conftest import require
 
 READY_WALL_S = 240.0  # both vehicles started and ready (ArduCopter: GPS in use), on a loaded machine
 # The PX4 field search's length follows how many addresses it hears (each may be a person to look
-# at): 382 and 430 s wall in its last two passing runs, but on 2026-11-28 beside a 200-run benchmark one search heard more and
-# was still flying looks when 900 s ran out. The budget catches a hang, not a slow machine.
+# at): 382 and 430 s wall in two passing runs, but on 2026-11-28, beside a 200-run benchmark, one
+# search heard more and was still flying looks when 900 s ran out. The budget catches a hang, not a
+# slow machine.
 FIELD_PX4_WALL_S = 1500.0
 
 
