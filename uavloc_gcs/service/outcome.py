@@ -67,46 +67,58 @@ def person_result(status, frame: LocalFrame, *, epoch_t_s: float = 0.0) -> Perso
                         located, not ambiguous, reason, t_ref)
 
 
-def final_results(statuses, slots, scenario, frame: LocalFrame, linking=None) -> list[PersonResult]:
-    """Each person re-estimated at the end from the slots of its last FINAL_WINDOW_S seconds of
-    being heard (all of them if that window does not give a usable fit). The policy
-    freezes a person's estimate when it first meets the accuracy; later passes usually sharpen it,
-    while a constant-velocity fit over a whole search is hurt by people changing direction.
-    The reported position is always the one the reported radius is about.
-    A person counts as located if the policy located it or the final estimate's 95 % circle (over
-    both mirror candidates if ambiguous) is within the required accuracy. A person the policy located keeps its fix unless
-    a refit is also within the required accuracy; otherwise the policy's belief is reported.
+def final_results(statuses, slots, scenario, frame: LocalFrame, linking=None, *, refit: bool = True) -> list[PersonResult]:
+    """Each person re-estimated at the end from the slots of their last FINAL_WINDOW_S seconds of
+    being heard. The policy freezes a person's estimate when it first meets the accuracy; later
+    passes usually sharpen it. A person counts as located if the policy located them or the
+    refit's 95 % circle (over both mirror candidates if ambiguous) is within the required accuracy.
+    A located person keeps their fix unless the refit also meets the accuracy and agrees with it;
+    a refit that meets the accuracy but puts the person where the fix, grown by walking since, says
+    they cannot be, unmakes the fix: two confident answers that disagree locate no one. The
+    reported position is always the one the reported radius is about.
+
+    Never a fit over all of a person's data: a constant-velocity fit over a whole search is
+    confidently wrong for a walker who turned (issue 42: on a busy machine a paper demo lasted
+    1,700 s and such a fit reported a walker 145 m from the truth with an 8.2 m radius, as located).
 
     ``linking`` (the policy's ``estimation.identity.Linking``, when a sensor reported fingerprints):
     the people are the linked addresses, so their slots are the linked ones, and each result names
-    the addresses it was heard under and why their link is uncertain."""
+    the addresses it was heard under and why their link is uncertain. ``refit=False`` reports the
+    policy's beliefs as they are (a stopped search: its results must not wait for fits)."""
     from ..estimation import ChannelModel, survey_slots  # noqa: PLC0415
 
     channel = ChannelModel.from_scenario(scenario)
     if linking is not None:
         slots = linking.slots  # already the survey slots, relabelled by person
-        out = final_results(statuses, slots, scenario, frame)
+        out = final_results(statuses, slots, scenario, frame, refit=refit)
         return [dataclasses.replace(r, addresses=tuple(linking.addresses(r.emitter_id)),
                                     link_reason=linking.uncertain(r.emitter_id) or "") for r in out]
     slots = survey_slots(slots, scenario.fleet.altitude_m, scenario.dem)  # what the policy estimated from
     required = scenario.people.required_accuracy_m
+    vmax = scenario.people.max_speed_m_s
     out = []
     for st in statuses:
         base = person_result(st, frame)
-        part = slots.for_emitter(st.emitter_id).sorted_by_time()
+        part = slots.for_emitter(st.emitter_id).sorted_by_time() if refit else slots.take(np.zeros(0, int))
         recent = part.take(part.t_s >= (part.t_s.max() - FINAL_WINDOW_S if len(part) else 0.0))
-        est = None
-        for data in (recent, part):  # a constant-velocity fit holds over minutes, not a whole search
-            fit = _fit(data, channel, scenario.people.max_speed_m_s, scenario.dem)
-            # never trade a located fix for a looser refit, nor the policy's area-resolved belief
-            # for an ambiguous refit that does not meet the accuracy either way
-            if fit is not None and (fit.radius95_m <= required or not (base.located or fit.ambiguous)):
-                est = fit
-                break
-        if est is None:
+        est = _fit(recent, channel, vmax, scenario.dem)
+        if est is None or not (est.radius95_m <= required or not (base.located or est.ambiguous)):
+            # nothing better: never trade a located fix for a looser refit, nor the policy's
+            # area-resolved belief for an ambiguous refit that does not meet the accuracy either way
             out.append(base)
             continue
         e, n = (float(v) for v in est.position_xy_m)
+        if base.located and math.isfinite(base.t_ref_s):
+            apart = math.hypot(e - base.east_m, n - base.north_m)
+            reach = base.radius95_m + float(est.radius95_m) + vmax * abs(float(est.t_ref_s) - base.t_ref_s)
+            if apart > reach:
+                log.warning("person %d: the refit is %.0f m from the fix, which with both radii and walking "
+                            "allows %.0f m: not counted as located", base.emitter_id, apart, reach)
+                out.append(dataclasses.replace(
+                    base, located=False, reason=f"two fixes disagree: the last {FINAL_WINDOW_S:g} s of data put "
+                    f"them {apart:.0f} m from where they were located, more than both 95 % radii and walking "
+                    f"since allow ({reach:.0f} m)"))
+                continue
         lat, lon = (float(v) for v in frame.to_wgs84(e, n))
         located = base.located or est.radius95_m <= required  # est radius <= required if base located
         resolved = located or not est.ambiguous

@@ -78,34 +78,68 @@ def test_person_result_of_an_ambiguous_person_keeps_the_policys_candidate_and_re
     assert r.reason.startswith("mirror ambiguity") and math.isnan(r.fix_time_s) and math.isnan(r.annulus_bound_m)
 
 
-def _two_lanes(sc, world):
+def _two_lanes(sc, world, gap_s=60.0):
     t = np.arange(0.0, 40.0, sc.channel.slot_s)
     lanes = []
     for k, y in enumerate((40.0, 140.0)):
         xyz = np.column_stack([15.0 * t, np.full(len(t), y), np.full(len(t), 100.0)])
-        lanes.append(world.hear_track(1, t + 60.0 * k, xyz))
+        lanes.append(world.hear_track(1 + k, t + gap_s * k, xyz))
     from uavloc_gcs.observations import SlotBatch
 
     return SlotBatch.concat(lanes)
 
 
-def test_final_results_refit_all_data_and_stay_consistent_with_located():
+def test_final_results_refit_the_last_minute_and_stay_consistent_with_located():
     from sim_link.world import World
     from tests.e2e_helpers import small_scenario
-    from uavloc_gcs.service.outcome import final_results
+    from uavloc_gcs.service.outcome import FINAL_WINDOW_S, final_results
 
     # two passes of a moving-person model give a radius of about 19 m: ask for 30 m
     sc = small_scenario(seed=5).replace(people={"required_accuracy_m": 30.0})
     world = World.with_people(sc, [[300.0, 90.0]], seed=5)
     eid = int(world.emitter_ids[0])
-    slots = _two_lanes(sc, world)
-    est = _Est(np.array([280.0, 80.0]), np.zeros(2), 60.0, 14.0, 30.0)
-    st = _Status(eid, est, True, "located", (280.0, 80.0), 60.0, 60.0, 14.0)
+    slots = _two_lanes(sc, world, gap_s=15.0)  # both lanes within the last minute of data
+    assert slots.t_s.max() - slots.t_s.min() < FINAL_WINDOW_S
+    est = _Est(np.array([280.0, 80.0]), np.zeros(2), 50.0, 14.0, 30.0)
+    st = _Status(eid, est, True, "located", (280.0, 80.0), 50.0, 50.0, 14.0)
     (good,) = final_results([st], slots, sc, sc.frame)
     assert good.located and good.radius95_m <= sc.people.required_accuracy_m
     assert math.hypot(good.east_m - 300.0, good.north_m - 90.0) < 10.0  # the refit, not the fix
     (kept,) = final_results([st], slots.take(np.arange(5)), sc, sc.frame)  # too little to refit
     assert kept.located and (kept.east_m, kept.north_m, kept.radius95_m) == (280.0, 80.0, 14.0)
+    (stopped,) = final_results([st], slots, sc, sc.frame, refit=False)  # a stopped search: no refit
+    assert stopped.located and (stopped.east_m, stopped.north_m, stopped.radius95_m) == (280.0, 80.0, 14.0)
+    # a refit that meets the accuracy where the fix says the person cannot be unmakes the fix
+    far = _Status(eid, est, True, "located", (80.0, 200.0), 50.0, 50.0, 14.0)
+    (r,) = final_results([far], slots, sc, sc.frame)
+    assert not r.located and r.reason.startswith("two fixes disagree")
+
+
+def test_a_walker_is_never_reported_located_from_a_fit_over_the_whole_search():
+    """Reproduction of issue 42 item 0: a paper demo beside two CPU burners (seed 1) lasted 1,700 s
+    of mission; a walker located at 97 s (12.1 m radius, 15 m off then) was heard again until 853 s,
+    and the end of the search refitted all 2,318 slots with one constant-velocity model: 'located'
+    with an 8.2 m radius, 145 m from the truth. The slots are that demo's, from its store."""
+    from pathlib import Path
+
+    from sim_link.world import World
+    from uavloc_gcs.estimation.slots_csv import read_slots_csv
+    from uavloc_gcs.examples import scenario_path
+    from uavloc_gcs.scenario import load_scenario
+    from uavloc_gcs.service.outcome import final_results
+
+    sc = load_scenario(scenario_path("paper")).replace(simulation={"seed": 1})
+    slots = read_slots_csv(Path(__file__).parents[2] / "data" / "issue42" / "loaded_demo_walker_slots.csv", sc.frame)
+    eid = int(slots.emitter_id[0])
+    world = World(sc, seed=1)
+    who = [int(e) for e in world.emitter_ids].index(eid)
+    # the policy's fix, as the demo's store has it
+    fix = _Est(np.array([320.3, 177.2]), np.array([-1.1, 0.2]), 92.0, 12.1, 30.0)
+    st = _Status(eid, fix, True, "located", (320.3, 177.2), 92.0, 92.0, 12.1)
+    (r,) = final_results([st], slots, sc, sc.frame)
+    truth = np.asarray(world.positions(r.t_ref_s))[who][:2]
+    error = math.hypot(r.east_m - truth[0], r.north_m - truth[1])
+    assert not r.located or error <= 1.5 * r.radius95_m, (r.located, error, r.radius95_m, r.t_ref_s)
 
 
 def test_final_results_never_report_located_beyond_the_required_accuracy():
