@@ -1,4 +1,5 @@
-"""The simulated clock of a fleet: t = 0 at start, advancing ``speedup`` times real time.
+"""The simulated clock of a fleet: t = 0 at start, advancing ``speedup`` times real time -- or
+slower, when the machine cannot compute the simulation that fast (:meth:`SimClock.slip`).
 
 Mission time ``t_s`` is what the world, the physics and every time stamp use; the UNIX time a
 vehicle reports (SYSTEM_TIME, UAVLOC_RSSI_BATCH.time_usec) is ``epoch_unix_s + t_s``.
@@ -34,6 +35,12 @@ class SimClock:
 
     def unix_s(self) -> float:
         return self.epoch_unix_s + self.now_s()
+
+    def slip(self, sim_s: float) -> None:
+        """Fall back ``sim_s`` of mission time for good: what the simulation could not compute in
+        time is not skipped but happens later (the clock runs slower than ``speedup`` for a while)."""
+        if sim_s > 0:
+            self._t0_s -= float(sim_s)
 
     def sim_to_wall_s(self, sim_s: float) -> float:
         """How long ``sim_s`` of mission time takes in real time."""

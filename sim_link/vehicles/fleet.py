@@ -41,6 +41,13 @@ log = logging.getLogger(__name__)
 COMMON_MESSAGE_IDS = frozenset(_common.mavlink_map)  # what a PX4 built on common.xml knows
 
 TICK_WALL_S = 0.01
+# At most this much real time's worth of simulation per step of the fleet. On a busy machine a step
+# can take seconds of wall time; the next one then had to simulate a minute of flight at 20x, and
+# every vehicle fell silent for seconds at a time (the ground marked all four lost within 3 s, issue
+# 42). Instead the clock falls back (SimClock.slip): the mission runs slower than asked, the
+# telemetry keeps coming, and the fleet says so (SLIP_REPORT_S).
+MAX_STEP_WALL_S = 0.1
+SLIP_REPORT_S = 30.0  # wall seconds between two warnings that the fleet runs behind its speed-up
 PEER_TIMEOUT_S = 30.0
 REBOOT_SILENCE_S = 2.0  # simulated seconds a rebooting vehicle is silent
 
@@ -259,6 +266,7 @@ class FakeFleet:
         self._task: asyncio.Task | None = None
         self._thread: threading.Thread | None = None
         self._stop_event: asyncio.Event | None = None
+        self.slipped_s = 0.0  # mission time the clock fell back because the simulation ran late
 
     # ---------------------------------------------------------------- public state
     @property
@@ -361,9 +369,24 @@ class FakeFleet:
         await self.aclose()
 
     async def _run(self) -> None:
+        t_done = self.clock.now_s()
+        report_wall, report_t, slipped = time.monotonic(), t_done, 0.0
         while True:
-            t = self.clock.now_s()
             wall = time.monotonic()
+            asked = self.clock.now_s()
+            t = min(asked, t_done + MAX_STEP_WALL_S * self.clock.speedup)
+            if t < asked:
+                self.clock.slip(asked - t)
+                slipped += asked - t
+            if slipped > 0 and wall - report_wall >= SLIP_REPORT_S:
+                log.warning("the fake fleet is behind real time (a busy machine): its clock ran at %.1fx instead "
+                            "of %gx over the last %.0f s", (t - report_t) / (wall - report_wall), self.clock.speedup,
+                            wall - report_wall)
+                report_wall, report_t, slipped = wall, t, 0.0
+            elif slipped == 0 and wall - report_wall >= SLIP_REPORT_S:
+                report_wall, report_t = wall, t
+            self.slipped_s += max(asked - t, 0.0)
+            t_done = t
             for ep in self._endpoints:
                 try:
                     out = ep.vehicle.advance(t) + ep.vehicle.tick_protocols(wall)
