@@ -49,9 +49,10 @@ class VehicleBudget:
     peak_bytes_s: float  # busiest 1 s window
     bytes_by_type: dict
     rssi_entries: int
-    rssi_messages: int
+    rssi_messages: int  # with entries (keepalives, count 0, are counted apart)
     mean_by_component: dict = None  # component id (1 autopilot, 191 companion) -> mean B/s
     peak_by_component: dict = None  # component id -> busiest 1 s window B/s
+    rssi_keepalives: int = 0  # count-0 messages: "heard nothing since" (dialect.rssi.KEEPALIVE_S)
 
 
 def measure(scenario: Scenario, *, seed: int | None = None, signed: bool = False,
@@ -81,7 +82,7 @@ def measure(scenario: Scenario, *, seed: int | None = None, signed: bool = False
         per_s: dict[int, int] = {}
         per_s_comp: dict[int, dict[int, int]] = {1: {}, 191: {}}
         by_type: dict[str, int] = {}
-        entries = msgs = 0
+        entries = msgs = keepalives = 0
         t = 0.0
         while not (v.landed and not v.armed and t > 5.0) and t < 7200.0:
             t = round(t + ADVANCE_S, 6)  # as the fleet advances at 20x with 10 ms ticks
@@ -93,16 +94,18 @@ def measure(scenario: Scenario, *, seed: int | None = None, signed: bool = False
                 comp[sec] = comp.get(sec, 0) + n
                 name = r.msg.get_type()
                 by_type[name] = by_type.get(name, 0) + n
-                if name in RSSI_MESSAGE_TYPES:
+                if name in RSSI_MESSAGE_TYPES and r.msg.count:
                     entries += r.msg.count
                     msgs += 1
+                elif name in RSSI_MESSAGE_TYPES:
+                    keepalives += 1
         secs = range(int(np.ceil(t)))
         series = np.array([per_s.get(s, 0) for s in secs], dtype=float)
         comp_series = {c: np.array([d.get(s, 0) for s in secs], dtype=float) for c, d in per_s_comp.items()}
         out.append(VehicleBudget(idx, t, float(series.mean()), float(series.max()),
                                  {k: by_type[k] / t for k in sorted(by_type, key=lambda k: -by_type[k])},
                                  entries, msgs, {c: float(x.mean()) for c, x in comp_series.items()},
-                                 {c: float(x.max()) for c, x in comp_series.items()}))
+                                 {c: float(x.max()) for c, x in comp_series.items()}, keepalives))
     return out
 
 

@@ -23,6 +23,13 @@ station older than UAVLOC_RSSI_BATCH2 still understands it, and UAVLOC_RSSI_BATC
 cost the same bytes then: BATCH2's address-high, channel and fingerprint arrays are extension
 fields, last on the wire, and MAVLink 2 trims them when they are zero.
 
+A message with ``count`` 0 is a *keepalive* (:func:`keepalive_message`): the receiver listened and
+everything it heard before ``time_usec`` has been sent. A companion sends one whenever a second
+(:data:`KEEPALIVE_S`) has passed without a message, so that the ground can tell "heard nothing"
+from "has not heard from the receiver yet" (:func:`message_time_s`; issue 42: a look was judged
+missed while its slots were still on their way). Ground stations that predate it decode it as no
+entries.
+
 Time: ``time_usec`` is UNIX time in microseconds. A :class:`SlotBatch` time ``t_s`` is seconds on
 the mission clock, ``t_s = unix_s - epoch_unix_s``; both directions take ``epoch_unix_s``.
 
@@ -45,6 +52,7 @@ from . import RSSI_BATCH_MAX_ENTRIES, RSSI_MESSAGE_TYPES, mavlink
 MAX_ENTRIES = RSSI_BATCH_MAX_ENTRIES
 MAX_SPAN_MS = 255  # dt_ms is uint8
 DEFAULT_WINDOW_S = 0.2  # a companion flushes 200 ms after the first entry at the latest
+KEEPALIVE_S = 1.0  # a receiver with nothing to send says so at least this often (a count-0 message)
 COMPANION_COMPONENT_ID = 191  # MAV_COMP_ID_ONBOARD_COMPUTER
 
 BATCH = "UAVLOC_RSSI_BATCH"
@@ -200,6 +208,25 @@ def _clip_i16(v: float) -> int:
     return int(max(-32768, min(32767, round(float(v)))))
 
 
+def keepalive_message(until_s: float, *, epoch_unix_s: float = 0.0, slot_s: float = 0.025, message: str = BATCH2):
+    """A count-0 message: everything heard before mission time ``until_s`` has been sent. No
+    position (zeros): it carries no entry to place."""
+    msg = mavlink.MAVLink_uavloc_rssi_batch_message if message == BATCH else mavlink.MAVLink_uavloc_rssi_batch2_message
+    zeros = [0] * MAX_ENTRIES
+    head = dict(time_usec=int(round((epoch_unix_s + float(until_s)) * 1e6)), lat=0, lon=0, relative_alt=0,
+                vx=0, vy=0, vz=0, slot_us=int(min(65535, round(slot_s * 1e6))), count=0, dt_ms=zeros,
+                rssi_cdbm=zeros)
+    if message == BATCH:
+        return msg(**head, emitter_id=zeros, n_samples=zeros)
+    return msg(**head, addr_lo=zeros, addr_hi=zeros, fingerprint=zeros, channel=zeros, n_frames=zeros)
+
+
+def message_time_s(msg, *, epoch_unix_s: float = 0.0) -> float:
+    """Mission time up to which an RSSI message says its receiver's reports are complete: its
+    ``time_usec`` (a keepalive's "until", a batch's first entry: entries are sent in time order)."""
+    return (int(msg.time_usec) - int(round(epoch_unix_s * 1e6))) / 1e6
+
+
 def decode_rssi_batch(
     msg, frame: LocalFrame, *, vehicle: int | None = None, epoch_unix_s: float = 0.0
 ) -> SlotBatch:
@@ -249,7 +276,8 @@ class RssiBatcher:
 
     A message is emitted when it holds 12 entries or when the next slot is more than
     ``window_s`` after its first entry; :meth:`flush` (call it on a timer, e.g. every 50 ms of
-    mission time) also emits a pending message once ``window_s`` has passed. ``message`` as in
+    mission time) also emits a pending message once ``window_s`` has passed, and a keepalive when
+    nothing was sent for ``keepalive_s``. ``message`` as in
     :func:`encode_rssi_batches` (a companion sends BATCH2).
     """
 
@@ -258,7 +286,9 @@ class RssiBatcher:
     slot_s: float = 0.025
     window_s: float = DEFAULT_WINDOW_S
     message: str = AUTO
+    keepalive_s: float | None = KEEPALIVE_S  # None: no keepalives (a receiver that predates them)
     _pending: list = field(default_factory=list)
+    _last_sent_s: float = -float("inf")
 
     def __post_init__(self) -> None:
         if self.message not in MESSAGES:
@@ -270,8 +300,26 @@ class RssiBatcher:
             self._pending.append(slots)
         return self.flush(now_s=None)
 
-    def flush(self, now_s: float | None = None, *, force: bool = False) -> list:
-        """Messages that are complete at mission time ``now_s`` (all pending ones if ``force``)."""
+    def flush(self, now_s: float | None = None, *, force: bool = False, complete_until_s: float | None = None) -> list:
+        """Messages that are complete at mission time ``now_s`` (all pending ones if ``force``),
+        and a keepalive (:func:`keepalive_message`) when ``keepalive_s`` has passed since the last
+        message: every slot before ``complete_until_s`` (default ``now_s``) must have been added."""
+        msgs = self._complete(now_s, force)
+        if msgs:
+            sent = now_s if now_s is not None else message_time_s(msgs[-1], epoch_unix_s=self.epoch_unix_s)
+            self._last_sent_s = max(self._last_sent_s, sent)
+        if now_s is None or self.keepalive_s is None or msgs:
+            return msgs
+        if now_s - self._last_sent_s >= self.keepalive_s:
+            until = now_s if complete_until_s is None else min(now_s, complete_until_s)
+            if self._pending:
+                until = min(until, min(float(b.t_s.min()) for b in self._pending))
+            msgs = [keepalive_message(until, epoch_unix_s=self.epoch_unix_s, slot_s=self.slot_s,
+                                      message=BATCH if self.message in (BATCH, AUTO) else BATCH2)]
+            self._last_sent_s = now_s
+        return msgs
+
+    def _complete(self, now_s: float | None, force: bool) -> list:
         if not self._pending:
             return []
         if not force:  # cheap test first: nothing can be complete yet

@@ -210,6 +210,8 @@ class _Person:
     fix_radius95_m: float = math.inf
     fix_candidate: tg.Candidate | None = None  # the believed candidate at the fix
     was_ambiguous: bool = False  # some estimate of this person was mirror-ambiguous
+    version: int = 0  # counts changes of the person's data: a fit of an older version is stale
+    fitting: bool = False  # a fit of this person is under way (estimation.fitting)
 
 
 class SearchPolicy:
@@ -225,6 +227,7 @@ class SearchPolicy:
         seed: int = 0,
         time_limit_s: float | None = None,
         max_iter: int | None = None,
+        fitter=None,
     ) -> None:
         from ..estimation import (
             ChannelModel,  # local: keeps `import uavloc_gcs.search` light
@@ -251,6 +254,9 @@ class SearchPolicy:
         self._awaiting: dict[int, float] = {}  # emitter -> planned access time [s] (re-based on reports)
         self._look_vehicle: dict[int, str] = {}  # emitter -> vehicle planned to look at it
         self._flown: dict[int, float] = {}  # emitter -> time [s] a look was flown, not judged yet
+        # vehicle -> time [s] up to which its receiver has reported all it heard (heard_until); a
+        # vehicle not in it is taken as reporting at once (the experiments, old receivers)
+        self._heard_until: dict[int, float] = {}
         # Set by a caller that reports flown looks (``look_flown``, the daemon): a look is then
         # judged from when it was flown, not from its planned time (real flights run late).
         self.look_reports = False
@@ -277,6 +283,13 @@ class SearchPolicy:
         self._reach_poly = None  # the area grown by LOOK_AREA_MARGIN (_inside_reach)
         self._frames_prior = None  # estimation.evidence.FramesPrior of the scenario's bursts (frames_prior)
         self._burst_rates = None  # and their rate law (burst_rates), for the bursts nobody heard
+        # where the estimates are computed (estimation.fitting): in this thread by default; the
+        # daemon passes a ProcessFitter so that fitting never stops its event loop
+        if fitter is None:
+            from ..estimation.fitting import InlineFitter
+
+            fitter = InlineFitter(self.channel, scenario.dem)
+        self.fitter = fitter
 
     # -- data in ---------------------------------------------------------------------------
     def ingest(self, slots: SlotBatch) -> None:
@@ -307,6 +320,7 @@ class SearchPolicy:
             p.n_slots += len(part)
             p.last_slot_t_s = max(p.last_slot_t_s, float(np.max(part.t_s)))
             p.dirty = True
+            p.version += 1
 
     def _relink(self) -> None:
         """Link every address heard so far into people and give each person their slots. Person ids
@@ -339,6 +353,7 @@ class SearchPolicy:
             p.batches, p.n_slots = [part], len(part)
             p.last_slot_t_s = float(np.max(part.t_s))
             p.dirty = True
+            p.version += 1
         for eid in set(self._people) - seen:
             log.info("person %d: their bursts are now linked to someone else", eid)
             del self._people[eid]
@@ -374,6 +389,7 @@ class SearchPolicy:
             for c in tg.candidates(p.estimate, p.last_slot_t_s):
                 if float(np.min(np.linalg.norm(xyz[:, :2] - c.xy_m, axis=1))) < self.range_m:
                     p.dirty = True
+                    p.version += 1
                     break
 
     def ingest_position(self, vehicle: int, t_s: float, xyz_m) -> None:
@@ -427,40 +443,72 @@ class SearchPolicy:
                                 exposure_rates=self._burst_rates if self._frames_prior else None)
 
     def update(self, t_s: float) -> set[int]:
-        """Re-estimate emitters with new slots; return the ids whose state changed materially
-        (new person, located, ambiguity, estimate moved, a planned look happened or failed)."""
-        from ..estimation.terrain_fit import fit_for
+        """Re-estimate emitters with new data; return the ids whose state changed materially
+        (new person, located, ambiguity, estimate moved, a planned look happened or failed).
+
+        Fits go to ``self.fitter``: with the default (in this thread) every person with new data is
+        fitted before this returns; with a worker process (the daemon) as many as it takes now, the
+        people a look is under way for first, and their results are applied when a later call
+        finds them done. People already located or given up are not fitted again: no decision
+        reads them (the end of the search refits them for the report)."""
+        from ..estimation.fitting import FitJob
 
         changed: set[int] = set()
         if len(self._raw) > 1 or (self._raw and self.linking is None):
             self._relink()
-        for eid, p in sorted(self._people.items()):
-            if not p.dirty:
-                continue
-            p.dirty = False
+        for p in self._fit_order():
+            if not self.fitter.can_take():
+                break
+            p.dirty, p.fitting = False, True
             if len(p.batches) > 1:
                 p.batches = [SlotBatch.concat(p.batches).sorted_by_time()]
-            before = self._signature(p)
-            t0 = time.perf_counter()
-            try:
-                est = fit_for(self.scenario.dem)(  # over terrain, people on the ground
-                    p.batches[0], self.channel, max_speed_m_s=self.model_speed_m_s,
-                    t_ref_s=p.last_slot_t_s, model_motion=self.model_motion, previous=p.estimate,
-                    silence=self._silence(p), censored=self._censored(p))
-                p.estimate, p.error = self._unsettled(p, est), ""
-            except EstimationError as exc:
-                p.error = str(exc)
-            except Exception as exc:  # noqa: BLE001 -- one person's estimate never ends the search
-                # a defect in the estimator, not bad data: said loudly, and the person reported
-                # with it, while the search goes on for everyone else
-                log.exception("emitter %d: the estimator failed", eid)
-                p.error = f"the estimator failed ({type(exc).__name__}: {exc})"
-            self.estimator_runtime_s += time.perf_counter() - t0
-            self._classify(p, t_s)
-            if before is None or self._material(before, self._signature(p)):
-                changed.add(eid)
+            self.fitter.submit(FitJob(p.emitter_id, p.version, p.batches[0], self.model_speed_m_s,
+                                      p.last_slot_t_s, self.model_motion, p.estimate,
+                                      self._silence(p), self._censored(p)))
+        for res in self.fitter.results():
+            if self._apply_fit(res, t_s):
+                changed.add(res.emitter_id)
         changed |= self._check_looks(t_s)
         return changed
+
+    def _fit_order(self) -> list["_Person"]:
+        """People with data not yet fitted, most urgent first: a look at them is under way or
+        planned, then the other pending people, newest data first."""
+        def urgency(p: "_Person"):
+            looked_at = p.emitter_id in self._flown or p.emitter_id in self._awaiting
+            return (0 if looked_at else 1, -p.last_slot_t_s, p.emitter_id)
+
+        todo = [p for p in self._people.values()
+                if p.dirty and not p.fitting and p.fix_t_s is None and not p.gave_up]
+        return sorted(todo, key=urgency)
+
+    def _apply_fit(self, res, t_s: float) -> bool:
+        """A finished fit (estimation.fitting.FitResult) into its person's state; True when that
+        changed materially. A fit of data that have grown since counts for what it says about the
+        person at its reference time (a fix is dated there), and the person is fitted again."""
+        p = self._people.get(res.emitter_id)
+        if p is None:  # their bursts were linked to someone else meanwhile
+            return False
+        p.fitting = False
+        self.estimator_runtime_s += res.runtime_s
+        if p.fix_t_s is not None or p.gave_up:
+            return False
+        before = self._signature(p)
+        if res.estimate is not None:
+            p.estimate, p.error = self._unsettled(p, res.estimate), ""
+        elif res.error:
+            p.error = res.error
+        else:  # a defect in the estimator, not bad data: said loudly (logged where it ran), and the
+            # person reported with it, while the search goes on for everyone else
+            p.error = f"the estimator failed ({res.crash})"
+        self._classify(p, t_s)
+        if res.version != p.version:
+            p.dirty = True  # data came meanwhile: fitted again with them
+        return before is None or self._material(before, self._signature(p))
+
+    def close(self) -> None:
+        """Stop the fitting under way (a worker process ends at once)."""
+        self.fitter.close()
 
     # -- views -----------------------------------------------------------------------------
     def people(self, t_s: float) -> list[PersonStatus]:
@@ -590,6 +638,23 @@ class SearchPolicy:
         self._look_vehicle = {e: task.vehicle_id for task in self._plan.tasks for e in task.target_ids}
         # looks already flown keep their pending judgment (self._flown) across the replan
         return self._plan
+
+    def heard_until(self, vehicle, t_s: float) -> None:
+        """``vehicle``'s receiver has reported everything it heard before ``t_s`` [s] (its keepalives,
+        dialect.rssi). A look is judged only once the looking vehicle's reports cover it: a slot
+        still on its way must not read as silence (issue 42: under load, looks were judged missed
+        before their slots arrived, and people given up "not heard on 2 looks")."""
+        v = int(vehicle)
+        self._heard_until[v] = max(self._heard_until.get(v, -math.inf), float(t_s))
+
+    def _reported_through(self, emitter_id: int, t_s: float) -> bool:
+        """Whether the vehicle that looks at ``emitter_id`` has reported what it heard up to ``t_s``."""
+        vid = self._look_vehicle.get(emitter_id)
+        try:
+            until = self._heard_until.get(int(vid)) if vid is not None else None
+        except (TypeError, ValueError):
+            until = None
+        return until is None or until >= t_s
 
     def look_flown(self, emitter_id: int, t_s: float) -> None:
         """The vehicle planned to look at ``emitter_id`` passed its access point at ``t_s`` [s].
@@ -802,7 +867,10 @@ class SearchPolicy:
         r95 = self._radius95(p)
         cand = self._candidate(p)
         if r95 <= self.required_m and not self._ambiguous(p) and cand is not None:
-            p.fix_t_s = p.last_slot_t_s if math.isfinite(p.last_slot_t_s) else t_s
+            # dated at the estimate's reference (its data's last slot): with fits in a worker,
+            # slots may have come since
+            t_fix = float(getattr(p.estimate, "t_ref_s", p.last_slot_t_s))
+            p.fix_t_s = t_fix if math.isfinite(t_fix) else t_s
             p.fix_estimate = p.estimate
             p.fix_radius95_m = r95
             p.fix_candidate = cand
@@ -846,8 +914,22 @@ class SearchPolicy:
         changed = set()
         grace_s = self.range_m / self.speed_m_s
         late_s = LOOK_LATE_S if self.look_reports else 0.0
-        due = [(eid, t, self._flown) for eid, t in self._flown.items()
-               if t_s >= t + grace_s + orb.orbit_dwell_s(self, eid)]
+        due, unheard = [], []
+        for eid, t in self._flown.items():
+            judge_s = t + grace_s + orb.orbit_dwell_s(self, eid)
+            if t_s < judge_s:
+                continue
+            if self._reported_through(eid, judge_s):
+                due.append((eid, t, self._flown))
+            elif t_s >= judge_s + LOOK_LATE_S:
+                unheard.append(eid)
+        for eid in unheard:  # its receiver never reported the look: no evidence either way
+            del self._flown[eid]
+            p = self._people[eid]
+            if p.fix_t_s is None and not p.gave_up:
+                log.info("emitter %s: the looking vehicle's receiver has not reported the look %g s after it; "
+                         "planned again", eid, LOOK_LATE_S)
+                changed.add(eid)
         due += [(eid, t, self._awaiting) for eid, t in self._awaiting.items()
                 if t_s >= t + grace_s + late_s + orb.orbit_dwell_s(self, eid) and eid not in self._flown]
         for eid, t_access, book in due:

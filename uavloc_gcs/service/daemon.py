@@ -80,11 +80,16 @@ class Daemon(FleetPreparation, VehicleCommands):
         self.frame = scenario.frame
         self.vehicles = {vid: _Vehicle(vid, conn) for vid, conn in connections}
         if policy is None:
+            from ..estimation import ChannelModel  # noqa: PLC0415
+            from ..estimation.fitting import ProcessFitter  # noqa: PLC0415
             from ..search import SearchPolicy  # noqa: PLC0415
 
+            # the fits run in a worker process: in this one they would hold the interpreter lock
+            # and stop the links from being read (estimation/fitting.py)
             policy = SearchPolicy(scenario, model_motion=True, optimizer=scenario.planner.optimizer,
                                   local_search=scenario.planner.local_search, seed=scenario.planner.seed,
-                                  time_limit_s=options.planner_time_limit_s)
+                                  time_limit_s=options.planner_time_limit_s,
+                                  fitter=ProcessFitter(ChannelModel.from_scenario(scenario), scenario.dem))
         self.policy = policy
         if hasattr(policy, "look_flown"):
             policy.look_reports = True  # looks are judged from when the vehicle really passed them
@@ -181,6 +186,9 @@ class Daemon(FleetPreparation, VehicleCommands):
             finally:
                 await self._close_links()
         finally:
+            close = getattr(self.policy, "close", None)
+            if close is not None:
+                close()  # a fit under way is not waited for
             self.store.close()
 
     # -- start-up --------------------------------------------------------------------------------
@@ -315,6 +323,7 @@ class Daemon(FleetPreparation, VehicleCommands):
                     new = SlotBatch.concat(batches)
                     self._n_slots += len(new)
                     self.policy.ingest(new)
+                self._tell_heard_until()
                 self._report_looks(t)
                 changed = await asyncio.to_thread(self.policy.update, t)
                 self._report_looks(self.now_s())  # passed during the update, before anything acts on it
@@ -327,6 +336,17 @@ class Daemon(FleetPreparation, VehicleCommands):
                     return
         finally:
             self._stop.set()
+
+    def _tell_heard_until(self) -> None:
+        """Tell the policy up to when each vehicle's receiver has reported everything it heard (only
+        receivers that send keepalives: for the others silence cannot be told from delay). Read in
+        the same step as the slots taken before it: every slot before that time is in the policy."""
+        tell = getattr(self.policy, "heard_until", None)
+        if tell is None:
+            return
+        for v in self.vehicles.values():
+            if v.agent is not None and v.agent.keepalives:
+                tell(v.id, v.agent.heard_until_s)
 
     def _report_looks(self, t: float) -> None:
         """Tell the policy which looks the vehicles have flown: a look waypoint is flown once the
@@ -481,8 +501,9 @@ class Daemon(FleetPreparation, VehicleCommands):
         self.store.flush()
         with StoreReader(self.opt.store_path) as rd:
             slots = rd.slots()
+        # stopped (Ctrl-C): the policy's beliefs as they are, without waiting for refits
         people = tuple(final_results(self.policy.people(t), slots, self.sc, self.frame,
-                                     linking=getattr(self.policy, "linking", None)))
+                                     linking=getattr(self.policy, "linking", None), refit=not partial))
         lost = tuple(v.id for v in self.vehicles.values() if v.lost)
         returning = tuple(v.id for v in self.vehicles.values() if not v.home and not v.lost and v.phase == "returning")
         other = tuple(v.id for v in self.vehicles.values() if not v.home and not v.lost and v.phase != "returning")

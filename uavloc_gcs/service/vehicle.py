@@ -17,7 +17,7 @@ from dataclasses import dataclass
 from typing import Callable, Sequence
 
 from ..dialect import RSSI_MESSAGE_TYPES, mavlink
-from ..dialect.rssi import decode_rssi_batch
+from ..dialect.rssi import decode_rssi_batch, message_time_s
 from ..link import (disarm, download_mission, flavour_named, return_home, start_mission_from, switch_mission,
                     upload_mission)
 from ..geo import LocalFrame
@@ -85,6 +85,11 @@ class VehicleAgent:
         self._wall = wall
         self._pending_rssi: list = []  # raw messages that arrived before the epoch was known
         self.rssi_messages = 0
+        # Mission time up to which this vehicle's receiver has reported everything it heard (the
+        # RSSI messages' times), and how many keepalives it sent: a receiver that sends them says
+        # "heard nothing" as such (dialect.rssi.KEEPALIVE_S), one that does not only by silence.
+        self.heard_until_s = -math.inf
+        self.keepalives = 0
         self.upload_opaque_id = 0  # the plan id of our last upload's MISSION_ACK (0: not given)
         self._acked_wall_s: float | None = None  # when our last upload was acknowledged
         self._time_anchor: tuple[float, int] | None = None  # (unix s, time_boot_ms) of the first SYSTEM_TIME
@@ -183,6 +188,10 @@ class VehicleAgent:
         batch = decode_rssi_batch(msg, self.frame, vehicle=self.vehicle, epoch_unix_s=epoch)
         if len(batch) and self._on_slots is not None:
             self._on_slots(batch)
+        # after the slots: whoever reads both sees every slot before heard_until_s
+        if int(msg.count) == 0:
+            self.keepalives += 1
+        self.heard_until_s = max(self.heard_until_s, message_time_s(msg, epoch_unix_s=epoch))
 
     def _clock(self, time_boot_ms: int) -> None:
         """The vehicle's clock: UNIX time anchored once at its first SYSTEM_TIME, then advanced by

@@ -156,7 +156,7 @@ def test_rssi_decodes_to_the_vehicle_track():
                 0, 1, 1, 6, 0b110111111000, int(lat * 1e7), int(lon * 1e7), 100.0, 0, 0, 0, 0, 0, 0, 0, 0))
             msgs = []
             while len(msgs) < 20:
-                msgs.append(await c.recv("UAVLOC_RSSI_BATCH", timeout=10))
+                msgs.append(await c.recv("UAVLOC_RSSI_BATCH", timeout=10, where=lambda m: m.count > 0))
             slots = [decode_rssi_batch(m, sc.frame, epoch_unix_s=fleet.epoch_unix_s) for m in msgs]
             assert all(len(s) and s.vehicle[0] == 1 for s in slots)
             t = np.concatenate([s.t_s for s in slots])

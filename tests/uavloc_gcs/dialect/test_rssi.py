@@ -219,3 +219,26 @@ def test_batcher_sends_the_new_message_when_asked():
     _assert_same(slots, decode_rssi_batches(_wire(msgs), FRAME, epoch_unix_s=EPOCH))
     with pytest.raises(ValueError, match="message must be one of"):
         RssiBatcher(FRAME, message="v3")
+
+
+def test_a_quiet_receiver_says_so_once_a_second_and_never_ahead_of_what_it_holds():
+    """Keepalives (count 0): the ground tells "heard nothing" from "not heard from yet" (issue 42)."""
+    from uavloc_gcs.dialect.rssi import KEEPALIVE_S, message_time_s
+
+    slots = _track(8, 1, t0=0.05)  # 8 slots from 0.05 s
+    batcher = RssiBatcher(FRAME, epoch_unix_s=EPOCH)
+    out = batcher.add(slots)
+    first = batcher.flush(now_s=0.1)  # an entry is pending (window open): the keepalive stops at it
+    assert len(first) == 1 and first[0].count == 0
+    assert message_time_s(first[0], epoch_unix_s=EPOCH) == pytest.approx(float(slots.t_s[0]))
+    out += batcher.flush(now_s=0.5)  # the window has closed: the batch goes, no keepalive with it
+    assert out and all(m.count > 0 for m in out)
+    quiet = []
+    for t in np.arange(0.6, 5.0, 0.05):  # nothing heard for 4.4 s
+        quiet += batcher.flush(now_s=float(t))
+    assert all(m.count == 0 for m in quiet)
+    times = [message_time_s(m, epoch_unix_s=EPOCH) for m in quiet]
+    assert len(quiet) == 4 and np.all(np.diff(times) >= KEEPALIVE_S - 0.05 - 1e-9)
+    assert len(decode_rssi_batches(_wire(quiet), FRAME, epoch_unix_s=EPOCH)) == 0
+    silent = RssiBatcher(FRAME, epoch_unix_s=EPOCH, keepalive_s=None)  # a receiver that predates them
+    assert silent.flush(now_s=10.0) == []

@@ -220,6 +220,47 @@ def test_reported_looks_are_judged_from_when_they_were_flown(small):
     assert 77 in policy.pending_ids()  # planned again
 
 
+def test_a_look_is_judged_only_once_the_looking_vehicles_receiver_has_reported_it(small):
+    """Issue 42: on a busy machine, slots reached the daemon after the look they belonged to was
+    judged; the person, heard on that very look, was given up "not heard on 2 looks where it was
+    predicted". With a receiver that sends keepalives, the look waits for its reports."""
+    from uavloc_gcs.observations import SlotBatch
+    from uavloc_gcs.search.policy import LOOK_LATE_S
+
+    def flown():
+        policy = SearchPolicy(small, time_limit_s=20.0, max_iter=5)
+        policy.look_reports = True
+        policy.ingest(SlotBatch.from_columns([1.0, 1.025], [1, 1], [[100, 50, 100], [100.5, 50, 100]], [77, 77],
+                                             [-80.0, -80.5], [10, 10]))
+        policy.update(2.0)
+        (task,) = policy.replan(2.0, [VehicleState("1", (0.0, 0.0), (0.0, 0.0), small.usable_energy_j)]).tasks
+        t_pass = task.access_times_s[0]
+        policy.look_flown(77, t_pass)
+        return policy, t_pass
+
+    grace = small.horizontal_range_m / small.fleet.speed_m_s
+    policy, t_pass = flown()
+    policy.heard_until(1, t_pass - 5.0)  # the receiver's reports lag the telemetry
+    policy.update(t_pass + grace + 2.0)
+    assert policy.people(0.0)[0].looks == 0  # not judged: its slots may still be on their way
+    policy.ingest(SlotBatch.from_columns([t_pass - 0.5], [1], [[100, 50, 100]], [77], [-79.0], [10]))
+    policy.heard_until(1, t_pass + grace + 1.0)
+    policy.update(t_pass + grace + 3.0)
+    st = policy.people(0.0)[0]
+    assert st.looks == 1 and policy._people[77].misses == 0  # heard on the look, late: no miss
+
+    policy, t_pass = flown()
+    policy.heard_until(1, t_pass + grace + 1.0)  # reported through the look: judged at once
+    policy.update(t_pass + grace + 2.0)
+    assert policy.people(0.0)[0].looks == 1
+
+    policy, t_pass = flown()
+    policy.heard_until(1, t_pass - 5.0)  # the receiver stopped reporting: no evidence either way
+    policy.update(t_pass + grace + LOOK_LATE_S + 1.0)
+    st = policy.people(0.0)[0]
+    assert st.looks == 0 and "given up" not in st.reason and 77 in policy.pending_ids()
+
+
 def test_a_flown_look_is_still_judged_after_a_replan_and_later_looks_are_re_based(small):
     from uavloc_gcs.observations import SlotBatch
 
