@@ -126,7 +126,11 @@ class RssiSender:
             return
         ap_now = float(self.clock.companion_to_unix(now))
         self._close_slots(ap_now, final)
-        for msg in self._batcher.flush(now_s=ap_now, force=final):
+        # a keepalive may claim only what is closed: slots still open or waiting for a position
+        # are not sent yet
+        complete = ap_now - SLOT_LATENCY_S - self.slot_s
+        complete = min([complete] + [float(np.min(f.t_s)) for f in self._pending if len(f)])
+        for msg in self._batcher.flush(now_s=ap_now, force=final, complete_until_s=complete):
             self._send(self.rssi_link, msg)
             self.stats.messages += 1
             self.stats.entries_sent += msg.count
