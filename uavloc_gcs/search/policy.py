@@ -211,6 +211,7 @@ class _Person:
     fix_candidate: tg.Candidate | None = None  # the believed candidate at the fix
     was_ambiguous: bool = False  # some estimate of this person was mirror-ambiguous
     version: int = 0  # counts changes of the person's data: a fit of an older version is stale
+    contradicted: str = ""  # why the heard slots alone disagree with the latest sharp estimate
     fitting: bool = False  # a fit of this person is under way (estimation.fitting)
 
 
@@ -464,7 +465,7 @@ class SearchPolicy:
                 p.batches = [SlotBatch.concat(p.batches).sorted_by_time()]
             self.fitter.submit(FitJob(p.emitter_id, p.version, p.batches[0], self.model_speed_m_s,
                                       p.last_slot_t_s, self.model_motion, p.estimate,
-                                      self._silence(p), self._censored(p)))
+                                      self._silence(p), self._censored(p), check_within_m=self.required_m))
         for res in self.fitter.results():
             if self._apply_fit(res, t_s):
                 changed.add(res.emitter_id)
@@ -496,6 +497,9 @@ class SearchPolicy:
         before = self._signature(p)
         if res.estimate is not None:
             p.estimate, p.error = self._unsettled(p, res.estimate), ""
+            p.contradicted = res.contradicted
+            if res.contradicted:
+                log.info("emitter %d: not located: %s", p.emitter_id, res.contradicted)
         elif res.error:
             p.error = res.error
         else:  # a defect in the estimator, not bad data: said loudly (logged where it ran), and the
@@ -866,7 +870,7 @@ class SearchPolicy:
             return
         r95 = self._radius95(p)
         cand = self._candidate(p)
-        if r95 <= self.required_m and not self._ambiguous(p) and cand is not None:
+        if r95 <= self.required_m and not self._ambiguous(p) and cand is not None and not p.contradicted:
             # dated at the estimate's reference (its data's last slot): with fits in a worker,
             # slots may have come since
             t_fix = float(getattr(p.estimate, "t_ref_s", p.last_slot_t_s))
@@ -988,6 +992,8 @@ class SearchPolicy:
         if not self._ok(p):
             return f"estimate status {getattr(p.estimate, 'status', '?')}"
         unplanned = "; the last plan had no look for it" if p.emitter_id in self._unplanned else ""
+        if p.contradicted:
+            return f"95 % radius {self._radius95(p):.1f} m, but {p.contradicted}" + unplanned
         if self._ambiguous(p):
             return "mirror ambiguity: needs a look off the flight line" + unplanned
         return f"95 % radius {self._radius95(p):.1f} m > {self.required_m:g} m" + unplanned
