@@ -678,13 +678,23 @@ def _burst_pod(bt: BurstTiming, t0, t1, w, valid, type_w, horizon, stride: int =
         sil = sil_all[iu][::stride]  # (D, M, 2)
         span = np.maximum(m1 - m0, 1e-9)
         alive = 1.0 - _overlap(m0, np.maximum(m1, m0 + 1e-9), sil) / span  # (D, C, L)
-        alive = np.where(mv[None], alive, 0.0)
-        weff = alive[..., None].astype(np.float32) * mw[None].astype(np.float32)  # (D, C, L, T)
-        a1, a2 = bt.p_active_12(weff, iu)
-        q0 = np.ones(weff.shape[:2] + weff.shape[3:], np.float32)  # (D, C, T)
+        alive = np.where(mv[None], alive, 0.0).astype(np.float32)
+        mw32 = mw.astype(np.float32)  # (C, L, T)
+        # A look outside every long silence (alive 1: almost all of them, silences are rare) has the
+        # same hearing chances in every silence draw: computed once, and only the looks a silence
+        # cut short per draw. The same numbers as forming all (D, C, L, T) at once, 20-40x faster
+        # and with a fraction of the memory (a field demo's final summary took 266 s and 1.4 GB).
+        full1, full2 = bt.p_active_12(mw32, iu)  # (C, L, T)
+        D, C, T = alive.shape[0], mw.shape[0], mw.shape[2]
+        q0 = np.ones((D, C, T), np.float32)
         q1 = np.zeros_like(q0)
-        for j in range(weff.shape[2]):
-            e0, e1 = 1.0 - a1[:, :, j], a1[:, :, j] - a2[:, :, j]
+        for j in range(mw.shape[1]):
+            a1 = np.broadcast_to(full1[None, :, j], (D, C, T)).copy()
+            a2 = np.broadcast_to(full2[None, :, j], (D, C, T)).copy()
+            dj, cj = np.nonzero((alive[:, :, j] != np.float32(1.0)) & mv[None, :, j])  # (no look: mw 0 already)
+            if len(dj):
+                a1[dj, cj], a2[dj, cj] = bt.p_active_12(alive[dj, cj, j][:, None] * mw32[cj, j], iu)
+            e0, e1 = 1.0 - a1, a1 - a2
             q0, q1 = q0 * e0, q1 * e0 + q0 * e1
         q0, q1 = q0 * el0[None], q1 * el0[None] + q0 * el1[None]
         p1 += ((1.0 - q0) @ type_w).mean(axis=0)
