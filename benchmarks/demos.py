@@ -4,9 +4,12 @@ Runs ``uavloc demo --no-web`` (the real command: fake vehicles over UDP, the dae
 once per world seed and reads each run's ``results.txt``: the people reported, their state, the
 daemon's reason for every person not located, and the true error the simulation knows. Printed
 per scenario: runs, exit codes, people present / heard / located / given up, the given-up rate
-(given up over reported), the reasons grouped without their numbers, and the people given up
+(given up over reported), the reasons grouped without their numbers, the people given up
 although their estimate was within the required accuracy of the truth (issue 26: "given up while
-still there", a person given up 9.9 m from where it was).
+still there", a person given up 9.9 m from where it was), the people reported located farther from
+the truth than 1.5x their 95 % radius (issue 42: the worst thing uavloc can say), and each run's CPU
+time and peak memory (its processes together: the demo, the fake fleet, the fitting worker).
+``--burners N`` runs N CPU-bound processes beside the demos (a busy laptop in the field).
 
 The anchor is the truth of the simulation: a person given up with an estimate that close was
 there to be located; one given up for lack of energy was not given up on the evidence.
@@ -16,6 +19,8 @@ from __future__ import annotations
 
 import argparse
 import math
+import multiprocessing as mp
+import os
 import re
 import subprocess
 import sys
@@ -32,6 +37,9 @@ from ._progress import Progress
 
 # a table row of results.txt: "P03 #22:df:be:bc:c1:cb   lat  lon  95% r  at  status  true error  (reason)"
 ROW = re.compile(r"^P\d+\s+#\S+\s+.*?\s(located|given up|heard|never heard)\s+(-|[\d.]+ m)(?:\s+\((.*)\))?\s*$")
+# a located row's 95 % radius: "P01 #1052637316    42.626778    13.286649    7.1 m  13:01:37.4  located  2.9 m"
+RADIUS = re.compile(r"^P\d+\s+#\S+\s+\S+\s+\S+\s+([\d.]+) m\s")
+FAR = 1.5  # a located person farther from the truth than this many 95 % radii is a defect
 REQUIRED = re.compile(r"located within ([\d.]+) m")
 
 
@@ -44,6 +52,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--jobs", type=number(int, min=1, max=8), default=1,
                         help="demos at once (default 1: each uses most of a core; more load the machine)")
     parser.add_argument("--keep", metavar="DIR", help="keep every run's output under DIR (default: a temporary directory)")
+    parser.add_argument("--burners", type=number(int, min=0, max=16), default=0,
+                        help="CPU-bound processes running beside the demos (default 0; 2 on a 2-core machine is a busy one)")
 
 
 @dataclass
@@ -57,6 +67,9 @@ class Run:
     given_up_close: int = 0  # given up with the estimate within the required accuracy of the truth
     required_m: float = math.nan
     problem: str = ""
+    located_far: list = field(default_factory=list)  # rows of people located farther than FAR x their radius
+    cpu_s: float = math.nan  # user + system CPU of the demo and the processes it waited for
+    peak_mb: float = math.nan  # the largest resident set among them [MB]
 
 
 def _kind(reason: str) -> str:
@@ -84,39 +97,74 @@ def parse_results(text: str) -> tuple[Counter, Counter, int, float]:
     return states, reasons, close, required
 
 
+def located_far(text: str, far: float = FAR) -> list[str]:
+    """The table rows of people reported located farther from the truth than ``far`` x their radius."""
+    out = []
+    for line in text.splitlines():
+        row, rad = ROW.match(line), RADIUS.match(line)
+        if row and rad and row.group(1) == "located" and row.group(2) != "-":
+            if float(row.group(2).split()[0]) > far * float(rad.group(1)):
+                out.append(line.strip())
+    return out
+
+
 def _one(scenario: str, seed: int, people: int | None, root: Path) -> Run:
     out = root / f"{Path(scenario).stem}-seed{seed}"
+    out.mkdir(parents=True, exist_ok=True)
     cmd = [sys.executable, "-m", "uavloc_gcs", "demo", "--no-web", "--scenario", scenario, "--seed", str(seed),
            "--base-port", "0", "--out", str(out)]
     if people is not None:
         cmd += ["--people", str(people)]
     t0 = time.monotonic()
-    proc = subprocess.run(cmd, capture_output=True, text=True)
-    run = Run(scenario, seed, proc.returncode, time.monotonic() - t0)
+    with open(out / "demo.stdout", "w") as so, open(out / "demo.stderr", "w") as se:
+        proc = subprocess.Popen(cmd, stdout=so, stderr=se, text=True)
+        # wait4: this run's own CPU and peak memory, with the processes it waited for (fleet, fitter)
+        _pid, status, usage = os.wait4(proc.pid, 0)
+    proc.returncode = os.waitstatus_to_exitcode(status)
+    run = Run(scenario, seed, proc.returncode, time.monotonic() - t0, cpu_s=usage.ru_utime + usage.ru_stime,
+              peak_mb=usage.ru_maxrss / 1024.0)
     results = out / "results.txt"
     if not results.exists():
-        tail = (proc.stderr.strip().splitlines() or ["no output"])[-1]
+        tail = ((out / "demo.stderr").read_text().strip().splitlines() or ["no output"])[-1]
         run.problem = f"no results.txt (exit {proc.returncode}: {tail})"
         return run
-    run.states, run.reasons, run.given_up_close, run.required_m = parse_results(results.read_text())
+    text = results.read_text()
+    run.states, run.reasons, run.given_up_close, run.required_m = parse_results(text)
+    run.located_far = located_far(text)
     return run
+
+
+def _burn(stop) -> None:
+    while not stop.is_set():
+        sum(range(10_000))
 
 
 def main(args: argparse.Namespace) -> int:
     scenarios = [s.strip() for s in args.scenario.split(",") if s.strip()]
     jobs = [(s, seed) for s in scenarios for seed in range(1, args.runs + 1)]
     bar = Progress(len(jobs))
-    with tempfile.TemporaryDirectory(prefix="uavloc-bench-demos-") as tmp:
-        root = Path(args.keep) if args.keep else Path(tmp)
-        root.mkdir(parents=True, exist_ok=True)
-        runs: list[Run] = []
-        with ThreadPoolExecutor(args.jobs) as pool:
-            for run in pool.map(lambda j: _one(j[0], j[1], args.people, root), jobs):
-                runs.append(run)
-                bar.step(f"{run.scenario} seed {run.seed}: exit {run.rc}, {run.wall_s:.0f} s")
-    print(f"uavloc demo --no-web, world seeds 1..{args.runs}" + (f", {args.people} people" if args.people else ""))
-    head = (f"{'scenario':10s} {'runs':>4s} {'exit 0':>6s} {'wall s':>7s} {'reported':>8s} {'never heard':>11s} "
-            f"{'located':>7s} {'given up':>8s} {'given-up rate':>13s} {'given up <= req':>15s}")
+    stop = mp.Event()
+    burners = [mp.Process(target=_burn, args=(stop,), daemon=True) for _ in range(args.burners)]
+    for b in burners:
+        b.start()
+    try:
+        with tempfile.TemporaryDirectory(prefix="uavloc-bench-demos-") as tmp:
+            root = Path(args.keep) if args.keep else Path(tmp)
+            root.mkdir(parents=True, exist_ok=True)
+            runs: list[Run] = []
+            with ThreadPoolExecutor(args.jobs) as pool:
+                for run in pool.map(lambda j: _one(j[0], j[1], args.people, root), jobs):
+                    runs.append(run)
+                    bar.step(f"{run.scenario} seed {run.seed}: exit {run.rc}, {run.wall_s:.0f} s")
+    finally:
+        stop.set()
+        for b in burners:
+            b.join(timeout=5)
+    print(f"uavloc demo --no-web, world seeds 1..{args.runs}" + (f", {args.people} people" if args.people else "")
+          + (f", beside {args.burners} CPU-bound processes" if args.burners else ""))
+    head = (f"{'scenario':10s} {'runs':>4s} {'exit 0':>6s} {'wall s':>7s} {'CPU s':>6s} {'peak MB':>7s} "
+            f"{'reported':>8s} {'never heard':>11s} {'located':>7s} {'given up':>8s} {'given-up rate':>13s} "
+            f"{'given up <= req':>15s} {'located > 1.5 r':>15s}")
     print(head)
     print("-" * len(head))
     failed = 0
@@ -128,18 +176,27 @@ def main(args: argparse.Namespace) -> int:
         reported = st["located"] + st["given up"] + st["heard"]
         rate = st["given up"] / reported if reported else math.nan
         wall = sum(r.wall_s for r in rs) / max(len(rs), 1)
-        print(f"{Path(s).stem:10s} {len(rs):4d} {sum(r.rc == 0 for r in rs):6d} {wall:7.0f} {reported:8d} "
-              f"{st['never heard']:11d} {st['located']:7d} {st['given up']:8d} {rate:13.3f} "
-              f"{sum(r.given_up_close for r in ok):15d}")
+        cpu = sum(r.cpu_s for r in rs) / max(len(rs), 1)
+        peak = max((r.peak_mb for r in rs), default=math.nan)
+        print(f"{Path(s).stem:10s} {len(rs):4d} {sum(r.rc == 0 for r in rs):6d} {wall:7.0f} {cpu:6.0f} {peak:7.0f} "
+              f"{reported:8d} {st['never heard']:11d} {st['located']:7d} {st['given up']:8d} {rate:13.3f} "
+              f"{sum(r.given_up_close for r in ok):15d} {sum(len(r.located_far) for r in ok):15d}")
     for s in scenarios:
         reasons = sum((r.reasons for r in runs if r.scenario == s), Counter())
         if reasons:
             print(f"\n{Path(s).stem}: why the given up were given up")
             for why, n in reasons.most_common():
                 print(f"  {n:4d}  {why}")
+    far = [(r, row) for r in runs for row in r.located_far]
+    if far:
+        print(f"\nlocated farther from the truth than {FAR:g}x their 95 % radius:")
+        for r, row in far:
+            print(f"  {Path(r.scenario).stem} seed {r.seed}: {row}")
     for r in runs:
         if r.problem:
             print(f"{r.scenario} seed {r.seed}: {r.problem}", file=sys.stderr)
     print("\n'given up <= req': given up although the estimate was within the required accuracy of the "
-          "truth (a person there to be located)")
-    return 1 if failed else 0
+          "truth (a person there to be located); 'located > 1.5 r': reported located farther from the truth "
+          "than 1.5x their 95 % radius; CPU s: mean per run, the demo with its fleet and fitting processes; "
+          "peak MB: the largest resident set of any of them, over all runs")
+    return 1 if failed or far else 0

@@ -26,3 +26,11 @@ def test_states_reasons_and_the_given_up_near_the_truth_are_read():
 def test_a_results_file_without_a_table_reads_as_nothing():
     states, reasons, close, required = parse_results("No phone was heard.\n")
     assert not states and not reasons and close == 0 and math.isnan(required)
+
+
+def test_people_located_farther_than_one_and_a_half_radii_are_named():
+    from benchmarks.demos import located_far
+
+    text = TEXT.replace("7.1 m  13:01:37.4  located          2.9 m", "7.1 m  13:01:37.4  located         11.0 m")
+    (row,) = located_far(text)
+    assert row.startswith("P01") and located_far(TEXT) == []
