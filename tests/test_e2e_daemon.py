@@ -143,3 +143,36 @@ def test_signing_drops_an_intruders_unsigned_rssi_and_mission_messages(tmp_path)
     assert links[1].stats.unsigned_dropped >= len(sent) // 2
     with StoreReader(tmp_path / "search.sqlite") as rd:
         assert BOGUS_EMITTER not in set(np.unique(rd.slots().emitter_id).tolist())
+
+
+def gil_holding_fit(job, channel, dem):
+    """A fit that holds the interpreter lock for a second or two at a time, as long numpy and scipy
+    calls do (one C call: sorting three million floats), before fitting for real."""
+    import random
+
+    from uavloc_gcs.estimation.fitting import run_fit
+
+    rng = random.Random(job.version)
+    sorted(rng.random() for _ in range(3_000_000))
+    return run_fit(job, channel, dem)
+
+
+def test_slow_fits_never_stop_the_links_from_being_read(tmp_path):
+    """Issue 42 item 8: the policy's fits ran in a thread of the daemon and held the interpreter
+    lock; the links were not read and all four vehicles were marked lost within 3 s of each other.
+    Fits that hold the lock for seconds each, while the vehicles talk: no vehicle is marked lost,
+    and the search ends with every vehicle home. (With the fits in the daemon's own process, an
+    InlineFitter here, vehicles are marked lost.) How many people such slow fits still locate at a
+    25x speed-up is not this test's question: each fit costs a minute of mission time."""
+    from uavloc_gcs.estimation import ChannelModel
+    from uavloc_gcs.estimation.fitting import ProcessFitter
+
+    def slow(daemon, fleet):
+        daemon.policy.fitter.close()
+        daemon.policy.fitter = ProcessFitter(ChannelModel.from_scenario(daemon.sc), fit=gil_holding_fit)
+
+    sc, result = run_e2e(tmp_path, during=slow, lost_timeout_s=2.0)
+    with StoreReader(tmp_path / "search.sqlite") as rd:
+        lost = [e.text for e in rd.events("lost")]
+    assert lost == []
+    assert result.outcome.people and sorted(result.outcome.vehicles_home) == [1, 2], result.outcome.statement
