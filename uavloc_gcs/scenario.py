@@ -161,6 +161,10 @@ class PeopleSpec:
     # People expected per km² of the area (optional): the results then state how many are expected
     # to have been missed where the achieved POD fell short (search/coverage.py).
     density_per_km2: float | None = None
+    # Prior share of the people who cannot move (trapped), for the field world's estimate: a person
+    # who may walk is only bounded by max_speed_m_s since each burst (estimation/burst_grid.py). 0
+    # (default): anyone may walk; with max_speed_m_s 0 everyone stands still whatever this says.
+    static_share: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -496,6 +500,7 @@ def _resolve(sc: Scenario, base_dir: Path | None = None) -> Scenario:
         "people.max_speed_m_s",
     )
     _check(pe.required_accuracy_m > 0, "must be positive", sc, "people.required_accuracy_m")
+    _check(0.0 <= pe.static_share <= 1.0, "must be a share between 0 and 1", sc, "people.static_share")
     _check(pe.density_per_km2 is None or (math.isfinite(pe.density_per_km2) and pe.density_per_km2 >= 0),
            "must be a number of people per km², 0 or more", sc, "people.density_per_km2")
     if scan.lane_spacing_m is not None:

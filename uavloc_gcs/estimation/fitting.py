@@ -44,6 +44,10 @@ class FitJob:
     # When the estimate's 95 % radius is within this [m] (a fix to be), the heard slots are fitted
     # again without the evidence of where the phone was not heard, and must agree (FitResult.contradicted)
     check_within_m: float | None = None
+    # The field world's grid posterior (estimation.burst_grid) instead of estimate_emitter: its spec
+    # and the person's bursts (heard, and the vehicles that listened to one and heard nothing)
+    grid: Any = None
+    bursts: tuple = ()
 
 
 @dataclass(frozen=True)
@@ -67,6 +71,8 @@ def run_fit(job: FitJob, channel, dem) -> FitResult:
     from .terrain_fit import fit_for
 
     t0 = time.perf_counter()
+    if job.grid is not None:
+        return _run_grid(job, t0)
     try:
         fit = fit_for(dem)
         est = fit(job.slots, channel, max_speed_m_s=job.max_speed_m_s, t_ref_s=job.t_ref_s,
@@ -82,6 +88,27 @@ def run_fit(job: FitJob, channel, dem) -> FitResult:
         return FitResult(job.emitter_id, job.version, error=str(exc), runtime_s=time.perf_counter() - t0)
     except Exception as exc:  # noqa: BLE001 -- one person's estimate never ends the search
         log.exception("emitter %d: the estimator failed", job.emitter_id)
+        return FitResult(job.emitter_id, job.version, crash=f"{type(exc).__name__}: {exc}",
+                         runtime_s=time.perf_counter() - t0)
+
+
+def _run_grid(job: FitJob, t0: float) -> FitResult:
+    """``job`` on the grid (estimation.burst_grid); the same contradiction check, the silent
+    listeners left out for it."""
+    from .burst_grid import grid_estimate
+
+    try:
+        est = grid_estimate(job.emitter_id, job.bursts, job.grid, job.t_ref_s)
+        contradicted = ""
+        heard = tuple(b for b in job.bursts if not b.silent)
+        if job.check_within_m is not None and len(heard) < len(job.bursts) and est.radius95_m <= job.check_within_m:
+            contradicted = _contradiction(est, grid_estimate(job.emitter_id, heard, job.grid, job.t_ref_s))
+        return FitResult(job.emitter_id, job.version, estimate=est, runtime_s=time.perf_counter() - t0,
+                         contradicted=contradicted)
+    except EstimationError as exc:
+        return FitResult(job.emitter_id, job.version, error=str(exc), runtime_s=time.perf_counter() - t0)
+    except Exception as exc:  # noqa: BLE001 -- one person's estimate never ends the search
+        log.exception("emitter %d: the grid estimate failed", job.emitter_id)
         return FitResult(job.emitter_id, job.version, crash=f"{type(exc).__name__}: {exc}",
                          runtime_s=time.perf_counter() - t0)
 

@@ -94,6 +94,12 @@ TRACK_STEP_SLOTS = 10  # listening tracks are kept every this many slots (0.25 s
 # must not read as silence, so with these tracks a phone counts as silent only where it was not
 # heard for this long either side.
 SLOT_TRACK_QUIET_S = 0.6
+# In the field world (bursts under a receiver threshold) people are estimated on a grid of the ground
+# (estimation/burst_grid.py) instead of by the multi-start fits of estimation/estimate.py: a posterior
+# bent along rings with several modes is what a few bursts give. The person is in the area within
+# GRID_AREA_MARGIN_M (people are searched for inside it).
+GRID_ESTIMATE = True
+GRID_AREA_MARGIN_M = 50.0
 
 
 # Burst-to-burst spread of one phone's frame count (log std), as fitted to the public captures
@@ -284,6 +290,7 @@ class SearchPolicy:
         self._reach_poly = None  # the area grown by LOOK_AREA_MARGIN (_inside_reach)
         self._frames_prior = None  # estimation.evidence.FramesPrior of the scenario's bursts (frames_prior)
         self._burst_rates = None  # and their rate law (burst_rates), for the bursts nobody heard
+        self._grid = None  # estimation.burst_grid.GridSpec of this scenario (the field world, _grid_spec)
         # where the estimates are computed (estimation.fitting): in this thread by default; the
         # daemon passes a ProcessFitter so that fitting never stops its event loop
         if fitter is None:
@@ -463,14 +470,69 @@ class SearchPolicy:
             p.dirty, p.fitting = False, True
             if len(p.batches) > 1:
                 p.batches = [SlotBatch.concat(p.batches).sorted_by_time()]
-            self.fitter.submit(FitJob(p.emitter_id, p.version, p.batches[0], self.model_speed_m_s,
-                                      p.last_slot_t_s, self.model_motion, p.estimate,
-                                      self._silence(p), self._censored(p), check_within_m=self.required_m))
+            spec = self._grid_spec()
+            if spec is not None:  # the field world: the grid posterior of the person's bursts
+                job = FitJob(p.emitter_id, p.version, p.batches[0], self.model_speed_m_s, p.last_slot_t_s,
+                             self.model_motion, check_within_m=self.required_m, grid=spec,
+                             bursts=self._bursts_of(p))
+            else:
+                job = FitJob(p.emitter_id, p.version, p.batches[0], self.model_speed_m_s, p.last_slot_t_s,
+                             self.model_motion, p.estimate, self._silence(p), self._censored(p),
+                             check_within_m=self.required_m)
+            self.fitter.submit(job)
         for res in self.fitter.results():
             if self._apply_fit(res, t_s):
                 changed.add(res.emitter_id)
         changed |= self._check_looks(t_s)
         return changed
+
+    def _grid_spec(self):
+        """The field world's grid estimate (estimation.burst_grid) when phones send bursts under a
+        receiver threshold and GRID_ESTIMATE is on; None for the fits of estimation.estimate."""
+        if not (GRID_ESTIMATE and self._bursts and self.channel.sensitivity_dbm is not None):
+            return None
+        if self._grid is None:
+            from ..estimation.burst_grid import GridSpec, LogDistanceBursts
+
+            sc = self.scenario
+            fp = np.asarray(frames_prior(sc).p, float)
+            pmf = np.concatenate([[0.0], fp / fp.sum()])  # K = 0 .. Kmax frames sent
+            vmax = float(self.model_speed_m_s)
+            self._grid = GridSpec(LogDistanceBursts.from_scenario(sc), tuple(float(v) for v in pmf), vmax,
+                                  1.0 if vmax <= 0 else float(sc.people.static_share),
+                                  tuple((float(x), float(y)) for x, y in self.area_xy_m), GRID_AREA_MARGIN_M)
+        return self._grid
+
+    def _bursts_of(self, p: "_Person") -> tuple:
+        """``p``'s bursts as each vehicle heard them, and every vehicle that listened during one of
+        them (its flight log within LISTEN_GAP_S of the burst, its receiver's reports through the
+        burst) and heard none of it."""
+        from ..estimation.burst_grid import Burst, bursts_from_slots
+        from ..estimation.evidence import LISTEN_GAP_S
+
+        heard = bursts_from_slots(p.batches[0])
+        out = list(heard)
+        times: list[float] = []
+        for b in heard:  # one burst heard by several vehicles is one time
+            if not times or b.t_s - times[-1] > 2.0:
+                times.append(b.t_s)
+        tracks = {}
+        for v, parts in self._tracks.items():
+            if len(parts) > 1:
+                self._tracks[v] = parts = [(np.concatenate([a for a, _ in parts]), np.vstack([c for _, c in parts]))]
+            tracks[v] = parts[0]
+        for t in times:
+            hearers = {b.vehicle for b in heard if abs(b.t_s - t) <= 2.0}
+            for v, (tt, xyz) in tracks.items():
+                if v in hearers or len(tt) == 0 or self._heard_until.get(v, math.inf) < t + 1.0:
+                    continue
+                k = int(np.argmin(np.abs(tt - t)))
+                if abs(tt[k] - t) > LISTEN_GAP_S:
+                    continue
+                order = np.argsort(tt)
+                pos = [float(np.interp(t, tt[order], xyz[order, c])) for c in range(3)]
+                out.append(Burst(float(t), int(v), (pos[0], pos[1], pos[2])))
+        return tuple(out)
 
     def _fit_order(self) -> list["_Person"]:
         """People with data not yet fitted, most urgent first: a look at them is under way or

@@ -501,9 +501,11 @@ class Daemon(FleetPreparation, VehicleCommands):
         self.store.flush()
         with StoreReader(self.opt.store_path) as rd:
             slots = rd.slots()
-        # stopped (Ctrl-C): the policy's beliefs as they are, without waiting for refits
+        # stopped (Ctrl-C): the policy's beliefs as they are, without waiting for refits; the field
+        # world's grid estimates are the policy's own last word (a refit would be another model's)
+        grid = getattr(self.policy, "_grid_spec", lambda: None)() is not None
         people = tuple(final_results(self.policy.people(t), slots, self.sc, self.frame,
-                                     linking=getattr(self.policy, "linking", None), refit=not partial))
+                                     linking=getattr(self.policy, "linking", None), refit=not (partial or grid)))
         lost = tuple(v.id for v in self.vehicles.values() if v.lost)
         returning = tuple(v.id for v in self.vehicles.values() if not v.home and not v.lost and v.phase == "returning")
         other = tuple(v.id for v in self.vehicles.values() if not v.home and not v.lost and v.phase != "returning")
