@@ -98,8 +98,9 @@ def run(args: argparse.Namespace) -> int:
     from ..examples import scenario_path
     from ..scenario import load_scenario
     from ._inputs import override
-    from ._output import atomic_output_dir
+    from ._output import atomic_output_dir, check_output_dir
 
+    check_output_dir(args.out, "--out")  # before the runs: a directory that cannot be written
     if args.runs < 1:
         raise ConfigError(f"--runs must be at least 1, got {args.runs}")
     if args.jobs is not None and args.jobs < 1:

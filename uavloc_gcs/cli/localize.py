@@ -77,8 +77,9 @@ def run(args: argparse.Namespace) -> int:
     from ..render.estimates import estimate_labels, estimates_figure
     from ..render.terminal import format_table
     from ..scenario import load_scenario
-    from ._output import atomic_output_dir
+    from ._output import atomic_output_dir, check_output_dir
 
+    check_output_dir(args.out, "--out")  # before any work: a directory that cannot be written
     sc = load_scenario(args.scenario)
     heard = load_slots(Path(args.input), sc)
     # as the daemon does: slots heard taking off, landing or on the ground are not estimated from

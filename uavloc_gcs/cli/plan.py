@@ -42,10 +42,10 @@ def run(args: argparse.Namespace) -> int:
     from ..render.scan_plot import scan_figure
     from ..scan import plan_scan, scan_missions
     from ..scenario import load_scenario
-    from ._output import atomic_output_dir
-
     from ._inputs import blaming, fleet_note, override
+    from ._output import atomic_output_dir, check_output_dir
 
+    check_output_dir(args.out, "--out")  # before any work: a directory that cannot be written
     sc = load_scenario(args.scenario)
     if args.coverage:
         sc = override(sc, "--coverage", scan={"coverage": args.coverage})

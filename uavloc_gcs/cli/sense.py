@@ -92,6 +92,15 @@ def run(args: argparse.Namespace) -> int:
         parse_signing_key(args.signing_key)  # a bad key is refused before anything starts
     if not (args.out or args.learn_team or args.mavlink):
         raise ConfigError("nothing to do: give --out DIR, --mavlink URL or --learn-team FILE", key="--out")
+    from ._output import check_not_input, check_output_dir, check_output_file
+
+    if args.out:  # before reading a capture or opening an interface: an output that cannot be written
+        check_output_dir(args.out, "--out")
+    if args.learn_team:
+        check_output_file(args.learn_team, "--learn-team")
+        check_not_input(args.learn_team, "--learn-team", {"the capture being read": args.capture,
+                                                          "the --exclude list": args.exclude,
+                                                          "the --tlog flight log": args.tlog})
     exclusion = read_exclusion(args.exclude) if args.exclude else None
     if args.capture and not args.mavlink:
         frames, skips = parse_capture(args.capture)

@@ -69,12 +69,10 @@ def _check_args(args, scenario):
     timeout = sitl.READY_TIMEOUT_S if args.ready_timeout is None else args.ready_timeout
     if not (math.isfinite(timeout) and timeout > 0):
         raise ConfigError(f"{args.ready_timeout} must be > 0 seconds", key="--ready-timeout")
-    if args.out is not None:
-        parent = args.out.parent if str(args.out.parent) else Path(".")
-        if not parent.is_dir():
-            raise ConfigError(f"folder {parent} does not exist", key="--out")
-        if args.out.is_dir():
-            raise ConfigError(f"{args.out} is a folder; give a file name", key="--out")
+    if args.out is not None:  # before any vehicle starts: a mission file that cannot be written
+        from ._output import check_output_file
+
+        check_output_file(args.out, "--out")
     return n, kind, speedup, timeout
 
 

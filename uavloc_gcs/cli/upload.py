@@ -114,9 +114,21 @@ def check_commands(plan, path: str) -> None:
                                   "accept it", path=path, item=n, field="command")
 
 
+def check_tlog(args: argparse.Namespace, inputs: dict) -> None:
+    """``--tlog`` is appended to while the link is open: refuse, before connecting, a path that
+    cannot be written or that is one of the command's own files."""
+    if args.tlog is None:
+        return
+    from ._output import check_not_input, check_output_file
+
+    check_output_file(args.tlog, "--tlog")
+    check_not_input(args.tlog, "--tlog", inputs)
+
+
 def run(args: argparse.Namespace) -> int:
     import asyncio
 
+    check_tlog(args, {"the mission file being uploaded": args.file})
     return asyncio.run(_upload(args))
 
 
