@@ -277,3 +277,32 @@ def test_experiment_figures_with_one_people_count_and_no_figure_c(tmp_path):
     made[1].canvas.draw()
     labels = [t.get_text() for t in ax_b.get_yticklabels() + ax_b.get_yticklabels(minor=True) if t.get_text()]
     assert labels and not any("10^" in s or "times" in s for s in labels), labels
+
+
+# ---------------------------------------------------------------------------------------------
+# issue 40 item 4: bench flags that were tracebacks or ran nothing
+
+@pytest.mark.parametrize("args, needle", [
+    (["plan", "--families", "nope"], "argument --families: unknown 'nope'; choose from paper, clustered"),
+    (["plan", "--families", "paper,mtsp,nope"], "unknown 'nope'"),
+    (["plan", "--paper-sizes", "10,0"], "argument --paper-sizes: entry '0': must be at least 1"),
+    (["sense", "--frames", "0"], "argument --frames: must be at least 1"),
+    (["sense", "--frames", "-1"], "argument --frames: must be at least 1"),
+    (["sense", "--repeats", "0"], "argument --repeats: must be at least 1"),
+    (["identity", "--people", "-1"], "argument --people: entry '-1': must be at least 1"),
+    (["identity", "--people", "10,x"], "argument --people: entry 'x': 'x' is not a whole number"),
+    (["identity", "--models", "0"], "argument --models: entry '0'"),
+    (["link", "--loss", "1"], "argument --loss: entry '1': must be at most 0.9"),
+    (["demos", "--scenario", "paper,nope"], "argument --scenario: 'nope' is neither a file nor a shipped scenario"),
+    (["localize", "--family", "nope"], "--family nope: no family's name contains it; the families are 'one leg"),
+    (["localize", "--family", "nope", "--emission", "bursts"], "no family's name contains it"),
+])
+def test_bench_lists_and_counts_are_one_sentence(capsys, args, needle):
+    r = _inproc(capsys, "bench", *args)
+    one_sentence(r, needle)
+    assert r.stdout == ""  # refused before the benchmark printed (or ran) anything
+
+
+def test_bench_demos_keep_where_nothing_can_be_written(capsys):
+    r = _inproc(capsys, "bench", "demos", "--runs", "1", "--keep", "/proc/uavloc-test")
+    one_sentence(r, "--keep /proc/uavloc-test: cannot write in /proc")
