@@ -306,3 +306,14 @@ def test_bench_lists_and_counts_are_one_sentence(capsys, args, needle):
 def test_bench_demos_keep_where_nothing_can_be_written(capsys):
     r = _inproc(capsys, "bench", "demos", "--runs", "1", "--keep", "/proc/uavloc-test")
     one_sentence(r, "--keep /proc/uavloc-test: cannot write in /proc")
+
+
+@pytest.mark.parametrize("line, key", [("comm_range_m = 1e9", "fleet.comm_range_m"),
+                                       ("energy_budget_j = 1e308", "fleet.energy_budget_j")])
+def test_absurd_scenario_values_are_refused_before_planning(tmp_path, capsys, line, key):
+    """Issue 40: both passed, and plan printed a 300-digit kJ figure."""
+    (tmp_path / "s.toml").write_text("[area]\norigin_lat_deg = 47.0\norigin_lon_deg = 8.0\nwidth_m = 400\n"
+                                     f"height_m = 300\n[fleet]\n{line}\n")
+    r = _inproc(capsys, "plan", tmp_path / "s.toml", "--out", tmp_path / "o")
+    one_sentence(r, f"s.toml, key '{key}'", "is not plausible (give at most")
+    assert r.stdout == "" and sorted(p.name for p in tmp_path.iterdir()) == ["s.toml"]
