@@ -317,3 +317,51 @@ def test_absurd_scenario_values_are_refused_before_planning(tmp_path, capsys, li
     r = _inproc(capsys, "plan", tmp_path / "s.toml", "--out", tmp_path / "o")
     one_sentence(r, f"s.toml, key '{key}'", "is not plausible (give at most")
     assert r.stdout == "" and sorted(p.name for p in tmp_path.iterdir()) == ["s.toml"]
+
+
+# ---------------------------------------------------------------------------------------------
+# issue 40: a mission longer than the autopilot holds is refused before it is sent (a 10,001-item
+# upload was refused by the vehicle, exit 3); figures in uavloc_gcs/link/mission_capacity.py
+
+def _long_plan(tmp_path, kind, wire_items, suffix=".plan"):
+    from mission_io import waypoints as wpl_file
+    from uavloc_gcs.mission import to_wire
+
+    lat, lon = 47.3977, 8.5456
+    extra = len(to_wire(flight_mission([(lat, lon)], alt_m=40.0, speed_m_s=8.0, autopilot=kind,
+                                       home_latlon_deg=(lat, lon), home_alt_amsl_m=488.0), kind)) - 1
+    pts = [(lat + 1e-5 * (k % 100), lon + 1e-5 * (k // 100)) for k in range(wire_items - extra)]
+    plan = flight_mission(pts, alt_m=40.0, speed_m_s=8.0, autopilot=kind, home_latlon_deg=(lat, lon),
+                          home_alt_amsl_m=488.0)
+    assert len(to_wire(plan, kind)) == wire_items
+    path = tmp_path / f"long{suffix}"
+    (plan_file if suffix == ".plan" else wpl_file).write(path, plan)
+    return path
+
+
+def test_a_mission_the_vehicle_has_no_room_for_is_bad_input_in_its_words(ardupilot_vehicle, tmp_path):
+    """The fake ArduPilot holds 650 items, as the ArduCopter SITL, and says so as it does."""
+    (_, conn), = ardupilot_vehicle.endpoints
+    r = uavloc("upload", _long_plan(tmp_path, "ardupilot", 651), "--to", conn)
+    one_sentence(r, "long.plan: vehicle 1 (ArduPilot)", "has no room for 651 mission items",
+                 "(it says \"Only 650 items are supported\") and keeps the mission it had", "split the mission")
+    assert ardupilot_vehicle.vehicle(1).mission_items == []
+
+
+@pytest.mark.parametrize("kind, items, suffix, needle", [
+    ("px4", 10_001, ".plan", "10,001 mission items (on the wire) are more than any PX4 vehicle holds (10,000"),
+    ("ardupilot", 4_369, ".plan", "4,369 mission items (on the wire) are more than any ArduPilot vehicle holds (4,368"),
+    ("px4", 65_536, ".waypoints", "more than MAVLink's mission protocol can number (65,535)"),
+])
+def test_a_mission_no_vehicle_holds_is_refused_before_connecting(tmp_path, kind, items, suffix, needle):
+    args = ["--autopilot", kind] if suffix == ".plan" else []
+    r = uavloc("upload", _long_plan(tmp_path, kind, items, suffix), "--to", "udpout:127.0.0.1:9", *args)
+    one_sentence(r, needle)  # exit 2 at once: a connection attempt would end in 3 (no heartbeat)
+
+
+def test_mission_capacity_edges():
+    from uavloc_gcs.link.mission_capacity import too_long
+
+    assert too_long(4368, "ardupilot") is None and too_long(4369, "ardupilot")
+    assert too_long(10_000, "px4") is None and too_long(10_001, "px4")
+    assert too_long(65_535, "generic") is None and too_long(65_536, "generic")

@@ -73,6 +73,7 @@ def run(args: argparse.Namespace) -> int:
     missions = scan_missions(sc, plan)
     from ..terrain_missions import terrain_safe  # over the DEM's ground when terrain.dem is given
     missions = [terrain_safe(m, sc, name=f"uav{v.index + 1}") for m, v in zip(missions, plan.vehicles)]
+    _check_lengths(sc, plan, missions)
     fc = geojson.scan_feature_collection(sc, plan)
     written = []
     with atomic_output_dir(args.out) as tmp:
@@ -110,6 +111,17 @@ def run(args: argparse.Namespace) -> int:
     print(f"Look at them: uavloc preview {Path(args.out) / 'uav1.plan'}   (or open preview.png; "
           "scan.kml opens in Google Earth)")
     return 0
+
+
+def _check_lengths(sc, plan, missions) -> None:
+    """Refuse a scan whose mission no vehicle of the fleet's autopilot could hold (link/mission_capacity.py)."""
+    from ..errors import InfeasibleError
+    from ..link.mission_capacity import too_long
+    from ..mission import to_wire
+
+    for v, m in zip(plan.vehicles, missions):
+        if reason := too_long(len(to_wire(m, sc.fleet.autopilot)), sc.fleet.autopilot):
+            raise InfeasibleError(f"uav{v.index + 1}'s scan: {reason} (more vehicles or wider lanes)")
 
 
 def summary(sc, plan, missions) -> str:

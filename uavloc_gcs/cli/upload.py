@@ -132,13 +132,47 @@ def run(args: argparse.Namespace) -> int:
     return asyncio.run(_upload(args))
 
 
-async def _upload(args: argparse.Namespace) -> int:
+async def _no_space(n: int, autopilot: str, who: str, said: list[str]) -> str:
+    """The sentence for NO_SPACE, with the vehicle's own words if it says them within a second
+    (ArduPilot: "Only 650 items are supported", sent just after the MISSION_ACK)."""
+    import asyncio
+
+    from ..link.mission_capacity import no_space
+
+    for _ in range(20):
+        if any("supported" in t or "items" in t.lower() for t in said):
+            break
+        await asyncio.sleep(0.05)
+    words = next((t for t in said if "supported" in t or "items" in t.lower()), None)
+    return no_space(n, autopilot, who, words)
+
+
+def check_length(plan, autopilot: str, path: str) -> None:
+    """Refuse a mission longer than any ``autopilot`` ("ardupilot", "px4", "generic") vehicle
+    holds (link/mission_capacity.py), before a byte of it is sent."""
     from ..errors import FileFormatError
+    from ..link.mission_capacity import too_long
+    from ..mission import MissionEncodingError, to_wire
+
+    try:
+        n = len(to_wire(plan, "ardupilot" if autopilot == "ardupilot" else "px4"))
+    except MissionEncodingError:
+        return  # said once the vehicle's autopilot is known
+    if reason := too_long(n, autopilot):
+        raise FileFormatError(reason, path=path)
+
+
+async def _upload(args: argparse.Namespace) -> int:
+    from ..errors import FileFormatError, MissionTransferError
     from ..link import upload_mission
     from ..mission import MissionEncodingError, to_wire
 
     # a bad file fails before connecting
-    check_commands(read_mission(args.file, None if args.autopilot == "auto" else args.autopilot), args.file)
+    first = read_mission(args.file, None if args.autopilot == "auto" else args.autopilot)
+    check_commands(first, args.file)
+    # too long for any vehicle of --autopilot (or for MAVLink's numbering): before connecting; too
+    # long for the vehicle's autopilot: after its HEARTBEAT, before MISSION_COUNT
+    check_length(first, "generic" if args.autopilot == "auto" else args.autopilot, args.file)
     link, system, component, flavour = await connect(args)
     async with link:
         plan = read_mission(args.file, encoding_for(flavour))
@@ -146,9 +180,18 @@ async def _upload(args: argparse.Namespace) -> int:
             items = to_wire(plan, encoding_for(flavour))
         except MissionEncodingError as err:  # the file asks for something this autopilot cannot take
             raise FileFormatError(f"cannot be sent to {flavour.label}: {err}", path=args.file) from None
+        check_length(plan, flavour.name, args.file)
+        said: list[str] = []
         started = time.monotonic()
-        result = await upload_mission(link, system, component, items, verify=not args.no_verify,
-                                      autopilot=flavour, progress=Progress())
+        with link.subscribe("STATUSTEXT", source_system=system, callback=lambda m: said.append(m.text)):
+            try:
+                result = await upload_mission(link, system, component, items, verify=not args.no_verify,
+                                              autopilot=flavour, progress=Progress())
+            except MissionTransferError as err:
+                if err.result_name != "MAV_MISSION_NO_SPACE":
+                    raise
+                who = f"vehicle {system} ({flavour.label}) on {args.connection}"
+                raise FileFormatError(await _no_space(len(items), flavour.name, who, said), path=args.file) from None
     check = "read back and verified" if result.verified else "not verified (--no-verify)"
     print(f"Uploaded {len(plan.items)} mission items ({result.item_count} on the wire) to vehicle {system} "
           f"({flavour.label}) on {args.connection} in {time.monotonic() - started:.1f} s; {check}.")
