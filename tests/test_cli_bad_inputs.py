@@ -365,3 +365,17 @@ def test_mission_capacity_edges():
     assert too_long(4368, "ardupilot") is None and too_long(4369, "ardupilot")
     assert too_long(10_000, "px4") is None and too_long(10_001, "px4")
     assert too_long(65_535, "generic") is None and too_long(65_536, "generic")
+
+
+def test_no_help_text_shows_a_doubled_percent_sign(capsys):
+    """`experiment paper --help` printed "95 %%" (a description is not %-formatted, a flag's help is)."""
+    from uavloc_gcs.cli import COMMANDS
+    from uavloc_gcs.cli.bench import BENCHMARKS
+
+    pages = [[c, "--help"] for c in COMMANDS] + [["experiment", "paper", "--help"]]
+    pages += [["bench", b, "--help"] for b in BENCHMARKS]
+    for args in pages:
+        r = _inproc(capsys, *args)
+        assert r.returncode == 0, (args, r.stderr)
+        assert "%%" not in r.stdout and r.stdout.strip(), args
+    assert "with 95 % confidence intervals" in _inproc(capsys, "experiment", "paper", "--help").stdout

@@ -40,7 +40,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     esub = p.add_subparsers(dest="experiment", metavar="NAME")
     pp = esub.add_parser("paper", help="MLE-EPSO vs PSO, GA and RL-NM, 5 to 50 people",
                          description="Figures (a) completion time, (b) run time vs people, (c) maximum "
-                                     "error vs time for 10 people, with 95 %% confidence intervals.")
+                                     "error vs time for 10 people, with 95 % confidence intervals.")
     pp.add_argument("--runs", type=number(int, min=1), default=3, help="runs (random worlds) per point (default 3)")
     pp.add_argument("--out", default="results/paper", help="output directory (default results/paper)")
     pp.add_argument("--jobs", type=number(int, min=1, max=256), default=None, help="parallel processes (default: all cores)")
