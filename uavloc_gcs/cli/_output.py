@@ -88,6 +88,8 @@ def check_output_dir(path: str | Path, option: str) -> Path:
     """Refuse, before any work is done, an output directory that cannot be written: an existing
     file, a path under a file, a directory (or the nearest existing one above it) where nothing
     can be created. One sentence naming ``option``."""
+    if str(path).strip() == "":  # an unset shell variable: not "the current directory"
+        raise OutputError(f"{option} needs a directory name, got an empty one (for the current directory give .)")
     target = Path(path)
     if target.exists() and not target.is_dir():
         raise OutputError(f"{option} {path} is a file, not a directory; give a directory to write into")

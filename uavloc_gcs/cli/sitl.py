@@ -20,6 +20,7 @@ import math
 from pathlib import Path
 
 from ..errors import ConfigError
+from ._inputs import number
 
 
 def register(sub) -> None:
@@ -42,7 +43,8 @@ def register(sub) -> None:
     p.add_argument("--home-alt", type=float, default=None, metavar="M",
                    help="home altitude above sea level [m] (default: the DEM's at the launch point with "
                         "terrain.dem, absolute missions being planned from it; else 0)")
-    p.add_argument("--seed", type=int, default=None, help="simulated world seed (default: simulation.seed)")
+    p.add_argument("--seed", type=number(int, min=0, max=2**32 - 1), default=None,
+                   help="simulated world seed (default: simulation.seed)")
     p.add_argument("--no-companion", action="store_true", help="no simulated companions (no RSSI)")
     p.add_argument("--ready-timeout", type=float, default=None, metavar="S",
                    help="wall seconds each vehicle has to become ready to fly (default 120)")

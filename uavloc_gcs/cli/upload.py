@@ -169,6 +169,9 @@ async def _upload(args: argparse.Namespace) -> int:
 
     # a bad file fails before connecting
     first = read_mission(args.file, None if args.autopilot == "auto" else args.autopilot)
+    if not first.items:  # MISSION_COUNT 0 is how a mission is cleared: never by accident
+        raise FileFormatError("holds no mission items: nothing to upload (sending it would clear the vehicle's "
+                              "mission)", path=args.file)
     check_commands(first, args.file)
     # too long for any vehicle of --autopilot (or for MAVLink's numbering): before connecting; too
     # long for the vehicle's autopilot: after its HEARTBEAT, before MISSION_COUNT
