@@ -379,3 +379,51 @@ def test_no_help_text_shows_a_doubled_percent_sign(capsys):
         assert r.returncode == 0, (args, r.stderr)
         assert "%%" not in r.stdout and r.stdout.strip(), args
     assert "with 95 % confidence intervals" in _inproc(capsys, "experiment", "paper", "--help").stdout
+
+
+# ---------------------------------------------------------------------------------------------
+# issue 40: items the autopilot refuses mid-upload (ArduPilot is then left with half a mission)
+# are refused before the upload starts; link/mission_checks.py
+
+def _plan_with(tmp_path, index, **changes):
+    path = _plan(tmp_path)
+    d = json.loads(path.read_text())
+    item = d["mission"]["items"][index]
+    for key, value in changes.items():
+        if key == "alt":
+            item["params"][6] = value
+            item["Altitude"] = value
+        else:
+            item[key] = value
+    bad = tmp_path / "bad.plan"
+    bad.write_text(json.dumps(d))
+    return bad
+
+
+def test_an_item_ardupilot_refuses_leaves_its_mission_as_it_was(ardupilot_vehicle, tmp_path):
+    (_, conn), = ardupilot_vehicle.endpoints
+    r = uavloc("upload", _plan(tmp_path), "--to", conn)
+    assert r.returncode == 0, r.stderr
+    held = list(ardupilot_vehicle.vehicle(1).mission_items)
+    d = json.loads((tmp_path / "m.plan").read_text())
+    k = next(i for i, it in enumerate(d["mission"]["items"]) if it["command"] == 16)
+    r = uavloc("upload", _plan_with(tmp_path, k, alt=1e30), "--to", conn)
+    one_sentence(r, f"bad.plan, item {k + 1}, field 'altitude'", "beyond ArduPilot's altitudes")
+    assert ardupilot_vehicle.vehicle(1).mission_items == held  # was: truncated to the items before it
+
+
+@pytest.mark.parametrize("autopilot, changes, needle", [
+    ("auto", {"frame": 99}, "field 'frame': frame 99 is not a MAVLink frame (MAV_FRAME)"),
+    ("px4", {"frame": 10}, "field 'frame': PX4 takes location items only in frames GLOBAL and GLOBAL_RELATIVE_ALT"),
+    ("ardupilot", {"alt": 90000.0}, "field 'altitude': 90000 m is beyond ArduPilot's altitudes"),
+])
+def test_items_no_vehicle_of_the_autopilot_takes_are_refused_before_connecting(tmp_path, autopilot, changes, needle):
+    path = _plan(tmp_path)
+    k = next(i for i, it in enumerate(json.loads(path.read_text())["mission"]["items"]) if it["command"] == 16)
+    r = uavloc("upload", _plan_with(tmp_path, k, **changes), "--to", "udpout:127.0.0.1:9", "--autopilot", autopilot)
+    one_sentence(r, f"item {k + 1}", needle)  # exit 2 at once: connecting would end in 3 (no heartbeat)
+
+
+def test_an_upload_of_no_items_is_refused_it_would_clear_the_mission(tmp_path):
+    r = uavloc("upload", ROOT / "tests" / "data" / "files" / "empty.plan", "--to", "udpout:127.0.0.1:9")
+    one_sentence(r, "empty.plan: holds no mission items: nothing to upload")

@@ -108,8 +108,10 @@ def run(args: argparse.Namespace) -> int:
     if args.iterations < 1:
         raise ConfigError(f"--iterations must be at least 1, got {args.iterations}")
     methods = ALL_METHODS
-    if args.methods:
+    if args.methods is not None:
         methods = tuple(m.strip() for m in args.methods.split(",") if m.strip())
+        if not methods:  # ran nothing and wrote empty figures
+            raise ConfigError(f"--methods {args.methods!r} names no method; choose from {', '.join(ALL_METHODS)}")
         bad = [m for m in methods if m not in ALL_METHODS]
         if bad:
             raise ConfigError(f"--methods: unknown method {bad[0]!r}; choose from {', '.join(ALL_METHODS)}")

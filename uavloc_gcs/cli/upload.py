@@ -107,11 +107,14 @@ def check_commands(plan, path: str) -> None:
     from ..dialect import mavlink
     from ..errors import FileFormatError
 
-    known = mavlink.enums["MAV_CMD"]
+    known, frames = mavlink.enums["MAV_CMD"], mavlink.enums["MAV_FRAME"]
     for n, it in enumerate(plan.items, start=1):
         if it.command not in known:
             raise FileFormatError(f"command {it.command} is not a MAVLink command (MAV_CMD); no autopilot would "
                                   "accept it", path=path, item=n, field="command")
+        if it.frame not in frames:
+            raise FileFormatError(f"frame {it.frame} is not a MAVLink frame (MAV_FRAME); no autopilot would accept it",
+                                  path=path, item=n, field="frame")
 
 
 def check_tlog(args: argparse.Namespace, inputs: dict) -> None:
@@ -147,6 +150,19 @@ async def _no_space(n: int, autopilot: str, who: str, said: list[str]) -> str:
     return no_space(n, autopilot, who, words)
 
 
+def check_items(plan, items, autopilot: str, path: str) -> None:
+    """Refuse, before a byte is sent, an item ``autopilot`` would refuse mid-upload (leaving an
+    ArduPilot with half a mission): link/mission_checks.py. Items are named as in the file."""
+    from ..errors import FileFormatError
+    from ..link.mission_checks import refusal
+
+    first = 1 if autopilot == "ardupilot" else 0  # ArduPilot's seq 0 is its home
+    for it, given in zip(items[first:], plan.items):
+        if found := refusal(it, autopilot, given.frame):
+            field, reason = found
+            raise FileFormatError(reason, path=path, item=it.seq - first + 1, field=field)
+
+
 def check_length(plan, autopilot: str, path: str) -> None:
     """Refuse a mission longer than any ``autopilot`` ("ardupilot", "px4", "generic") vehicle
     holds (link/mission_capacity.py), before a byte of it is sent."""
@@ -176,6 +192,11 @@ async def _upload(args: argparse.Namespace) -> int:
     # too long for any vehicle of --autopilot (or for MAVLink's numbering): before connecting; too
     # long for the vehicle's autopilot: after its HEARTBEAT, before MISSION_COUNT
     check_length(first, "generic" if args.autopilot == "auto" else args.autopilot, args.file)
+    if args.autopilot != "auto":
+        try:
+            check_items(first, to_wire(first, args.autopilot), args.autopilot, args.file)
+        except MissionEncodingError:
+            pass  # said below, once connected, in the vehicle's terms
     link, system, component, flavour = await connect(args)
     async with link:
         plan = read_mission(args.file, encoding_for(flavour))
@@ -184,6 +205,7 @@ async def _upload(args: argparse.Namespace) -> int:
         except MissionEncodingError as err:  # the file asks for something this autopilot cannot take
             raise FileFormatError(f"cannot be sent to {flavour.label}: {err}", path=args.file) from None
         check_length(plan, flavour.name, args.file)
+        check_items(plan, items, flavour.name, args.file)
         said: list[str] = []
         started = time.monotonic()
         with link.subscribe("STATUSTEXT", source_system=system, callback=lambda m: said.append(m.text)):
