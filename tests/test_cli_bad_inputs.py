@@ -427,3 +427,83 @@ def test_items_no_vehicle_of_the_autopilot_takes_are_refused_before_connecting(t
 def test_an_upload_of_no_items_is_refused_it_would_clear_the_mission(tmp_path):
     r = uavloc("upload", ROOT / "tests" / "data" / "files" / "empty.plan", "--to", "udpout:127.0.0.1:9")
     one_sentence(r, "empty.plan: holds no mission items: nothing to upload")
+
+
+# ---------------------------------------------------------------------------------------------
+# issue 40: more bad inputs found across the commands
+
+def _route_instance(tmp_path, change):
+    d = json.loads((EXAMPLES / "route_paper.json").read_text())
+    change(d)
+    path = tmp_path / "inst.json"
+    path.write_text(json.dumps(d))
+    return path
+
+
+@pytest.mark.parametrize("change, needle", [
+    (lambda d: d.update(speed_m_s=1e308), "field 'speed_m_s': 1e+308 m/s is beyond any multirotor (at most 60"),
+    (lambda d: d["targets"][0].update(xy_m=[1e300, 0]), "field 'targets[0].xy_m': 1e+300, 0 m is more than 1000 km"),
+    (lambda d: d["targets"][0].update(radius_m=1e300), "field 'targets[0].radius_m': radius must be 0 to 1e+06 m"),
+])
+def test_absurd_route_instances_are_one_sentence(tmp_path, capsys, change, needle):
+    """Were an overflow warning and "needs nan J", a 300-digit coordinate, an overflow warning."""
+    r = _inproc(capsys, "route", _route_instance(tmp_path, change), "--out", tmp_path / "p.json")
+    one_sentence(r, needle)
+    assert not (tmp_path / "p.json").exists() and "Warning" not in r.stderr
+
+
+@pytest.mark.parametrize("args", [["plan", "small"], ["localize", EXAMPLES / "slots_small.csv", "--scenario", "small"],
+                                  ["experiment", "paper", "--runs", "1"]])
+def test_an_empty_out_is_not_the_current_directory(tmp_path, capsys, monkeypatch, args):
+    """``--out "$UNSET"`` wrote the plan into the current directory."""
+    monkeypatch.chdir(tmp_path)
+    r = _inproc(capsys, *args, "--out", "")
+    one_sentence(r, "--out needs a directory name, got an empty one (for the current directory give .)")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_preview_png_empty_is_refused_not_ignored(capsys):
+    r = _inproc(capsys, "preview", ROOT / "tests" / "data" / "small" / "uav1.plan", "--png", "")
+    one_sentence(r, "--png needs a file name, got an empty one")
+
+
+def test_download_tlog_and_out_the_same_file(tmp_path, capsys):
+    r = _inproc(capsys, "download", "--from", "udpout:127.0.0.1:9", "--out", tmp_path / "x.plan",
+                "--tlog", tmp_path / "x.plan")
+    one_sentence(r, "--tlog", "is also the --out file")
+
+
+def test_experiment_methods_naming_no_method(tmp_path, capsys):
+    """Ran nothing and wrote empty figures, exit 0."""
+    r = _inproc(capsys, "experiment", "paper", "--methods", ",", "--out", tmp_path / "e")
+    one_sentence(r, "--methods ',' names no method; choose from MLE-EPSO (M)")
+    assert not (tmp_path / "e").exists()
+
+
+def test_a_slot_csv_saved_by_a_spreadsheet_reads(tmp_path, capsys):
+    """'CSV UTF-8' from a spreadsheet starts with a byte-order mark: the header was said to be wrong."""
+    (tmp_path / "bom.csv").write_bytes(b"\xef\xbb\xbf" + (EXAMPLES / "slots_small.csv").read_bytes())
+    r = _inproc(capsys, "localize", tmp_path / "bom.csv", "--scenario", "small", "--out", tmp_path / "o")
+    assert r.returncode == 0, r.stderr
+    assert (tmp_path / "o" / "estimates.csv").is_file()
+
+
+@pytest.mark.parametrize("args, needle", [
+    (["--slot-ms", "nan"], "argument --slot-ms: must be a finite number"),
+    (["--clock-offset-s", "inf"], "argument --clock-offset-s: must be a finite number"),
+    (["--learn-min-frames", "-1", "--learn-team", "t.txt"], "argument --learn-min-frames: must be at least 1"),
+    (["--sysid", "999", "--mavlink", "udpout:127.0.0.1:9"], "argument --sysid: must be at most 255"),
+    (["--slot-ms", "100", "--mavlink", "udpout:127.0.0.1:9"], "16-bit count of microseconds, at most 65.535 ms"),
+])
+def test_sense_numbers_are_checked_before_reading(tmp_path, capsys, monkeypatch, args, needle):
+    monkeypatch.chdir(tmp_path)
+    pcap = ROOT / "tests" / "uavloc_gcs" / "sense" / "real" / "ieee802.11_exthdr.pcap"
+    r = _inproc(capsys, "sense", pcap, *args, *([] if "--mavlink" in args or "--learn-team" in args else
+                                                  ["--out", "o"]))
+    one_sentence(r, needle)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_sitl_seed_is_checked_before_any_vehicle_starts(capsys):
+    r = _inproc(capsys, "sitl", "small", "--seed", "-1")
+    one_sentence(r, "argument --seed: must be at least 0")
