@@ -507,3 +507,16 @@ def test_sense_numbers_are_checked_before_reading(tmp_path, capsys, monkeypatch,
 def test_sitl_seed_is_checked_before_any_vehicle_starts(capsys):
     r = _inproc(capsys, "sitl", "small", "--seed", "-1")
     one_sentence(r, "argument --seed: must be at least 0")
+
+
+def test_plan_notes_a_scan_common_boards_cannot_hold(tmp_path, capsys):
+    """One ArduPilot vehicle, 12 m lanes over 4 x 3.95 km: 702 items, more than a 16 KB board (and
+    the SITL) holds; the plan is written, with the note."""
+    (tmp_path / "s.toml").write_text("[area]\norigin_lat_deg = 47.0\norigin_lon_deg = 8.0\nwidth_m = 4000\n"
+                                     "height_m = 3950\n[fleet]\nvehicles = 1\nenergy_budget_j = 20000000\n"
+                                     "[scan]\nlane_spacing_m = 12\n")
+    r = _inproc(capsys, "plan", tmp_path / "s.toml", "--out", tmp_path / "o")
+    assert r.returncode == 0, r.stderr
+    assert ("Note: uav1's scan has 702 mission items: ArduPilot boards with 16 KB of storage (and SITL) refuse more "
+            "than 650") in r.stdout
+    assert (tmp_path / "o" / "uav1.plan").is_file()

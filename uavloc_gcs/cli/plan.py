@@ -73,7 +73,7 @@ def run(args: argparse.Namespace) -> int:
     missions = scan_missions(sc, plan)
     from ..terrain_missions import terrain_safe  # over the DEM's ground when terrain.dem is given
     missions = [terrain_safe(m, sc, name=f"uav{v.index + 1}") for m, v in zip(missions, plan.vehicles)]
-    _check_lengths(sc, plan, missions)
+    capacity_notes = _check_lengths(sc, plan, missions)
     fc = geojson.scan_feature_collection(sc, plan)
     written = []
     with atomic_output_dir(args.out) as tmp:
@@ -103,6 +103,8 @@ def run(args: argparse.Namespace) -> int:
             print("Best effort: " + podplan.shortfall_sentence().replace(" (use --best-effort to plan it anyway)", ""))
     if note := fleet_note(sc):
         print(note)
+    for note in capacity_notes:
+        print(note)
     print(f"\nWrote {len(written)} files to {Path(args.out)}/: {', '.join(written)}")
     stale = sorted(p.name for p in Path(args.out).glob("uav*.*")
                    if p.suffix in (".plan", ".waypoints") and p.name not in written)
@@ -113,15 +115,21 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _check_lengths(sc, plan, missions) -> None:
-    """Refuse a scan whose mission no vehicle of the fleet's autopilot could hold (link/mission_capacity.py)."""
+def _check_lengths(sc, plan, missions) -> list[str]:
+    """Refuse a scan whose mission no vehicle of the fleet's autopilot could hold; the notes for
+    missions that common boards refuse (link/mission_capacity.py)."""
     from ..errors import InfeasibleError
-    from ..link.mission_capacity import too_long
+    from ..link.mission_capacity import many_note, too_long
     from ..mission import to_wire
 
+    notes = []
     for v, m in zip(plan.vehicles, missions):
-        if reason := too_long(len(to_wire(m, sc.fleet.autopilot)), sc.fleet.autopilot):
+        n = len(to_wire(m, sc.fleet.autopilot))
+        if reason := too_long(n, sc.fleet.autopilot):
             raise InfeasibleError(f"uav{v.index + 1}'s scan: {reason} (more vehicles or wider lanes)")
+        if note := many_note(n, sc.fleet.autopilot):
+            notes.append(f"Note: uav{v.index + 1}'s scan has {note}; check the vehicle's capacity before flying it.")
+    return notes
 
 
 def summary(sc, plan, missions) -> str:

@@ -142,12 +142,14 @@ async def _no_space(n: int, autopilot: str, who: str, said: list[str]) -> str:
 
     from ..link.mission_capacity import no_space
 
+    def words() -> str | None:
+        return next((t for t in said if "items are supported" in t), None)
+
     for _ in range(20):
-        if any("supported" in t or "items" in t.lower() for t in said):
+        if words():
             break
         await asyncio.sleep(0.05)
-    words = next((t for t in said if "supported" in t or "items" in t.lower()), None)
-    return no_space(n, autopilot, who, words)
+    return no_space(n, autopilot, who, words())
 
 
 def check_items(plan, items, autopilot: str, path: str) -> None:

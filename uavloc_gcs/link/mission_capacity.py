@@ -33,18 +33,23 @@ MAVLINK_COUNT_MAX = 65535  # MISSION_COUNT.count is a uint16
 
 @dataclass(frozen=True)
 class Capacity:
-    """``most``: no build of the autopilot holds more items; ``common``: what boards hold."""
+    """``most``: no build of the autopilot holds more items; ``common``: what boards hold;
+    ``many`` items and more are refused by ``many_refused_by``."""
 
     label: str
     most: int
     common: str
+    many: int = MAVLINK_COUNT_MAX + 1
+    many_refused_by: str = ""
 
 
 CAPACITY = {
     "ardupilot": Capacity("ArduPilot", 4368,
                           "ArduPilot boards hold 650 items with 16 KB of storage (SITL too), 1,306 with 32 KB, up to "
-                          "4,368 with BRD_SD_MISSION on the SD card"),
-    "px4": Capacity("PX4", 10_000, "PX4 holds 500 items by default, 1,000 on boards such as Pixhawk 6X, 10,000 in SITL"),
+                          "4,368 with BRD_SD_MISSION on the SD card", 651, "ArduPilot boards with 16 KB of storage "
+                          "(and SITL)"),
+    "px4": Capacity("PX4", 10_000, "PX4 holds 500 items by default, 1,000 on boards such as Pixhawk 6X, 10,000 in SITL",
+                    501, "PX4 builds with the default configuration"),
     "generic": Capacity("MAVLink", MAVLINK_COUNT_MAX, "MAVLink numbers at most 65,535 items"),
 }
 
@@ -60,6 +65,14 @@ def too_long(n_items: int, autopilot: str) -> str | None:
                 f"({MAVLINK_COUNT_MAX:,}); split the mission")
     return (f"{n_items:,} mission items (on the wire) are more than any {cap.label} vehicle holds ({cap.most:,}; "
             f"{cap.common}); split the mission")
+
+
+def many_note(n_items: int, autopilot: str) -> str | None:
+    """A sentence when ``n_items`` fit some builds of ``autopilot`` but not common ones, else None."""
+    cap = CAPACITY.get(autopilot, CAPACITY["generic"])
+    if n_items < cap.many or too_long(n_items, autopilot):
+        return None
+    return f"{n_items:,} mission items: {cap.many_refused_by} refuse more than {cap.many - 1:,}"
 
 
 def no_space(n_items: int, autopilot: str, who: str, vehicle_said: str | None) -> str:
