@@ -36,7 +36,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                     "estimates.csv, estimates.geojson and estimates.png into --out.",
     )
     p.add_argument("input", metavar="INPUT", help="slot CSV (t_s,vehicle_id,lat_deg,lon_deg,alt_m,emitter_id,"
-                                                  "rssi_dbm,n_samples[,address,fingerprint,channel]) or a .tlog")
+                                                  "rssi_dbm,n_samples[,address,fingerprint,channel]) or a .tlog; "
+                                                  "the shipped example by name: slots_small.csv")
     p.add_argument("--scenario", required=True,
                    help="scenario TOML (channel, people's speed bound, frame), or a shipped one by name: paper, small")
     p.add_argument("--out", required=True, help="output directory")
