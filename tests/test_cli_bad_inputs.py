@@ -520,3 +520,13 @@ def test_plan_notes_a_scan_common_boards_cannot_hold(tmp_path, capsys):
     assert ("Note: uav1's scan has 702 mission items: ArduPilot boards with 16 KB of storage (and SITL) refuse more "
             "than 650") in r.stdout
     assert (tmp_path / "o" / "uav1.plan").is_file()
+
+
+def test_daemon_tlog_path_that_cannot_be_written_is_refused_before_connecting(tmp_path, capsys):
+    """Was a FileNotFoundError traceback once the daemon opened its first vehicle's log."""
+    cfg = (EXAMPLES / "sitl_arducopter.toml").read_text().replace(
+        'connections = ["udpin:127.0.0.1:14550"]', 'connections = ["udpout:127.0.0.1:9"]\ntlog_path = "/proc/uavloc-x"')
+    (tmp_path / "m.toml").write_text(cfg)
+    r = _inproc(capsys, "daemon", "--config", tmp_path / "m.toml", "--no-web", "--out", tmp_path / "out")
+    one_sentence(r, "m.toml, key 'link.tlog_path': /proc/uavloc-x: cannot write in /proc")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["m.toml"]
