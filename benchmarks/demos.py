@@ -43,10 +43,24 @@ FAR = 1.5  # a located person farther from the truth than this many 95 % radii i
 REQUIRED = re.compile(r"located within ([\d.]+) m")
 
 
+def _scenarios(text: str) -> tuple[str, ...]:
+    """--scenario: comma-separated shipped names or files, each of which must exist."""
+    from uavloc_gcs.examples import scenario_names, scenario_path
+
+    names = tuple(s.strip() for s in text.split(",") if s.strip())
+    if not names:
+        raise argparse.ArgumentTypeError(f"expected comma-separated scenarios, got {text!r}")
+    for s in names:
+        if not scenario_path(s).is_file():
+            raise argparse.ArgumentTypeError(f"{s!r} is neither a file nor a shipped scenario "
+                                             f"({', '.join(scenario_names())})")
+    return names
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--runs", type=number(int, min=1, max=200), default=20,
                         help="demo runs per scenario, world seeds 1..N (default 20, as issue 26 asks)")
-    parser.add_argument("--scenario", default="paper,field",
+    parser.add_argument("--scenario", type=_scenarios, default="paper,field",
                         help="comma-separated shipped scenarios or files (default paper,field)")
     parser.add_argument("--people", type=number(int, min=1, max=1000), help="people per world (default: the scenario's)")
     parser.add_argument("--jobs", type=number(int, min=1, max=8), default=1,
@@ -140,7 +154,11 @@ def _burn(stop) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    scenarios = [s.strip() for s in args.scenario.split(",") if s.strip()]
+    if args.keep:  # before the first demo: a directory that cannot be written
+        from uavloc_gcs.cli._output import check_output_dir
+
+        check_output_dir(args.keep, "--keep")
+    scenarios = list(args.scenario)
     jobs = [(s, seed) for s in scenarios for seed in range(1, args.runs + 1)]
     bar = Progress(len(jobs))
     stop = mp.Event()

@@ -28,7 +28,7 @@ measured in the same run: ``addresses`` (no linking: every address a person) and
 
 from __future__ import annotations
 
-from uavloc_gcs.cli._inputs import number
+from uavloc_gcs.cli._inputs import number, number_list
 import argparse
 import time
 from dataclasses import dataclass
@@ -76,8 +76,9 @@ FIELD = Setting((0.0, 0.0), (1120.0, 640.0), 4, 25.0, 100.0, ChannelModel(-40.0,
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--runs", type=number(int, min=1), default=5, help="worlds per configuration (default 5)")
-    parser.add_argument("--people", default="10,20,50", help="comma-separated densities (default 10,20,50)")
-    parser.add_argument("--models", default="2,5,11",
+    parser.add_argument("--people", type=number_list(int, min=1, max=1000), default="10,20,50",
+                        help="comma-separated people per world, 1-1000 each (default 10,20,50)")
+    parser.add_argument("--models", type=number_list(int, min=1, max=1000), default="2,5,11",
                         help="comma-separated numbers of phone models, equally common (default 2,5,11; sim_link's "
                              "catalogue has 11)")
     parser.add_argument("--stable", type=number(float, min=0, max=1), default=0.14,
@@ -259,9 +260,9 @@ def main(args: argparse.Namespace) -> int:
     sc = load_scenario(scenario_path(args.scenario))
     st = Setting.from_scenario(sc)
     rng = np.random.default_rng(args.seed)
-    densities = [int(x) for x in args.people.split(",")]
+    densities = list(args.people)
     own = args.world == "own"
-    models = [int(x) for x in args.models.split(",")] if own else [0]
+    models = list(args.models) if own else [0]
     sens = "no threshold" if st.channel.sensitivity_dbm is None else f"heard above {st.channel.sensitivity_dbm:g} dBm"
     print(f"'{args.scenario}': {st.size_m[0]:g} x {st.size_m[1]:g} m, {st.vehicles} vehicles at {st.speed_m_s:g} m/s, "
           f"eta {st.channel.path_loss_exponent:g}, {sens}, transmit margin {st.tx_margin_db:g} dB; "

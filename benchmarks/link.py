@@ -18,7 +18,7 @@ Target (issue 6): not slower than MAVSDK, 100 % success at 0 % and 20 % loss.
 
 from __future__ import annotations
 
-from uavloc_gcs.cli._inputs import number
+from uavloc_gcs.cli._inputs import number, number_list
 import argparse
 import asyncio
 import logging
@@ -37,7 +37,8 @@ VEHICLE_TRANSFER_TIMEOUT_S = 8.0  # ArduPilot's upload timeout (PX4: 5 s)
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--items", type=number(int, min=1, max=65535), default=500, help="mission items (default 500)")
-    p.add_argument("--loss", default="0,0.2", help="comma-separated loss rates per direction (default 0,0.2)")
+    p.add_argument("--loss", type=number_list(float, min=0, max=0.9), default="0,0.2",
+                   help="comma-separated loss rates per direction, 0-0.9 each (default 0,0.2)")
     p.add_argument("--runs", type=number(int, min=1), default=1, help="uploads per client on a lossy link (default 1; ~4 min)")
     p.add_argument("--runs-clean", type=number(int, min=0), default=5, help="uploads per client at 0 %% loss (default 5)")
     p.add_argument("--autopilot", choices=("px4", "ardupilot"), default="px4", help="fake vehicle flavour")
@@ -150,7 +151,7 @@ async def _measure(args: argparse.Namespace) -> list[Row]:
                 await asyncio.sleep(VEHICLE_TRANSFER_TIMEOUT_S)
 
     rows = []
-    losses = [float(x) for x in args.loss.split(",") if x.strip()]
+    losses = list(args.loss)
     bar = Progress(sum(args.runs_clean if loss == 0 else args.runs for loss in losses))
     for loss in losses:
         row = Row(loss)

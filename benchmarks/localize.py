@@ -148,6 +148,15 @@ MISSION_LANE_M = 600.0
 PREDICT_S = (30.0, 60.0)
 
 
+def _some_family(chosen: list, families: list, wanted: list[str] | None) -> None:
+    """--family that matches no family's name is bad input, not an empty table."""
+    if not chosen:
+        from uavloc_gcs.errors import ConfigError
+
+        raise ConfigError(f"--family {' '.join(wanted or [])}: no family's name contains it; the families are "
+                          + "; ".join(repr(f.name) for f in families))
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--runs", type=number(int, min=1), default=60, help="Monte Carlo runs per family (default 60)")
     parser.add_argument("--seed", type=number(int, min=0), default=1, help="base seed (default 1)")
@@ -477,6 +486,7 @@ def main(args: argparse.Namespace) -> int:
         from .localize_bursts import BURST_FAMILIES, print_burst_table
 
         bfams = [f for f in BURST_FAMILIES if not args.family or any(s in f.name for s in args.family)]
+        _some_family(bfams, BURST_FAMILIES, args.family)
         print(f"uavloc bench localize --emission bursts: {args.runs} runs per family")
         print_burst_table(bfams, args.runs, args.seed, Progress(args.runs * len(bfams)), args.mmse,
                           args.frames_prior == "world", exposure=not args.no_exposure)
@@ -484,6 +494,7 @@ def main(args: argparse.Namespace) -> int:
     sc = load_scenario(scenario_path(args.scenario))
     fams = [f for f in FAMILIES if not args.family or any(s in f.name for s in args.family)]
     mfams = [f for f in MANEUVER_FAMILIES if not args.family or any(s in f.name for s in args.family)]
+    _some_family(fams + mfams, FAMILIES + MANEUVER_FAMILIES, args.family)
     bar = Progress(args.runs * (len(fams) + len(mfams)))
     print(f"uavloc bench localize: {args.runs} runs per family, paper channel (eta 2, sigma 4 dB, 10 samples/slot), "
           f"h {sc.fleet.altitude_m:g} m, R {sc.horizontal_range_m:.1f} m, v_max {sc.people.max_speed_m_s} m/s")

@@ -18,7 +18,7 @@ means of the makespan ratios (and the worst instance), and mean runtimes.
 
 from __future__ import annotations
 
-from uavloc_gcs.cli._inputs import number
+from uavloc_gcs.cli._inputs import choice_list, number, number_list
 import argparse
 import math
 import time
@@ -35,9 +35,9 @@ ENERGY_J = 250e3  # generous: ~25 km at 25 m/s; the energy constraint is tested 
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--families", default=",".join(FAMILIES),
+    parser.add_argument("--families", type=choice_list(FAMILIES), default=",".join(FAMILIES),
                         help=f"comma-separated subset of {', '.join(FAMILIES)}")
-    parser.add_argument("--paper-sizes", default="10,20,50",
+    parser.add_argument("--paper-sizes", type=number_list(int, min=1, max=2000), default="10,20,50",
                         help="people per paper-like instance (default 10,20,50; the paper used 5-50)")
     parser.add_argument("--size", type=number(int, min=1, max=2000), default=30, help="people in the other families (default 30)")
     parser.add_argument("--seeds", type=number(int, min=1), default=2, help="instances per family and size (default 2)")
@@ -127,8 +127,8 @@ def _world(args: argparse.Namespace):
 
 
 def main(args: argparse.Namespace) -> int:
-    families = [f.strip() for f in args.families.split(",") if f.strip()]
-    sizes = [int(s) for s in args.paper_sizes.split(",") if s.strip()]
+    families = list(args.families)
+    sizes = list(args.paper_sizes)
     plain = (f"{args.plain_iters} iterations x 40" if args.plain_iters else f"{args.time_limit:g} s")
     area, args.vehicles, speed, energy = _world(args)
     print(f"uavloc bench plan: {args.vehicles} vehicles at {speed:g} m/s, area {area[0]:.0f} m x {area[1]:.0f} m, "

@@ -26,14 +26,19 @@ import time
 
 import numpy as np
 
+from uavloc_gcs.cli._inputs import number
+
 TARGET_FPS = 20_000
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--frames", type=int, default=100_000, help="frames in the capture (default 100000)")
-    parser.add_argument("--scapy-frames", type=int, default=3_000, help="frames scapy parses (default 3000)")
-    parser.add_argument("--repeats", type=int, default=3, help="timed repeats, best kept (default 3)")
-    parser.add_argument("--seed", type=int, default=0, help="seed (default 0)")
+    # at most 2 million frames: the synthetic capture is held in memory (about 300 MB then)
+    parser.add_argument("--frames", type=number(int, min=1, max=2_000_000), default=100_000,
+                        help="frames in the capture, 1-2000000 (default 100000)")
+    parser.add_argument("--scapy-frames", type=number(int, min=1, max=2_000_000), default=3_000,
+                        help="frames scapy parses (default 3000)")
+    parser.add_argument("--repeats", type=number(int, min=1, max=100), default=3, help="timed repeats, best kept (default 3)")
+    parser.add_argument("--seed", type=number(int, min=0, max=2**32 - 1), default=0, help="seed (default 0)")
 
 
 def _uavloc(buf: bytes):

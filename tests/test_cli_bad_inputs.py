@@ -277,3 +277,256 @@ def test_experiment_figures_with_one_people_count_and_no_figure_c(tmp_path):
     made[1].canvas.draw()
     labels = [t.get_text() for t in ax_b.get_yticklabels() + ax_b.get_yticklabels(minor=True) if t.get_text()]
     assert labels and not any("10^" in s or "times" in s for s in labels), labels
+
+
+# ---------------------------------------------------------------------------------------------
+# issue 40 item 4: bench flags that were tracebacks or ran nothing
+
+@pytest.mark.parametrize("args, needle", [
+    (["plan", "--families", "nope"], "argument --families: unknown 'nope'; choose from paper, clustered"),
+    (["plan", "--families", "paper,mtsp,nope"], "unknown 'nope'"),
+    (["plan", "--paper-sizes", "10,0"], "argument --paper-sizes: entry '0': must be at least 1"),
+    (["sense", "--frames", "0"], "argument --frames: must be at least 1"),
+    (["sense", "--frames", "-1"], "argument --frames: must be at least 1"),
+    (["sense", "--repeats", "0"], "argument --repeats: must be at least 1"),
+    (["identity", "--people", "-1"], "argument --people: entry '-1': must be at least 1"),
+    (["identity", "--people", "10,x"], "argument --people: entry 'x': 'x' is not a whole number"),
+    (["identity", "--models", "0"], "argument --models: entry '0'"),
+    (["link", "--loss", "1"], "argument --loss: entry '1': must be at most 0.9"),
+    (["demos", "--scenario", "paper,nope"], "argument --scenario: 'nope' is neither a file nor a shipped scenario"),
+    (["localize", "--family", "nope"], "--family nope: no family's name contains it; the families are 'one leg"),
+    (["localize", "--family", "nope", "--emission", "bursts"], "no family's name contains it"),
+])
+def test_bench_lists_and_counts_are_one_sentence(capsys, args, needle):
+    r = _inproc(capsys, "bench", *args)
+    one_sentence(r, needle)
+    assert r.stdout == ""  # refused before the benchmark printed (or ran) anything
+
+
+def test_bench_demos_keep_where_nothing_can_be_written(capsys):
+    r = _inproc(capsys, "bench", "demos", "--runs", "1", "--keep", "/proc/uavloc-test")
+    one_sentence(r, "--keep /proc/uavloc-test: cannot write in /proc")
+
+
+@pytest.mark.parametrize("line, key", [("comm_range_m = 1e9", "fleet.comm_range_m"),
+                                       ("energy_budget_j = 1e308", "fleet.energy_budget_j")])
+def test_absurd_scenario_values_are_refused_before_planning(tmp_path, capsys, line, key):
+    """Issue 40: both passed, and plan printed a 300-digit kJ figure."""
+    (tmp_path / "s.toml").write_text("[area]\norigin_lat_deg = 47.0\norigin_lon_deg = 8.0\nwidth_m = 400\n"
+                                     f"height_m = 300\n[fleet]\n{line}\n")
+    r = _inproc(capsys, "plan", tmp_path / "s.toml", "--out", tmp_path / "o")
+    one_sentence(r, f"s.toml, key '{key}'", "is not plausible (give at most")
+    assert r.stdout == "" and sorted(p.name for p in tmp_path.iterdir()) == ["s.toml"]
+
+
+# ---------------------------------------------------------------------------------------------
+# issue 40: a mission longer than the autopilot holds is refused before it is sent (a 10,001-item
+# upload was refused by the vehicle, exit 3); figures in uavloc_gcs/link/mission_capacity.py
+
+def _long_plan(tmp_path, kind, wire_items, suffix=".plan"):
+    from mission_io import waypoints as wpl_file
+    from uavloc_gcs.mission import to_wire
+
+    lat, lon = 47.3977, 8.5456
+    extra = len(to_wire(flight_mission([(lat, lon)], alt_m=40.0, speed_m_s=8.0, autopilot=kind,
+                                       home_latlon_deg=(lat, lon), home_alt_amsl_m=488.0), kind)) - 1
+    pts = [(lat + 1e-5 * (k % 100), lon + 1e-5 * (k // 100)) for k in range(wire_items - extra)]
+    plan = flight_mission(pts, alt_m=40.0, speed_m_s=8.0, autopilot=kind, home_latlon_deg=(lat, lon),
+                          home_alt_amsl_m=488.0)
+    assert len(to_wire(plan, kind)) == wire_items
+    path = tmp_path / f"long{suffix}"
+    (plan_file if suffix == ".plan" else wpl_file).write(path, plan)
+    return path
+
+
+def test_a_mission_the_vehicle_has_no_room_for_is_bad_input_in_its_words(ardupilot_vehicle, tmp_path):
+    """The fake ArduPilot holds 650 items, as the ArduCopter SITL, and says so as it does."""
+    (_, conn), = ardupilot_vehicle.endpoints
+    r = uavloc("upload", _long_plan(tmp_path, "ardupilot", 651), "--to", conn)
+    one_sentence(r, "long.plan: vehicle 1 (ArduPilot)", "has no room for 651 mission items",
+                 "(it says \"Only 650 items are supported\") and keeps the mission it had", "split the mission")
+    assert ardupilot_vehicle.vehicle(1).mission_items == []
+
+
+@pytest.mark.parametrize("kind, items, suffix, needle", [
+    ("px4", 10_001, ".plan", "10,001 mission items (on the wire) are more than any PX4 vehicle holds (10,000"),
+    ("ardupilot", 4_369, ".plan", "4,369 mission items (on the wire) are more than any ArduPilot vehicle holds (4,368"),
+    ("px4", 65_536, ".waypoints", "more than MAVLink's mission protocol can number (65,535)"),
+])
+def test_a_mission_no_vehicle_holds_is_refused_before_connecting(tmp_path, kind, items, suffix, needle):
+    args = ["--autopilot", kind] if suffix == ".plan" else []
+    r = uavloc("upload", _long_plan(tmp_path, kind, items, suffix), "--to", "udpout:127.0.0.1:9", *args)
+    one_sentence(r, needle)  # exit 2 at once: a connection attempt would end in 3 (no heartbeat)
+
+
+def test_mission_capacity_edges():
+    from uavloc_gcs.link.mission_capacity import too_long
+
+    assert too_long(4368, "ardupilot") is None and too_long(4369, "ardupilot")
+    assert too_long(10_000, "px4") is None and too_long(10_001, "px4")
+    assert too_long(65_535, "generic") is None and too_long(65_536, "generic")
+
+
+def test_no_help_text_shows_a_doubled_percent_sign(capsys):
+    """`experiment paper --help` printed "95 %%" (a description is not %-formatted, a flag's help is)."""
+    from uavloc_gcs.cli import COMMANDS
+    from uavloc_gcs.cli.bench import BENCHMARKS
+
+    pages = [[c, "--help"] for c in COMMANDS] + [["experiment", "paper", "--help"]]
+    pages += [["bench", b, "--help"] for b in BENCHMARKS]
+    for args in pages:
+        r = _inproc(capsys, *args)
+        assert r.returncode == 0, (args, r.stderr)
+        assert "%%" not in r.stdout and r.stdout.strip(), args
+    assert "with 95 % confidence intervals" in _inproc(capsys, "experiment", "paper", "--help").stdout
+
+
+# ---------------------------------------------------------------------------------------------
+# issue 40: items the autopilot refuses mid-upload (ArduPilot is then left with half a mission)
+# are refused before the upload starts; link/mission_checks.py
+
+def _plan_with(tmp_path, index, **changes):
+    path = _plan(tmp_path)
+    d = json.loads(path.read_text())
+    item = d["mission"]["items"][index]
+    for key, value in changes.items():
+        if key == "alt":
+            item["params"][6] = value
+            item["Altitude"] = value
+        else:
+            item[key] = value
+    bad = tmp_path / "bad.plan"
+    bad.write_text(json.dumps(d))
+    return bad
+
+
+def test_an_item_ardupilot_refuses_leaves_its_mission_as_it_was(ardupilot_vehicle, tmp_path):
+    (_, conn), = ardupilot_vehicle.endpoints
+    r = uavloc("upload", _plan(tmp_path), "--to", conn)
+    assert r.returncode == 0, r.stderr
+    held = list(ardupilot_vehicle.vehicle(1).mission_items)
+    d = json.loads((tmp_path / "m.plan").read_text())
+    k = next(i for i, it in enumerate(d["mission"]["items"]) if it["command"] == 16)
+    r = uavloc("upload", _plan_with(tmp_path, k, alt=1e30), "--to", conn)
+    one_sentence(r, f"bad.plan, item {k + 1}, field 'altitude'", "beyond ArduPilot's altitudes")
+    assert ardupilot_vehicle.vehicle(1).mission_items == held  # was: truncated to the items before it
+
+
+@pytest.mark.parametrize("autopilot, changes, needle", [
+    ("auto", {"frame": 99}, "field 'frame': frame 99 is not a MAVLink frame (MAV_FRAME)"),
+    ("px4", {"frame": 10}, "field 'frame': PX4 takes location items only in frames GLOBAL and GLOBAL_RELATIVE_ALT"),
+    ("ardupilot", {"alt": 90000.0}, "field 'altitude': 90000 m is beyond ArduPilot's altitudes"),
+])
+def test_items_no_vehicle_of_the_autopilot_takes_are_refused_before_connecting(tmp_path, autopilot, changes, needle):
+    path = _plan(tmp_path)
+    k = next(i for i, it in enumerate(json.loads(path.read_text())["mission"]["items"]) if it["command"] == 16)
+    r = uavloc("upload", _plan_with(tmp_path, k, **changes), "--to", "udpout:127.0.0.1:9", "--autopilot", autopilot)
+    one_sentence(r, f"item {k + 1}", needle)  # exit 2 at once: connecting would end in 3 (no heartbeat)
+
+
+def test_an_upload_of_no_items_is_refused_it_would_clear_the_mission(tmp_path):
+    r = uavloc("upload", ROOT / "tests" / "data" / "files" / "empty.plan", "--to", "udpout:127.0.0.1:9")
+    one_sentence(r, "empty.plan: holds no mission items: nothing to upload")
+
+
+# ---------------------------------------------------------------------------------------------
+# issue 40: more bad inputs found across the commands
+
+def _route_instance(tmp_path, change):
+    d = json.loads((EXAMPLES / "route_paper.json").read_text())
+    change(d)
+    path = tmp_path / "inst.json"
+    path.write_text(json.dumps(d))
+    return path
+
+
+@pytest.mark.parametrize("change, needle", [
+    (lambda d: d.update(speed_m_s=1e308), "field 'speed_m_s': 1e+308 m/s is beyond any multirotor (at most 60"),
+    (lambda d: d["targets"][0].update(xy_m=[1e300, 0]), "field 'targets[0].xy_m': 1e+300, 0 m is more than 1000 km"),
+    (lambda d: d["targets"][0].update(radius_m=1e300), "field 'targets[0].radius_m': radius must be 0 to 1e+06 m"),
+])
+def test_absurd_route_instances_are_one_sentence(tmp_path, capsys, change, needle):
+    """Were an overflow warning and "needs nan J", a 300-digit coordinate, an overflow warning."""
+    r = _inproc(capsys, "route", _route_instance(tmp_path, change), "--out", tmp_path / "p.json")
+    one_sentence(r, needle)
+    assert not (tmp_path / "p.json").exists() and "Warning" not in r.stderr
+
+
+@pytest.mark.parametrize("args", [["plan", "small"], ["localize", EXAMPLES / "slots_small.csv", "--scenario", "small"],
+                                  ["experiment", "paper", "--runs", "1"]])
+def test_an_empty_out_is_not_the_current_directory(tmp_path, capsys, monkeypatch, args):
+    """``--out "$UNSET"`` wrote the plan into the current directory."""
+    monkeypatch.chdir(tmp_path)
+    r = _inproc(capsys, *args, "--out", "")
+    one_sentence(r, "--out needs a directory name, got an empty one (for the current directory give .)")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_preview_png_empty_is_refused_not_ignored(capsys):
+    r = _inproc(capsys, "preview", ROOT / "tests" / "data" / "small" / "uav1.plan", "--png", "")
+    one_sentence(r, "--png needs a file name, got an empty one")
+
+
+def test_download_tlog_and_out_the_same_file(tmp_path, capsys):
+    r = _inproc(capsys, "download", "--from", "udpout:127.0.0.1:9", "--out", tmp_path / "x.plan",
+                "--tlog", tmp_path / "x.plan")
+    one_sentence(r, "--tlog", "is also the --out file")
+
+
+def test_experiment_methods_naming_no_method(tmp_path, capsys):
+    """Ran nothing and wrote empty figures, exit 0."""
+    r = _inproc(capsys, "experiment", "paper", "--methods", ",", "--out", tmp_path / "e")
+    one_sentence(r, "--methods ',' names no method; choose from MLE-EPSO (M)")
+    assert not (tmp_path / "e").exists()
+
+
+def test_a_slot_csv_saved_by_a_spreadsheet_reads(tmp_path, capsys):
+    """'CSV UTF-8' from a spreadsheet starts with a byte-order mark: the header was said to be wrong."""
+    (tmp_path / "bom.csv").write_bytes(b"\xef\xbb\xbf" + (EXAMPLES / "slots_small.csv").read_bytes())
+    r = _inproc(capsys, "localize", tmp_path / "bom.csv", "--scenario", "small", "--out", tmp_path / "o")
+    assert r.returncode == 0, r.stderr
+    assert (tmp_path / "o" / "estimates.csv").is_file()
+
+
+@pytest.mark.parametrize("args, needle", [
+    (["--slot-ms", "nan"], "argument --slot-ms: must be a finite number"),
+    (["--clock-offset-s", "inf"], "argument --clock-offset-s: must be a finite number"),
+    (["--learn-min-frames", "-1", "--learn-team", "t.txt"], "argument --learn-min-frames: must be at least 1"),
+    (["--sysid", "999", "--mavlink", "udpout:127.0.0.1:9"], "argument --sysid: must be at most 255"),
+    (["--slot-ms", "100", "--mavlink", "udpout:127.0.0.1:9"], "16-bit count of microseconds, at most 65.535 ms"),
+])
+def test_sense_numbers_are_checked_before_reading(tmp_path, capsys, monkeypatch, args, needle):
+    monkeypatch.chdir(tmp_path)
+    pcap = ROOT / "tests" / "uavloc_gcs" / "sense" / "real" / "ieee802.11_exthdr.pcap"
+    r = _inproc(capsys, "sense", pcap, *args, *([] if "--mavlink" in args or "--learn-team" in args else
+                                                  ["--out", "o"]))
+    one_sentence(r, needle)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_sitl_seed_is_checked_before_any_vehicle_starts(capsys):
+    r = _inproc(capsys, "sitl", "small", "--seed", "-1")
+    one_sentence(r, "argument --seed: must be at least 0")
+
+
+def test_plan_notes_a_scan_common_boards_cannot_hold(tmp_path, capsys):
+    """One ArduPilot vehicle, 12 m lanes over 4 x 3.95 km: 702 items, more than a 16 KB board (and
+    the SITL) holds; the plan is written, with the note."""
+    (tmp_path / "s.toml").write_text("[area]\norigin_lat_deg = 47.0\norigin_lon_deg = 8.0\nwidth_m = 4000\n"
+                                     "height_m = 3950\n[fleet]\nvehicles = 1\nenergy_budget_j = 20000000\n"
+                                     "[scan]\nlane_spacing_m = 12\n")
+    r = _inproc(capsys, "plan", tmp_path / "s.toml", "--out", tmp_path / "o")
+    assert r.returncode == 0, r.stderr
+    assert ("Note: uav1's scan has 702 mission items: ArduPilot boards with 16 KB of storage (and SITL) refuse more "
+            "than 650") in r.stdout
+    assert (tmp_path / "o" / "uav1.plan").is_file()
+
+
+def test_daemon_tlog_path_that_cannot_be_written_is_refused_before_connecting(tmp_path, capsys):
+    """Was a FileNotFoundError traceback once the daemon opened its first vehicle's log."""
+    cfg = (EXAMPLES / "sitl_arducopter.toml").read_text().replace(
+        'connections = ["udpin:127.0.0.1:14550"]', 'connections = ["udpout:127.0.0.1:9"]\ntlog_path = "/proc/uavloc-x"')
+    (tmp_path / "m.toml").write_text(cfg)
+    r = _inproc(capsys, "daemon", "--config", tmp_path / "m.toml", "--no-web", "--out", tmp_path / "out")
+    one_sentence(r, "m.toml, key 'link.tlog_path': /proc/uavloc-x: cannot write in /proc")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["m.toml"]

@@ -274,3 +274,80 @@ def test_missing_input_file(tmp_path, capsys):
     assert main(["localize", str(tmp_path / "nope.csv"), "--scenario", str(SMALL), "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err
     assert "nope.csv" in err and "not found" in err and not (tmp_path / "o").exists()
+
+
+# ---------------------------------------------------------------------------------------------
+# issue 40 item 4: inputs with nothing to localize were exit 0 with empty estimates; slots from
+# another place were taken silently
+
+def _localize_inproc(capsys, *args):
+    from uavloc_gcs.cli import main
+
+    code = main([str(a) for a in ["localize", *args]])
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+def _tlog_of_heartbeats(path):
+    from uavloc_gcs.dialect import mavlink
+    from uavloc_gcs.link.tlog import TlogWriter
+
+    codec = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
+    w = TlogWriter(path)
+    for k in range(3):
+        w.write(codec.heartbeat_encode(2, 3, 0, 0, 0).pack(codec), t_us=1_700_000_000_000_000 + k * 1_000_000)
+    w.close()
+
+
+@pytest.mark.parametrize("name, make, needle", [
+    ("header.csv", lambda p: p.write_text(",".join(COLUMNS) + "\n"), "has the header but no slots: nothing to localize"),
+    ("empty.tlog", lambda p: p.write_bytes(b""), "is empty: nothing to localize"),
+    ("beats.tlog", _tlog_of_heartbeats, "holds 3 MAVLink message(s) but no UAVLOC_RSSI_BATCH2 or UAVLOC_RSSI_BATCH"),
+    ("folder.tlog", lambda p: p.mkdir(), "is a directory"),
+])
+def test_an_input_with_nothing_to_localize_is_refused(tmp_path, capsys, name, make, needle):
+    make(tmp_path / name)
+    code, out, err = _localize_inproc(capsys, tmp_path / name, "--scenario", SMALL, "--out", tmp_path / "o")
+    assert code == 2, (out, err)
+    line, = err.strip().splitlines()
+    assert name in line and needle in line, line
+    assert not (tmp_path / "o").exists()
+
+
+def test_slots_all_heard_on_the_ground_are_refused(tmp_path, capsys, flight):
+    sc, _, slots = flight
+    low = SlotBatch.from_columns(slots.t_s, slots.vehicle, slots.xyz_m * [1.0, 1.0, 0.1], slots.emitter_id,
+                                 slots.rssi_dbm, slots.n_samples)  # 10 m up: taking off
+    (tmp_path / "low.csv").write_text(dumps_slots_csv(low, sc.frame))
+    code, out, err = _localize_inproc(capsys, tmp_path / "low.csv", "--scenario", SMALL, "--out", tmp_path / "o")
+    assert code == 2
+    assert f"all {len(slots)} slots were heard below 50 m" in err and "nothing to localize" in err, err
+    assert not (tmp_path / "o").exists()
+
+
+def test_slots_far_from_the_scenarios_area_warn_how_far(tmp_path, capsys, flight):
+    """examples/small.toml is at 47.4 N; the same flight moved 6.3 degrees north (700 km)."""
+    sc, _, slots = flight
+    text = dumps_slots_csv(slots, sc.frame)
+    moved = loads_slots_csv(text, load_scenario(SMALL).frame)
+    from uavloc_gcs.geo import LocalFrame
+
+    north = LocalFrame(sc.launch_latlon_deg[0] + 6.3, sc.launch_latlon_deg[1])
+    (tmp_path / "far.csv").write_text(dumps_slots_csv(moved, north))  # the same local track, 700 km north
+    code, out, err = _localize_inproc(capsys, tmp_path / "far.csv", "--scenario", SMALL, "--out", tmp_path / "o")
+    assert code == 0, err
+    line, = [ln for ln in err.splitlines() if ln.startswith("warning:")]
+    assert f"{len(slots)} of {len(slots)} slots in far.csv lie 70" in line and " km from the area of " in line, line
+    assert "small.toml (more than 5 km)" in line
+    km = float(line.split(" lie ")[1].split(" ")[0])
+    assert abs(km - 6.3 * 111.2) < 15, line  # a degree of latitude is 111.2 km
+    # the same flight where it was flown: no warning
+    (tmp_path / "near.csv").write_text(text)
+    code, out, err = _localize_inproc(capsys, tmp_path / "near.csv", "--scenario", SMALL, "--out", tmp_path / "n")
+    assert code == 0 and "warning" not in err
+
+
+def test_the_shipped_slots_are_found_by_name_from_any_directory(tmp_path):
+    r = uavloc("localize", "slots_small.csv", "--scenario", "small", "--out", "o", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert len(_read_estimates(tmp_path / "o" / "estimates.csv")) == 3

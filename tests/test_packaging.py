@@ -103,9 +103,8 @@ def test_every_command_finds_the_shipped_files_by_name(installed):
     _run(installed, "plan", "small", "--out", "p1")
     _run(installed, "plan", "paper.toml", "--out", "p2")
     assert (cwd / "p1" / "uav1.plan").is_file() and (cwd / "p2" / "uav4.plan").is_file()
-    from uavloc_gcs.examples import example_path
-
-    r = _run(installed, "localize", str(example_path("slots_small.csv")), "--scenario", "small", "--out", "loc")
+    # issue 40: the shipped slots by name too (was: only by their full path inside the package)
+    r = _run(installed, "localize", "slots_small.csv", "--scenario", "small", "--out", "loc")
     assert (cwd / "loc" / "estimates.csv").is_file(), r.stdout
     _run(installed, "route", "route_paper.json", "--time-limit", "0.1", "--out", "r.json")
     _run(installed, "route", "route_paper", "--time-limit", "0.1", "--out", "r2.json")

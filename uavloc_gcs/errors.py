@@ -30,6 +30,12 @@ class ConfigError(UavlocError):
         super().__init__(prefix + message)
 
 
+class OutputError(ConfigError):
+    """An output file or directory cannot be written (the directory refuses it, the disk is full);
+    names the path and, where a flag gave it, the flag. Bad input: refused before any work where
+    it can be foreseen."""
+
+
 class FileFormatError(UavlocError):
     """A mission/area/data file is malformed. Names the file, the line or item, and the field."""
 

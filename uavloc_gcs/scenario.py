@@ -394,8 +394,11 @@ def scenario_from_dict(raw: dict, *, source: str = "<string>", base_dir: Path | 
     name = raw.get("name", Path(source).stem if source != "<string>" else "scenario")
     if not isinstance(name, str):
         raise ConfigError("must be a string", source=source, key="name")
-    sc = Scenario(name=name, source=source, **kwargs)
-    return _resolve(sc, base_dir=base_dir)
+    sc = _resolve(Scenario(name=name, source=source, **kwargs), base_dir=base_dir)
+    from .scenario_limits import check_plausible  # values no field, fleet or radio has (issue 40)
+
+    check_plausible(sc)
+    return sc
 
 
 def _build_section(cls, sec_raw: dict, sec_name: str, source: str):

@@ -125,7 +125,8 @@ class Flavour:
 ARDUPILOT = Flavour(
     name="ardupilot", mav_autopilot=mav.MAV_AUTOPILOT_ARDUPILOTMEGA, home_is_item0=True,
     request_int=False, nack_out_of_sequence=True, atomic_upload=False,
-    item_retry_s=1.0, upload_timeout_s=8.0, max_items=700, keep_mission_on_reboot=True,
+    # 650: a 16 KB board's mission storage, as the ArduCopter SITL (uavloc_gcs/link/mission_capacity.py)
+    item_retry_s=1.0, upload_timeout_s=8.0, max_items=650, keep_mission_on_reboot=True,
     modes=AP_COPTER_MODES, takeoff_alt_default_m=2.5,
     positionless_download_frame0=True, mission_start_first_item_denied=True, set_current_on_finished_holds=True,
     upload_restarts_leg=True, arm_refused_after_boot_s=3.0, auto_needs_takeoff_on_ground=True,

@@ -170,7 +170,10 @@ class MissionServer:
             self.clear(mtype)
             return [self._ack(peer, mav.MAV_MISSION_ACCEPTED, mtype)]
         if msg.count > self.flavour.max_items:
-            return [self._ack(peer, mav.MAV_MISSION_NO_SPACE, mtype)]
+            refusal = [self._ack(peer, mav.MAV_MISSION_NO_SPACE, mtype)]
+            if not self.flavour.atomic_upload:  # ArduPilot says its limit (MissionItemProtocol.cpp)
+                refusal.append(_text(SEVERITY_WARNING, f"Only {self.flavour.max_items} items are supported"))
+            return refusal
         if not self.flavour.atomic_upload:
             # ArduPilot truncates on MISSION_COUNT: uploads are not atomic.
             self.stores[mtype] = self.stores[mtype][: msg.count]

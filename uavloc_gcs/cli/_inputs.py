@@ -41,6 +41,51 @@ def number(kind: type = float, *, min: float | None = None, max: float | None = 
     return parse
 
 
+def number_list(kind: type = int, *, min: float | None = None, max: float | None = None,
+                above: float | None = None, unit: str = "") -> Callable[[str], tuple]:
+    """An argparse ``type=`` for a comma-separated list of numbers, each checked as :func:`number`
+    checks one; the message names the entry that is wrong."""
+    one = number(kind, min=min, max=max, above=above, unit=unit)
+
+    def parse(text: str) -> tuple:
+        entries = [t.strip() for t in text.split(",")]
+        if not any(entries):
+            raise argparse.ArgumentTypeError(f"expected comma-separated {'whole ' if kind is int else ''}numbers, "
+                                             f"got {text!r}")
+        values = []
+        for t in entries:
+            if not t:
+                continue
+            try:
+                values.append(one(t))
+            except argparse.ArgumentTypeError as err:
+                raise argparse.ArgumentTypeError(f"entry {t!r}: {err}") from None
+        return tuple(values)
+
+    parse.__name__ = "list of numbers"
+    return parse
+
+
+def choice_list(allowed: tuple[str, ...] | list[str], *, extra: tuple[str, ...] = ()) -> Callable[[str], tuple]:
+    """An argparse ``type=`` for a comma-separated subset of ``allowed`` (or one of ``extra``,
+    alone, such as "all"); the message names the unknown entry and lists the choices."""
+
+    def parse(text: str) -> tuple:
+        entries = tuple(t.strip() for t in text.split(",") if t.strip())
+        if len(entries) == 1 and entries[0] in extra:
+            return entries
+        if not entries:
+            raise argparse.ArgumentTypeError(f"expected a comma-separated subset of {', '.join(allowed)}, got {text!r}")
+        for e in entries:
+            if e not in allowed:
+                raise argparse.ArgumentTypeError(
+                    f"unknown {e!r}; choose from {', '.join(list(allowed) + list(extra))}")
+        return entries
+
+    parse.__name__ = "list of names"
+    return parse
+
+
 def port(text: str) -> int:
     return number(int, min=0, max=65535)(text)
 

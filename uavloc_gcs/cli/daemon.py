@@ -122,6 +122,14 @@ def run(args: argparse.Namespace) -> int:
     from ._inputs import discard_empty_leftovers, existing_files, require_fleet
 
     require_fleet(scenario)
+    if scenario.link.tlog_path:  # before any vehicle is reached: a log directory that cannot be written
+        from ..errors import OutputError
+        from ._output import check_output_dir
+
+        try:
+            check_output_dir(scenario.link.tlog_path, "")
+        except OutputError as err:
+            raise ConfigError(str(err).strip(), source=scenario.source, key="link.tlog_path") from None
     with store_lock(out, "daemon"):
         if args.fresh:
             for f in [out / "search.sqlite", out / "search.sqlite-wal", out / "search.sqlite-shm",

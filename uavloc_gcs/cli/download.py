@@ -7,7 +7,7 @@ import argparse
 import time
 from pathlib import Path
 
-from .upload import Progress, add_link_arguments, connect, encoding_for
+from .upload import Progress, add_link_arguments, check_tlog, connect, encoding_for
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -30,6 +30,9 @@ def run(args: argparse.Namespace) -> int:
     check_output_file(args.out, "--out")
     if Path(args.out).suffix.lower() not in (".plan", ".waypoints", ".txt"):
         raise ConfigError(f"{args.out}: output file must end in .plan or .waypoints", key="out")
+    check_tlog(args, {"the --out file": args.out})
+    if args.tlog is not None and Path(args.tlog).absolute() == Path(args.out).absolute():
+        raise ConfigError(f"--tlog {args.tlog} is also the --out file; give them different names")
     return asyncio.run(_download(args))
 
 

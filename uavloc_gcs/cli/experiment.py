@@ -40,7 +40,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     esub = p.add_subparsers(dest="experiment", metavar="NAME")
     pp = esub.add_parser("paper", help="MLE-EPSO vs PSO, GA and RL-NM, 5 to 50 people",
                          description="Figures (a) completion time, (b) run time vs people, (c) maximum "
-                                     "error vs time for 10 people, with 95 %% confidence intervals.")
+                                     "error vs time for 10 people, with 95 % confidence intervals.")
     pp.add_argument("--runs", type=number(int, min=1), default=3, help="runs (random worlds) per point (default 3)")
     pp.add_argument("--out", default="results/paper", help="output directory (default results/paper)")
     pp.add_argument("--jobs", type=number(int, min=1, max=256), default=None, help="parallel processes (default: all cores)")
@@ -98,8 +98,9 @@ def run(args: argparse.Namespace) -> int:
     from ..examples import scenario_path
     from ..scenario import load_scenario
     from ._inputs import override
-    from ._output import atomic_output_dir
+    from ._output import atomic_output_dir, check_output_dir
 
+    check_output_dir(args.out, "--out")  # before the runs: a directory that cannot be written
     if args.runs < 1:
         raise ConfigError(f"--runs must be at least 1, got {args.runs}")
     if args.jobs is not None and args.jobs < 1:
@@ -107,8 +108,10 @@ def run(args: argparse.Namespace) -> int:
     if args.iterations < 1:
         raise ConfigError(f"--iterations must be at least 1, got {args.iterations}")
     methods = ALL_METHODS
-    if args.methods:
+    if args.methods is not None:
         methods = tuple(m.strip() for m in args.methods.split(",") if m.strip())
+        if not methods:  # ran nothing and wrote empty figures
+            raise ConfigError(f"--methods {args.methods!r} names no method; choose from {', '.join(ALL_METHODS)}")
         bad = [m for m in methods if m not in ALL_METHODS]
         if bad:
             raise ConfigError(f"--methods: unknown method {bad[0]!r}; choose from {', '.join(ALL_METHODS)}")

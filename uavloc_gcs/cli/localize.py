@@ -14,6 +14,7 @@ from __future__ import annotations
 import argparse
 import logging
 import math
+import sys
 from pathlib import Path
 
 from ._inputs import number
@@ -21,6 +22,10 @@ from ._inputs import number
 log = logging.getLogger(__name__)
 
 T_REF_MARGIN_S = 3600.0  # --t-ref this far outside the slots' times: a walker's circle is kilometres wide
+# Slots farther than this outside the scenario's area are from another place (a wrong --scenario):
+# a phone is heard a few hundred metres away at most (Wi2SAR: about 300 m in line of sight, SPEC
+# 1.1), and vehicles fly from a launch point near the area.
+FAR_FROM_AREA_M = 5000.0
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -31,7 +36,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                     "estimates.csv, estimates.geojson and estimates.png into --out.",
     )
     p.add_argument("input", metavar="INPUT", help="slot CSV (t_s,vehicle_id,lat_deg,lon_deg,alt_m,emitter_id,"
-                                                  "rssi_dbm,n_samples[,address,fingerprint,channel]) or a .tlog")
+                                                  "rssi_dbm,n_samples[,address,fingerprint,channel]) or a .tlog; "
+                                                  "the shipped example by name: slots_small.csv")
     p.add_argument("--scenario", required=True,
                    help="scenario TOML (channel, people's speed bound, frame), or a shipped one by name: paper, small")
     p.add_argument("--out", required=True, help="output directory")
@@ -53,16 +59,51 @@ def load_slots(path: Path, scenario):
 
     if not path.exists():
         raise FileFormatError("file not found", path=str(path))
+    if path.is_dir():
+        raise FileFormatError("is a directory; give a slot CSV or a .tlog file", path=str(path))
     if path.suffix.lower() == ".tlog":
         from ..dialect.rssi import decode_rssi_batches, is_rssi_message
         from ..link.tlog import iter_tlog
 
-        msgs = [m for _, m in iter_tlog(path) if is_rssi_message(m)]
+        try:
+            every = [m for _, m in iter_tlog(path)]
+        except OSError as exc:
+            raise FileFormatError(f"cannot read the file ({exc.strerror})", path=str(path)) from None
+        msgs = [m for m in every if is_rssi_message(m)]
         if not msgs:
-            log.warning("%s holds no UAVLOC_RSSI_BATCH2 or UAVLOC_RSSI_BATCH messages", path)
-        epoch = math.floor(min((m.time_usec for m in msgs), default=0) / 1e6)
+            if path.stat().st_size == 0:
+                raise FileFormatError("is empty: nothing to localize", path=str(path))
+            raise FileFormatError(f"holds {len(every)} MAVLink message(s) but no UAVLOC_RSSI_BATCH2 or "
+                                  "UAVLOC_RSSI_BATCH: nothing to localize (was the companion's RSSI routed to this "
+                                  "log?)", path=str(path))
+        epoch = math.floor(min(m.time_usec for m in msgs) / 1e6)
         return decode_rssi_batches(msgs, scenario.frame, epoch_unix_s=epoch)
-    return read_slots_csv(path, scenario.frame)
+    slots = read_slots_csv(path, scenario.frame)
+    if not len(slots):
+        raise FileFormatError("has the header but no slots: nothing to localize", path=str(path))
+    return slots
+
+
+def far_from_area_warning(slots, scenario, name: str) -> str | None:
+    """A sentence when slots lie more than FAR_FROM_AREA_M outside the scenario's area (how many,
+    and how far), else None."""
+    import numpy as np
+    import shapely
+
+    area = shapely.Polygon(scenario.area_xy_m())
+    d = shapely.distance(area, shapely.points(np.asarray(slots.xyz_m)[:, :2]))
+    far = d > FAR_FROM_AREA_M
+    if not far.any():
+        return None
+    lo, hi = float(d[far].min()), float(d[far].max())
+    span = _km(hi) if _km(lo) == _km(hi) else f"{_km(lo)} to {_km(hi)}"
+    return (f"warning: {int(far.sum())} of {len(d)} slots in {name} lie {span} km from the area of "
+            f"{scenario.source} (more than {FAR_FROM_AREA_M / 1000:g} km): were they recorded in another "
+            "scenario? Estimating anyway.")
+
+
+def _km(m: float) -> str:
+    return f"{m / 1000:.0f}" if m >= 10_000 else f"{m / 1000:.1f}"
 
 
 def run(args: argparse.Namespace) -> int:
@@ -76,21 +117,31 @@ def run(args: argparse.Namespace) -> int:
     from ..render.maps import origin_caption, save_figure
     from ..render.estimates import estimate_labels, estimates_figure
     from ..render.terminal import format_table
+    from ..errors import FileFormatError
+    from ..examples import shipped_path
     from ..scenario import load_scenario
-    from ._output import atomic_output_dir
+    from ._output import atomic_output_dir, check_output_dir
 
+    check_output_dir(args.out, "--out")  # before any work: a directory that cannot be written
     sc = load_scenario(args.scenario)
-    heard = load_slots(Path(args.input), sc)
+    source = shipped_path(args.input, ".csv")  # a file, or a shipped one by name (slots_small.csv)
+    heard = load_slots(source, sc)
     # as the daemon does: slots heard taking off, landing or on the ground are not estimated from
     slots = survey_slots(heard, sc.fleet.altitude_m)
     low = len(heard) - len(slots)
+    if not len(slots):
+        raise FileFormatError(f"all {len(heard)} slots were heard below {MIN_ALTITUDE_FRACTION * sc.fleet.altitude_m:g} m "
+                              f"(taking off, landing or on the ground; the scenario flies at {sc.fleet.altitude_m:g} m): "
+                              "nothing to localize", path=str(source))
+    if warning := far_from_area_warning(slots, sc, source.name):
+        print(warning, file=sys.stderr)
     if args.t_ref is not None and len(slots.t_s):
         t0, t1 = float(slots.t_s.min()), float(slots.t_s.max())
         if not t0 - T_REF_MARGIN_S <= args.t_ref <= t1 + T_REF_MARGIN_S:
             from ..errors import ConfigError
 
             raise ConfigError(f"--t-ref {args.t_ref:g}: must be within an hour of the slots' times "
-                              f"({t0:.1f}..{t1:.1f} s in {Path(args.input).name})")
+                              f"({t0:.1f}..{t1:.1f} s in {source.name})")
     channel = ChannelModel.from_scenario(sc)
     tx_power = args.tx_power or sc.channel.estimate_tx_power
     # the addresses heard, linked into people (the identity when every address is stable or no
@@ -106,7 +157,7 @@ def run(args: argparse.Namespace) -> int:
         (tmp / "estimates.geojson").write_text(estimates_geojson(estimates, sc.frame, slots, linking),
                                                encoding="utf-8")
         fig = estimates_figure(estimates, area_xy_m=sc.area_xy_m(), tracks_xy_m=tracks,
-                               title=f"Localization: {Path(args.input).name}",
+                               title=f"Localization: {source.name}",
                                subtitle=origin_caption(*sc.launch_latlon_deg))
         save_figure(fig, tmp / "estimates.png")
     rows = []

@@ -42,10 +42,10 @@ def run(args: argparse.Namespace) -> int:
     from ..render.scan_plot import scan_figure
     from ..scan import plan_scan, scan_missions
     from ..scenario import load_scenario
-    from ._output import atomic_output_dir
-
     from ._inputs import blaming, fleet_note, override
+    from ._output import atomic_output_dir, check_output_dir
 
+    check_output_dir(args.out, "--out")  # before any work: a directory that cannot be written
     sc = load_scenario(args.scenario)
     if args.coverage:
         sc = override(sc, "--coverage", scan={"coverage": args.coverage})
@@ -73,6 +73,7 @@ def run(args: argparse.Namespace) -> int:
     missions = scan_missions(sc, plan)
     from ..terrain_missions import terrain_safe  # over the DEM's ground when terrain.dem is given
     missions = [terrain_safe(m, sc, name=f"uav{v.index + 1}") for m, v in zip(missions, plan.vehicles)]
+    capacity_notes = _check_lengths(sc, plan, missions)
     fc = geojson.scan_feature_collection(sc, plan)
     written = []
     with atomic_output_dir(args.out) as tmp:
@@ -102,6 +103,8 @@ def run(args: argparse.Namespace) -> int:
             print("Best effort: " + podplan.shortfall_sentence().replace(" (use --best-effort to plan it anyway)", ""))
     if note := fleet_note(sc):
         print(note)
+    for note in capacity_notes:
+        print(note)
     print(f"\nWrote {len(written)} files to {Path(args.out)}/: {', '.join(written)}")
     stale = sorted(p.name for p in Path(args.out).glob("uav*.*")
                    if p.suffix in (".plan", ".waypoints") and p.name not in written)
@@ -110,6 +113,23 @@ def run(args: argparse.Namespace) -> int:
     print(f"Look at them: uavloc preview {Path(args.out) / 'uav1.plan'}   (or open preview.png; "
           "scan.kml opens in Google Earth)")
     return 0
+
+
+def _check_lengths(sc, plan, missions) -> list[str]:
+    """Refuse a scan whose mission no vehicle of the fleet's autopilot could hold; the notes for
+    missions that common boards refuse (link/mission_capacity.py)."""
+    from ..errors import InfeasibleError
+    from ..link.mission_capacity import many_note, too_long
+    from ..mission import to_wire
+
+    notes = []
+    for v, m in zip(plan.vehicles, missions):
+        n = len(to_wire(m, sc.fleet.autopilot))
+        if reason := too_long(n, sc.fleet.autopilot):
+            raise InfeasibleError(f"uav{v.index + 1}'s scan: {reason} (more vehicles or wider lanes)")
+        if note := many_note(n, sc.fleet.autopilot):
+            notes.append(f"Note: uav{v.index + 1}'s scan has {note}; check the vehicle's capacity before flying it.")
+    return notes
 
 
 def summary(sc, plan, missions) -> str:

@@ -48,12 +48,12 @@ def run(args: argparse.Namespace) -> int:
 
     if args.width < 20:
         raise ConfigError(f"--width must be at least 20 columns, got {args.width}")
-    if args.png and Path(args.png).suffix.lower() not in (".png", ".svg"):
-        raise ConfigError(f"--png {args.png}: the picture must end in .png or .svg")
-    if args.png:
+    if args.png is not None:
         from ._output import check_output_file
 
         check_output_file(args.png, "--png")
+        if Path(args.png).suffix.lower() not in (".png", ".svg"):
+            raise ConfigError(f"--png {args.png}: the picture must end in .png or .svg")
     mission, kind = load_mission(args.file)
     view = mission_view(mission)
     # WPL 110 does not record the autopilot; a .plan does (mission.firmwareType).

@@ -41,11 +41,14 @@ def run(args: argparse.Namespace) -> int:
     from ..planning.jsonio import dumps_result, loads_problem
     from ..atomicfile import atomic_write_text
 
-    from ._output import check_output_file
+    from ._output import check_not_input, check_output_file
 
     for option, path in (("--out", args.out), ("--png", args.png)):
-        if path:
+        if path is not None:
             check_output_file(path, option)
+            check_not_input(path, option, {"the routing instance being read": args.instance})
+    if args.out is not None and args.png is not None and Path(args.out).absolute() == Path(args.png).absolute():
+        raise ConfigError(f"--out and --png both name {args.out}; give the plan and the picture different names")
     if args.png and Path(args.png).suffix.lower() not in (".png", ".svg"):
         raise ConfigError(f"--png {args.png}: the picture must end in .png or .svg")
     instance = shipped_path(args.instance, ".json")

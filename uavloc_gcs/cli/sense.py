@@ -14,6 +14,8 @@ import argparse
 import logging
 from pathlib import Path
 
+from ._inputs import number
+
 log = logging.getLogger(__name__)
 
 
@@ -32,20 +34,24 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--channels", default=None, metavar="LIST",
                    help="hop the (single) interface over these channels, e.g. 1,6,11, or with a dwell per channel "
                         "in ms, 1:400,6:200,11:200 (uses 'iw'; default: stay on the channel it is set to)")
-    p.add_argument("--dwell-ms", type=float, default=250.0, help="time on each hopped channel [ms] (default 250)")
-    p.add_argument("--duration-s", type=float, default=None, help="stop a live capture after this long")
+    p.add_argument("--dwell-ms", type=number(float, above=0, max=60_000, unit="ms"), default=250.0,
+                   help="time on each hopped channel [ms] (default 250)")
+    p.add_argument("--duration-s", type=number(float, above=0, unit="s"), default=None,
+                   help="stop a live capture after this long")
     p.add_argument("--out", default=None, metavar="DIR", help="write frames.csv (and slots.csv with --tlog) here")
     p.add_argument("--tlog", default=None, metavar="FLIGHT.tlog",
                    help="flight log whose positions place the slots: writes DIR/slots.csv for uavloc localize")
-    p.add_argument("--vehicle", type=int, default=None, help="system id of the vehicle in --tlog (default: its only one)")
-    p.add_argument("--clock-offset-s", type=float, default=0.0,
+    p.add_argument("--vehicle", type=number(int, min=1, max=255), default=None,
+                   help="system id of the vehicle in --tlog (default: its only one)")
+    p.add_argument("--clock-offset-s", type=number(float), default=0.0,
                    help="add this to capture times to put them on the flight log's UNIX clock (default 0)")
-    p.add_argument("--slot-ms", type=float, default=25.0, help="slot length [ms] (default 25, as the scenarios)")
+    p.add_argument("--slot-ms", type=number(float, above=0, max=255, unit="ms"), default=25.0,
+                   help="slot length [ms] (default 25, as the scenarios; at most 65.535 with --mavlink)")
     p.add_argument("--exclude", default=None, metavar="FILE",
                    help="exclusion list of the team's devices (mac/oui/fp lines; see --learn-team)")
     p.add_argument("--learn-team", default=None, metavar="FILE",
                    help="write what is heard as the team's exclusion list (run on the ground before take-off)")
-    p.add_argument("--learn-min-frames", type=int, default=3,
+    p.add_argument("--learn-min-frames", type=number(int, min=1), default=3,
                    help="--learn-team keeps addresses heard at least this often (default 3)")
     p.add_argument("--learn-fingerprints", action="store_true",
                    help="--learn-team also lists fingerprints of non-random addresses (excludes the whole model)")
@@ -55,7 +61,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--autopilot", default=None, metavar="URL",
                    help="read the autopilot's position and clock here and send the RSSI to --mavlink beside it "
                         "(default: the --mavlink link itself)")
-    p.add_argument("--sysid", type=int, default=None, help="autopilot system id to follow (default: the first heard)")
+    p.add_argument("--sysid", type=number(int, min=1, max=255), default=None,
+                   help="autopilot system id to follow, 1-255 (default: the first heard)")
     p.add_argument("--signing-key", default=None, metavar="HEX",
                    help="MAVLink 2 signing key (64 hex digits), as the fleet's: signs what is sent, drops unsigned input")
     p.set_defaults(func=run)
@@ -63,20 +70,20 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from ..errors import ConfigError
+    from ..scenario_limits import SLOT_US_MAX
     from ..sense import parse_capture
     from ..sense.exclusion import read_exclusion
 
     if bool(args.capture) == bool(args.interface):
         raise ConfigError("give either a CAPTURE file or --interface (not both, not neither)", key="capture")
-    if args.slot_ms <= 0 or args.slot_ms > 255:
-        raise ConfigError(f"--slot-ms must be in (0, 255], got {args.slot_ms}", key="--slot-ms")
+    if args.mavlink and args.slot_ms > SLOT_US_MAX / 1000:
+        raise ConfigError(f"--slot-ms {args.slot_ms:g}: UAVLOC_RSSI_BATCH2 carries the slot length as a 16-bit count of "
+                          f"microseconds, at most {SLOT_US_MAX / 1000:g} ms")
     if args.tlog and not args.out:
         raise ConfigError("--tlog writes DIR/slots.csv: give --out DIR too", key="--tlog")
     if args.tlog and (args.interface or args.mavlink):
         raise ConfigError("--tlog places a capture file's slots on a recorded flight: not with --interface or "
                           "--mavlink", key="--tlog")
-    if args.dwell_ms <= 0:
-        raise ConfigError(f"--dwell-ms must be positive, got {args.dwell_ms:g}", key="--dwell-ms")
     if args.channels:
         from ..sense.live import parse_channels
 
@@ -92,6 +99,15 @@ def run(args: argparse.Namespace) -> int:
         parse_signing_key(args.signing_key)  # a bad key is refused before anything starts
     if not (args.out or args.learn_team or args.mavlink):
         raise ConfigError("nothing to do: give --out DIR, --mavlink URL or --learn-team FILE", key="--out")
+    from ._output import check_not_input, check_output_dir, check_output_file
+
+    if args.out:  # before reading a capture or opening an interface: an output that cannot be written
+        check_output_dir(args.out, "--out")
+    if args.learn_team:
+        check_output_file(args.learn_team, "--learn-team")
+        check_not_input(args.learn_team, "--learn-team", {"the capture being read": args.capture,
+                                                          "the --exclude list": args.exclude,
+                                                          "the --tlog flight log": args.tlog})
     exclusion = read_exclusion(args.exclude) if args.exclude else None
     if args.capture and not args.mavlink:
         frames, skips = parse_capture(args.capture)

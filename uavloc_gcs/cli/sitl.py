@@ -20,6 +20,7 @@ import math
 from pathlib import Path
 
 from ..errors import ConfigError
+from ._inputs import number
 
 
 def register(sub) -> None:
@@ -42,7 +43,8 @@ def register(sub) -> None:
     p.add_argument("--home-alt", type=float, default=None, metavar="M",
                    help="home altitude above sea level [m] (default: the DEM's at the launch point with "
                         "terrain.dem, absolute missions being planned from it; else 0)")
-    p.add_argument("--seed", type=int, default=None, help="simulated world seed (default: simulation.seed)")
+    p.add_argument("--seed", type=number(int, min=0, max=2**32 - 1), default=None,
+                   help="simulated world seed (default: simulation.seed)")
     p.add_argument("--no-companion", action="store_true", help="no simulated companions (no RSSI)")
     p.add_argument("--ready-timeout", type=float, default=None, metavar="S",
                    help="wall seconds each vehicle has to become ready to fly (default 120)")
@@ -69,12 +71,10 @@ def _check_args(args, scenario):
     timeout = sitl.READY_TIMEOUT_S if args.ready_timeout is None else args.ready_timeout
     if not (math.isfinite(timeout) and timeout > 0):
         raise ConfigError(f"{args.ready_timeout} must be > 0 seconds", key="--ready-timeout")
-    if args.out is not None:
-        parent = args.out.parent if str(args.out.parent) else Path(".")
-        if not parent.is_dir():
-            raise ConfigError(f"folder {parent} does not exist", key="--out")
-        if args.out.is_dir():
-            raise ConfigError(f"{args.out} is a folder; give a file name", key="--out")
+    if args.out is not None:  # before any vehicle starts: a mission file that cannot be written
+        from ._output import check_output_file
+
+        check_output_file(args.out, "--out")
     return n, kind, speedup, timeout
 
 

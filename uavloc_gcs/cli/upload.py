@@ -107,26 +107,98 @@ def check_commands(plan, path: str) -> None:
     from ..dialect import mavlink
     from ..errors import FileFormatError
 
-    known = mavlink.enums["MAV_CMD"]
+    known, frames = mavlink.enums["MAV_CMD"], mavlink.enums["MAV_FRAME"]
     for n, it in enumerate(plan.items, start=1):
         if it.command not in known:
             raise FileFormatError(f"command {it.command} is not a MAVLink command (MAV_CMD); no autopilot would "
                                   "accept it", path=path, item=n, field="command")
+        if it.frame not in frames:
+            raise FileFormatError(f"frame {it.frame} is not a MAVLink frame (MAV_FRAME); no autopilot would accept it",
+                                  path=path, item=n, field="frame")
+
+
+def check_tlog(args: argparse.Namespace, inputs: dict) -> None:
+    """``--tlog`` is appended to while the link is open: refuse, before connecting, a path that
+    cannot be written or that is one of the command's own files."""
+    if args.tlog is None:
+        return
+    from ._output import check_not_input, check_output_file
+
+    check_output_file(args.tlog, "--tlog")
+    check_not_input(args.tlog, "--tlog", inputs)
 
 
 def run(args: argparse.Namespace) -> int:
     import asyncio
 
+    check_tlog(args, {"the mission file being uploaded": args.file})
     return asyncio.run(_upload(args))
 
 
-async def _upload(args: argparse.Namespace) -> int:
+async def _no_space(n: int, autopilot: str, who: str, said: list[str]) -> str:
+    """The sentence for NO_SPACE, with the vehicle's own words if it says them within a second
+    (ArduPilot: "Only 650 items are supported", sent just after the MISSION_ACK)."""
+    import asyncio
+
+    from ..link.mission_capacity import no_space
+
+    def words() -> str | None:
+        return next((t for t in said if "items are supported" in t), None)
+
+    for _ in range(20):
+        if words():
+            break
+        await asyncio.sleep(0.05)
+    return no_space(n, autopilot, who, words())
+
+
+def check_items(plan, items, autopilot: str, path: str) -> None:
+    """Refuse, before a byte is sent, an item ``autopilot`` would refuse mid-upload (leaving an
+    ArduPilot with half a mission): link/mission_checks.py. Items are named as in the file."""
     from ..errors import FileFormatError
+    from ..link.mission_checks import refusal
+
+    first = 1 if autopilot == "ardupilot" else 0  # ArduPilot's seq 0 is its home
+    for it, given in zip(items[first:], plan.items):
+        if found := refusal(it, autopilot, given.frame):
+            field, reason = found
+            raise FileFormatError(reason, path=path, item=it.seq - first + 1, field=field)
+
+
+def check_length(plan, autopilot: str, path: str) -> None:
+    """Refuse a mission longer than any ``autopilot`` ("ardupilot", "px4", "generic") vehicle
+    holds (link/mission_capacity.py), before a byte of it is sent."""
+    from ..errors import FileFormatError
+    from ..link.mission_capacity import too_long
+    from ..mission import MissionEncodingError, to_wire
+
+    try:
+        n = len(to_wire(plan, "ardupilot" if autopilot == "ardupilot" else "px4"))
+    except MissionEncodingError:
+        return  # said once the vehicle's autopilot is known
+    if reason := too_long(n, autopilot):
+        raise FileFormatError(reason, path=path)
+
+
+async def _upload(args: argparse.Namespace) -> int:
+    from ..errors import FileFormatError, MissionTransferError
     from ..link import upload_mission
     from ..mission import MissionEncodingError, to_wire
 
     # a bad file fails before connecting
-    check_commands(read_mission(args.file, None if args.autopilot == "auto" else args.autopilot), args.file)
+    first = read_mission(args.file, None if args.autopilot == "auto" else args.autopilot)
+    if not first.items:  # MISSION_COUNT 0 is how a mission is cleared: never by accident
+        raise FileFormatError("holds no mission items: nothing to upload (sending it would clear the vehicle's "
+                              "mission)", path=args.file)
+    check_commands(first, args.file)
+    # too long for any vehicle of --autopilot (or for MAVLink's numbering): before connecting; too
+    # long for the vehicle's autopilot: after its HEARTBEAT, before MISSION_COUNT
+    check_length(first, "generic" if args.autopilot == "auto" else args.autopilot, args.file)
+    if args.autopilot != "auto":
+        try:
+            check_items(first, to_wire(first, args.autopilot), args.autopilot, args.file)
+        except MissionEncodingError:
+            pass  # said below, once connected, in the vehicle's terms
     link, system, component, flavour = await connect(args)
     async with link:
         plan = read_mission(args.file, encoding_for(flavour))
@@ -134,9 +206,19 @@ async def _upload(args: argparse.Namespace) -> int:
             items = to_wire(plan, encoding_for(flavour))
         except MissionEncodingError as err:  # the file asks for something this autopilot cannot take
             raise FileFormatError(f"cannot be sent to {flavour.label}: {err}", path=args.file) from None
+        check_length(plan, flavour.name, args.file)
+        check_items(plan, items, flavour.name, args.file)
+        said: list[str] = []
         started = time.monotonic()
-        result = await upload_mission(link, system, component, items, verify=not args.no_verify,
-                                      autopilot=flavour, progress=Progress())
+        with link.subscribe("STATUSTEXT", source_system=system, callback=lambda m: said.append(m.text)):
+            try:
+                result = await upload_mission(link, system, component, items, verify=not args.no_verify,
+                                              autopilot=flavour, progress=Progress())
+            except MissionTransferError as err:
+                if err.result_name != "MAV_MISSION_NO_SPACE":
+                    raise
+                who = f"vehicle {system} ({flavour.label}) on {args.connection}"
+                raise FileFormatError(await _no_space(len(items), flavour.name, who, said), path=args.file) from None
     check = "read back and verified" if result.verified else "not verified (--no-verify)"
     print(f"Uploaded {len(plan.items)} mission items ({result.item_count} on the wire) to vehicle {system} "
           f"({flavour.label}) on {args.connection} in {time.monotonic() - started:.1f} s; {check}.")

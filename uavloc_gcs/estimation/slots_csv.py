@@ -149,7 +149,7 @@ def dumps_slots_csv(slots: SlotBatch, frame: LocalFrame) -> str:
 def read_slots_csv(path: str | Path, frame: LocalFrame) -> SlotBatch:
     p = Path(path)
     try:
-        text = p.read_text(encoding="utf-8")
+        text = p.read_text(encoding="utf-8-sig")  # a spreadsheet's "CSV UTF-8" starts with a byte-order mark
     except (OSError, UnicodeDecodeError) as exc:
         raise FileFormatError(f"cannot read the file ({exc})", path=str(p)) from None
     return loads_slots_csv(text, frame, path=str(p))

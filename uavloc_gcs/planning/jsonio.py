@@ -41,6 +41,10 @@ def _pair(obj: dict, key: str, where: str, path: str, default=None) -> tuple[flo
                    for x in v)):
         raise FileFormatError(f"expected [x, y] with two finite numbers, got {v!r}", path=path,
                               field=f"{where}{key}")
+    if key.endswith("xy_m") and max(abs(v[0]), abs(v[1])) > MAX_COORDINATE_M:
+        raise FileFormatError(f"{v[0]:.6g}, {v[1]:.6g} m is more than {MAX_COORDINATE_M / 1000:g} km from the local "
+                              "frame's origin (the launch point); a search area is at most 50 km across", path=path,
+                              field=f"{where}{key}")
     return float(v[0]), float(v[1])
 
 
@@ -56,6 +60,10 @@ def _list(doc: dict, key: str, path: str) -> list:
     if not isinstance(v, list):
         raise FileFormatError(f"expected a list, got {type(v).__name__}", path=path, field=key)
     return v
+
+
+MAX_SPEED_M_S = 60.0  # as scenario.py's fleet.speed_m_s
+MAX_COORDINATE_M = 1_000_000.0  # local east/north metres about the launch point
 
 
 def loads_problem(text: str, path: str = "<string>") -> RoutingProblem:
@@ -82,13 +90,17 @@ def loads_problem(text: str, path: str = "<string>") -> RoutingProblem:
         if not isinstance(t, dict):
             raise FileFormatError("expected an object", path=path, field=w[:-1])
         radius = _num(t, "radius_m", w, path, 0.0)
-        if radius < 0:
-            raise FileFormatError(f"radius must be >= 0, got {radius}", path=path, field=w + "radius_m")
+        if not 0 <= radius <= MAX_COORDINATE_M:
+            raise FileFormatError(f"radius must be 0 to {MAX_COORDINATE_M:g} m, got {radius:g}", path=path,
+                                  field=w + "radius_m")
         targets.append(Target(_id(t, w, path), _pair(t, "xy_m", w, path),
                               _pair(t, "velocity_m_s", w, path, (0.0, 0.0)), radius))
     speed = _num(doc, "speed_m_s", "", path)
     if speed <= 0:
         raise FileFormatError(f"speed must be > 0, got {speed}", path=path, field="speed_m_s")
+    if speed > MAX_SPEED_M_S:  # the power model's cube of it overflowed into "needs nan J"
+        raise FileFormatError(f"{speed:g} m/s is beyond any multirotor (at most {MAX_SPEED_M_S:g}, as a scenario's "
+                              "fleet.speed_m_s)", path=path, field="speed_m_s")
     return RoutingProblem(tuple(vehicles), tuple(targets), speed, _num(doc, "t0_s", "", path, 0.0))
 
 
