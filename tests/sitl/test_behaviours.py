@@ -283,8 +283,13 @@ def test_companion_messages_forwarded_only_if_known(backend, kind, sitl):
                 got = {"HEARTBEAT": 0, "UAVLOC_RSSI_BATCH": 0}
 
                 def on(msg):
-                    if msg.get_srcComponent() == 191 and msg.get_type() in got:
-                        got[msg.get_type()] += 1
+                    # only what this test's companion sent: the fake vehicle's own receiver also
+                    # speaks as component 191 (its keepalives: count 0, real mission times)
+                    if msg.get_srcComponent() != 191 or msg.get_type() not in got:
+                        return
+                    if msg.get_type() == "UAVLOC_RSSI_BATCH" and (msg.count, msg.time_usec) != (1, 1):
+                        return
+                    got[msg.get_type()] += 1
                 with link.subscribe(None, source_system=sysid, callback=on):
                     for _ in range(20):
                         comp_sock.sendto(comp.heartbeat_encode(mavlink.MAV_TYPE_ONBOARD_CONTROLLER,
