@@ -40,11 +40,11 @@ BURST_GAP_S = 0.5  # slots of one vehicle farther apart than this belong to diff
 # narrower than 7 nodes 3.5 dB apart, and nodes that coarse forced the offset onto one of them: a
 # demo's phone at +4.4 dB was placed 116 m from the truth with a 35 m radius (the positions that
 # suited +3.5 dB won).
-TX_STEP_DB = 0.5
-TX_SPAN_SIGMA = 4.0
+TX_STEP_DB = 0.75
+TX_SPAN_SIGMA = 3.5
 TABLE_STEP_M = 2.0  # horizontal-distance step of a burst's likelihood table
 MAX_TABLES = 3000  # tables kept per estimator (about 100 MB at most)
-COARSE_CELLS = 96  # cells along the longer side of the first grid
+COARSE_CELLS = 64  # cells along the longer side of the first grid
 FINE_CELLS_PER_RADIUS = 10.0  # the last grid has its 95 % radius over at least this many cells
 MIN_CELL_M = 0.5
 SUPPORT_LOG = 25.0  # cells within this of the best log posterior are the support (wide: a coarse
@@ -202,7 +202,7 @@ class BurstTable:
         i = x.astype(np.int64)
         f = x - i
         a, b = self.loglik[:, i], self.loglik[:, i + 1]
-        return a + f * (b - a)
+        return a + f.astype(np.float32) * (b - a)
 
 
 def tx_nodes(sigma_db: float) -> tuple[np.ndarray, np.ndarray]:
@@ -400,7 +400,7 @@ class BurstGridEstimator:
         hi = np.array([g.x0 + (i.max() + 1 + pad) * g.cell_m, g.y0 + (j.max() + 1 + pad) * g.cell_m])
         cell = max(MIN_CELL_M, min(g.cell_m / 2.0, r95 / FINE_CELLS_PER_RADIUS))
         span = hi - lo
-        if float(np.max(span)) / cell > 2 * COARSE_CELLS:  # never more than (2 x 96)^2 cells
+        if float(np.max(span)) / cell > 2 * COARSE_CELLS:  # never more than (2 x 64)^2 cells
             cell = float(np.max(span)) / (2 * COARSE_CELLS)
         n = np.maximum(np.ceil(span / cell).astype(int), 1)
         return Grid(float(lo[0]), float(lo[1]), cell, int(n[0]), int(n[1]))
@@ -408,7 +408,7 @@ class BurstGridEstimator:
     def _loglik(self, grid: Grid, bursts: Sequence[Burst], t_ref_s: float, vmax: float) -> tuple[np.ndarray, np.ndarray]:
         """(static, walking) log-likelihood sums over (tx node, ny, nx); walking None when vmax 0."""
         x, y = grid.centres()
-        still = np.zeros((len(self._nodes),) + x.shape)
+        still = np.zeros((len(self._nodes),) + x.shape, np.float32)
         walk = np.zeros_like(still) if vmax > 0 else None
         eps = float(self.outlier_share)
         for b in bursts:

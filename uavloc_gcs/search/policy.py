@@ -622,6 +622,12 @@ class SearchPolicy:
             return True
         if pending - planned - self._unplanned:  # someone new needs a look
             return True
+        # an orbit whose person's estimate moved off it is re-centred (search/orbit.py ADAPTIVE_ORBITS)
+        for e in changed & set(self._flown):
+            p = self._people.get(e)
+            cand = self._candidate(p) if p is not None and self._ok(p) else None
+            if cand is not None and orb.recentre_due(self, e, cand.at(t_s)):
+                return True
         # Estimates shift while a vehicle is passing a person; re-routing it mid-look would only
         # thrash. The look's end (see update) or a fix triggers the replan instead.
         lead_s = 2.0 * self.range_m / self.speed_m_s
