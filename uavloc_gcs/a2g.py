@@ -15,17 +15,16 @@ frame of a phone with transmit offset ``tx`` at 3-D distance d and elevation the
   vehicle (a burst is sent within a second from one place); the simulator correlates it between
   bursts over the distance moved (:attr:`Environment.decorrelation_m`), so bursts far apart are
   independent;
-- ``F ~ N(fast_mean[s], fast[s]^2)`` the small-scale fading, independent frame to frame (frames
-  40 ms apart hop over channels 1/6/11, 25 MHz apart, while the vehicle moves several wavelengths):
-  the mean and spread in dB of Rician fading with K = 9 dB in LoS and of Rayleigh fading in NLoS
-  (:func:`fading_db_moments`). Gaussian in dB so the burst likelihood has a closed form; Rayleigh's
-  dB law has a longer lower tail and a shorter upper one, so the approximation overstates deep upward
-  fades of blocked frames a little (docs/readme/world.md measures the effect on hearing).
+- ``F`` the small-scale fading, independent frame to frame (frames 40 ms apart hop over channels
+  1/6/11, 25 MHz apart, while the vehicle moves several wavelengths): 10 log10 |h|^2 of Rician
+  fading with K = 9 dB in LoS, Rayleigh in NLoS, drawn and integrated exactly
+  (:mod:`uavloc_gcs.a2g_fading`; a Gaussian in dB would make edge frames too easy to hear).
 
 A frame is heard when its RSSI exceeds the receiver's sensitivity S. Sources of every number are in
 :data:`ENVIRONMENTS` and docs/readme/world.md ("The air-to-ground channel"). The calibration: with
 free-space spreading (eta = 2) the link budget P0 - S puts a LoS frame's 50 % hearing distance in
-open terrain (no excess loss) at Wi2SAR's measured 298.8 m (:func:`wi2sar_reference_power_dbm`).
+open terrain (no excess loss; the 4 dB shadowing and the fading integrated) at Wi2SAR's measured
+298.8 m (:func:`wi2sar_reference_power_dbm`).
 
 Everything here is pure numpy over arrays that broadcast (horizontal distance, height, transmit
 offset); the simulator (sim_link/world), the estimator and the POD model use the same functions.
@@ -39,11 +38,14 @@ from functools import lru_cache
 
 import numpy as np
 
+from .a2g_fading import FadingLaw, fading_law
+
 LOS, NLOS = 0, 1
 GH_NODES = 48  # Gauss-Hermite nodes over the shared shadowing (within 5e-4 of quadrature: tests)
 # ... and over its posterior given a burst's heard frames, in the likelihood (narrower, smoother:
 # within 2e-3 in log-likelihood of quadrature, tests/uavloc_gcs/test_a2g.py)
-GH_NODES_LIKELIHOOD = 20
+GH_NODES_LIKELIHOOD = 24
+_PROPOSAL_WIDEN = 1.5  # the importance proposal's spread over the Gaussian-fading posterior's
 _MIN_P = 1e-300  # floor of probabilities before a logarithm
 
 # Wi2SAR ("Take Me Home, Wi-Fi Drone", Hou, Yu, Wu, MobiCom '26, arXiv 2604.09115): the aerial victim
@@ -123,42 +125,43 @@ def p1410_los_probability(env: Environment, horizontal_m: float, height_m: float
     return float(np.prod(1.0 - np.exp(-ray ** 2 / (2.0 * env.building_height_scale_m ** 2))))
 
 
-@lru_cache(maxsize=16)
 def fading_db_moments(k_factor_db: float | None) -> tuple[float, float]:
-    """Mean and standard deviation [dB] of 10 log10 of unit-mean-power small-scale fading: Rician
-    with K factor ``k_factor_db``, or Rayleigh (None): -2.507 dB and 5.570 dB (Euler's gamma and
-    pi / sqrt(6) in dB)."""
-    c = 10.0 / math.log(10.0)
-    if k_factor_db is None:
-        return -c * 0.5772156649015329, c * math.pi / math.sqrt(6.0)
-    from scipy import integrate
-    from scipy.stats import ncx2
+    """Mean and standard deviation [dB] of the fading F (Rician with ``k_factor_db``, or Rayleigh:
+    -2.507 dB and 5.570 dB, Euler's gamma and pi / sqrt(6) in dB)."""
+    law = fading_law(k_factor_db)
+    return law.mean_db, law.std_db
 
-    k = 10.0 ** (k_factor_db / 10.0)
-    law = ncx2(df=2, nc=2.0 * k, scale=1.0 / (2.0 * (k + 1.0)))  # |h|^2 with E|h|^2 = 1
-    lo, hi = law.ppf(1e-12), law.ppf(1.0 - 1e-12)
-    m1 = integrate.quad(lambda p: c * math.log(p) * law.pdf(p), lo, hi, limit=200)[0]
-    m2 = integrate.quad(lambda p: (c * math.log(p)) ** 2 * law.pdf(p), lo, hi, limit=200)[0]
-    return m1, math.sqrt(max(m2 - m1 * m1, 0.0))
+
+@lru_cache(maxsize=16)
+def _median_margin_db(shadow_db: float, k_factor_db: float | None) -> float:
+    """The margin m [dB] of a frame's local mean power over the sensitivity at which it is heard
+    with probability 1/2, shadowing N(0, shadow_db^2) and the fading integrated."""
+    law = fading_law(k_factor_db)
+    nodes, weights = _gh()
+    lo, hi = -40.0, 40.0
+    for _ in range(60):
+        m = 0.5 * (lo + hi)
+        p = float(law.survival(-(m + shadow_db * nodes)) @ weights)
+        lo, hi = (lo, m) if p >= 0.5 else (m, hi)
+    return 0.5 * (lo + hi)
 
 
 def wi2sar_reference_power_dbm(sensitivity_dbm: float, path_loss_exponent: float = 2.0,
-                               reference_distance_m: float = 1.0, k_factor_db: float = 9.0) -> float:
+                               reference_distance_m: float = 1.0, shadow_db: float = 4.0,
+                               k_factor_db: float = 9.0) -> float:
     """The RSSI at the reference distance [dBm] that puts the 50 % hearing distance of one LoS frame
-    in open terrain (no excess loss) at Wi2SAR's 298.8 m: the median RSSI there equals the
-    sensitivity (the fading's mean in dB included)."""
-    fade_mean, _ = fading_db_moments(k_factor_db)
-    return (sensitivity_dbm + 10.0 * path_loss_exponent * math.log10(WI2SAR_LOS_RANGE_M / reference_distance_m)
-            - fade_mean)
+    in open terrain (no excess loss; shadowing ``shadow_db``, Rician fading) at Wi2SAR's 298.8 m."""
+    spreading = 10.0 * path_loss_exponent * math.log10(WI2SAR_LOS_RANGE_M / reference_distance_m)
+    return sensitivity_dbm + spreading + _median_margin_db(shadow_db, k_factor_db)
 
 
 def wi2sar_blocked_excess_db(reference_power_dbm: float, sensitivity_dbm: float, path_loss_exponent: float = 2.0,
-                             reference_distance_m: float = 1.0) -> float:
-    """The excess loss of a blocked path [dB] that puts one blocked (Rayleigh-faded) frame's 50 %
-    hearing distance at Wi2SAR's obstructed 147.4 m under this link budget: what Wi2SAR's wilderness
-    occlusion costs, to set beside the towns' building losses (:data:`ENVIRONMENTS`)."""
+                             reference_distance_m: float = 1.0, shadow_db: float = 4.0) -> float:
+    """The excess loss of a blocked path [dB] that puts one blocked (Rayleigh-faded, shadowing
+    ``shadow_db``) frame's 50 % hearing distance at Wi2SAR's obstructed 147.4 m under this link
+    budget: what Wi2SAR's wilderness occlusion costs, beside the towns' building losses."""
     spreading = 10.0 * path_loss_exponent * math.log10(WI2SAR_NLOS_RANGE_M / reference_distance_m)
-    return reference_power_dbm - sensitivity_dbm - spreading + fading_db_moments(None)[0]
+    return reference_power_dbm - sensitivity_dbm - spreading - _median_margin_db(shadow_db, None)
 
 
 def _gh(n: int | None = None):
@@ -169,12 +172,6 @@ def _gh(n: int | None = None):
 def _gh_nodes(n: int):
     z, w = np.polynomial.hermite_e.hermegauss(n)
     return z, w / w.sum()
-
-
-def _ndtr(x):
-    from scipy.special import ndtr
-
-    return ndtr(x)
 
 
 @dataclass(frozen=True)
@@ -209,13 +206,19 @@ class A2GChannel:
     def shadow_db(self) -> np.ndarray:
         return np.array([self.environment.shadow_los_db, self.environment.shadow_nlos_db])
 
+    def fading(self, state: int) -> FadingLaw:
+        """The small-scale fading law of a frame in ``state`` (Rician in LoS, Rayleigh in NLoS)."""
+        return fading_law(self.environment.rician_k_los_db if state == LOS else None)
+
     @property
     def fast_mean_db(self) -> np.ndarray:
-        return np.array([fading_db_moments(self.environment.rician_k_los_db)[0], fading_db_moments(None)[0]])
+        """Mean of the fading in dB per state."""
+        return np.array([self.fading(LOS).mean_db, self.fading(NLOS).mean_db])
 
     @property
     def fast_db(self) -> np.ndarray:
-        return np.array([fading_db_moments(self.environment.rician_k_los_db)[1], fading_db_moments(None)[1]])
+        """Standard deviation of the fading in dB per state."""
+        return np.array([self.fading(LOS).std_db, self.fading(NLOS).std_db])
 
     def los_probability(self, horizontal_m, height_m) -> np.ndarray:
         return los_probability(self.environment, elevation_deg(horizontal_m, height_m))
@@ -227,32 +230,39 @@ class A2GChannel:
         return (self.reference_power_dbm + np.asarray(tx_offset_db, float)
                 - 10.0 * self.path_loss_exponent * np.log10(d / self.reference_distance_m))
 
+    def mean_power_dbm(self, d3_m, state: int, tx_offset_db=0.0) -> np.ndarray:
+        """Local mean power [dBm] of a frame in ``state`` with no shadowing: spreading and excess loss
+        (a frame's RSSI is this plus the shadowing and the fading F, E[10^(F/10)] = 1)."""
+        return self.spreading_dbm(d3_m, tx_offset_db) - self.excess_db[state]
+
     def frame_mean_dbm(self, d3_m, state: int, tx_offset_db=0.0) -> np.ndarray:
-        """Mean RSSI [dBm] of a frame in ``state`` at 3-D distance ``d3_m`` with no shadowing: path
-        loss, excess loss and the fading's mean in dB."""
-        return self.spreading_dbm(d3_m, tx_offset_db) - self.excess_db[state] + self.fast_mean_db[state]
+        """Mean RSSI [dBm] of a frame in ``state`` with no shadowing (the fading's mean in dB added)."""
+        return self.mean_power_dbm(d3_m, state, tx_offset_db) + self.fast_mean_db[state]
 
     def state_range_m(self, state: int, tx_offset_db: float = 0.0) -> float:
-        """3-D distance [m] at which one frame in ``state`` is heard with probability 1/2."""
-        margin = float(self.frame_mean_dbm(self.reference_distance_m, state, tx_offset_db)) - self.sensitivity_dbm
+        """3-D distance [m] at which one frame in ``state`` is heard with probability 1/2 (the state's
+        shadowing and fading integrated)."""
+        m = _median_margin_db(float(self.shadow_db[state]), self.fading(state).k_factor_db)
+        margin = float(self.mean_power_dbm(self.reference_distance_m, state, tx_offset_db)) - self.sensitivity_dbm - m
         return self.reference_distance_m * 10.0 ** (margin / (10.0 * self.path_loss_exponent))
 
     # -- hearing --------------------------------------------------------------------------------
-    def frame_heard_probability(self, horizontal_m, height_m, tx_offset_db=0.0) -> np.ndarray:
-        """P(one frame sent at this geometry is heard), the LoS state and the shadowing integrated
-        out (closed form)."""
-        h, z = np.asarray(horizontal_m, float), np.asarray(height_m, float)
-        d3 = np.hypot(h, z)
-        p_los = self.los_probability(h, z)
-        out = 0.0
-        for s, w in ((LOS, p_los), (NLOS, 1.0 - p_los)):
-            spread = math.hypot(self.shadow_db[s], self.fast_db[s])
-            out = out + w * _ndtr((self.frame_mean_dbm(d3, s, tx_offset_db) - self.sensitivity_dbm) / spread)
-        return np.asarray(out)
-
     def _per_frame_q(self, d3, s, tx_offset_db, x_db):
         """P(a frame is above the sensitivity | state s, shared shadowing x_db)."""
-        return _ndtr((self.frame_mean_dbm(d3, s, tx_offset_db) - self.sensitivity_dbm + x_db) / self.fast_db[s])
+        return self.fading(s).survival(self.sensitivity_dbm - self.mean_power_dbm(d3, s, tx_offset_db) - x_db)
+
+    def frame_heard_probability(self, horizontal_m, height_m, tx_offset_db=0.0) -> np.ndarray:
+        """P(one frame sent at this geometry is heard), the LoS state, the shadowing (Gauss-Hermite)
+        and the fading integrated out."""
+        h, z = np.asarray(horizontal_m, float), np.asarray(height_m, float)
+        d3 = np.hypot(h, z)[..., None]
+        p_los = self.los_probability(h, z)
+        nodes, weights = _gh()
+        tx = np.asarray(tx_offset_db, float)[..., None]
+        out = 0.0
+        for s, w in ((LOS, p_los), (NLOS, 1.0 - p_los)):
+            out = out + w * (self._per_frame_q(d3, s, tx, self.shadow_db[s] * nodes) @ weights)
+        return np.asarray(out)
 
     def heard_count_pmf(self, horizontal_m, height_m, frames_sent: int, *, channel_share: float = 1.0,
                         tx_offset_db=0.0) -> np.ndarray:
@@ -265,7 +275,7 @@ class A2GChannel:
         h, z = np.asarray(horizontal_m, float), np.asarray(height_m, float)
         d3 = np.hypot(h, z)[..., None]
         p_los = self.los_probability(h, z)
-        nodes, weights = _gh()
+        nodes, weights = _gh(2 * GH_NODES)  # a given count of many frames is peaked in the shadowing
         n = np.arange(k + 1)
         out = 0.0
         for s, w in ((LOS, p_los), (NLOS, 1.0 - p_los)):
@@ -304,15 +314,15 @@ class A2GChannel:
         return np.asarray(out)
 
     def burst_heard_given_margin(self, state: int, margin_db, frames_pmf, *, channel_share: float = 1.0) -> np.ndarray:
-        """P(at least one frame of a burst heard | state) against the margin [dB] of a frame's mean
-        RSSI (:meth:`frame_mean_dbm`) over the sensitivity; ``frames_pmf[K]`` over K = 0..Kmax frames
-        sent. For tables: the geometry and the transmit offset enter only through the margin."""
+        """P(at least one frame of a burst heard | state) against the margin [dB] of a frame's local
+        mean power (:meth:`mean_power_dbm`) over the sensitivity; ``frames_pmf[K]`` over K = 0..Kmax
+        frames sent. For tables: the geometry and the transmit offset enter only through the margin."""
         nodes, weights = _gh()
         pmf = np.asarray(frames_pmf, float)
         pmf = pmf / pmf.sum()
         kk = np.nonzero(pmf)[0]
-        q = channel_share * _ndtr((np.asarray(margin_db, float)[..., None] + self.shadow_db[state] * nodes)
-                                  / self.fast_db[state])
+        q = channel_share * self.fading(state).survival(
+            -(np.asarray(margin_db, float)[..., None] + self.shadow_db[state] * nodes))
         miss = np.clip(1.0 - q, 0.0, 1.0)
         none = ((miss[..., None] ** kk) @ pmf[kk]) @ weights
         return 1.0 - none
@@ -338,31 +348,34 @@ class A2GChannel:
         return float(h[i] + f * step_m)
 
     # -- the likelihood of one burst ------------------------------------------------------------
-    def _gauss_part(self, rssi, counts, d3, s, tx):
-        """For state s: log density of the heard values (shadowing integrated in closed form) and the
-        posterior mean / sd of the shadowing given them, over the positions' shape."""
-        sf, sx = float(self.fast_db[s]), float(self.shadow_db[s])
-        mu = self.frame_mean_dbm(d3, s, tx)
-        if rssi.size == 0:
-            return np.zeros(np.shape(mu)), np.zeros(np.shape(mu)), np.full(np.shape(mu), sx)
-        n_tot = float(counts.sum())
-        rbar = float((counts * rssi).sum() / n_tot)
-        s_w = float((counts * (rssi - rbar) ** 2).sum())
-        ybar = rbar - mu
-        var_m = sf * sf + n_tot * sx * sx
-        log_g = (-0.5 * len(rssi) * math.log(2.0 * math.pi) + 0.5 * float(np.log(counts).sum())
-                 - len(rssi) * math.log(sf) - 0.5 * math.log(var_m / (sf * sf))
-                 - s_w / (2.0 * sf * sf) - n_tot * ybar * ybar / (2.0 * var_m))
-        prec = 1.0 / (sx * sx) + n_tot / (sf * sf)
-        post_mean = (n_tot * ybar / (sf * sf)) / prec
-        return log_g, post_mean, np.full(np.shape(mu), 1.0 / math.sqrt(prec))
+    def _log_integrand_nodes(self, rssi, counts, d3, s, tx, n_missed: int | None, channel_share: float):
+        """For state s over the positions' shape: the shadowing's importance nodes X (..., G), the log
+        of (prior density of X) x (heard values' exact density given X) / (proposal density) + the
+        node's log weight, and the log miss probability per frame at the nodes.
 
-    def _log_miss_terms(self, d3, s, tx, post_mean, post_sd, channel_share):
-        """log(1 - c q) at the Gauss-Hermite nodes of the shadowing's posterior, (..., G)."""
-        nodes, _ = _gh(GH_NODES_LIKELIHOOD)
-        x = post_mean[..., None] + post_sd[..., None] * nodes
-        q = channel_share * self._per_frame_q(d3[..., None], s, tx[..., None], x)
-        return np.log(np.clip(1.0 - q, _MIN_P, 1.0))
+        The proposal is the shadowing's posterior under a Gaussian-in-dB stand-in for the fading
+        (closed form), widened by :data:`_PROPOSAL_WIDEN` so the exact, skewed law stays covered."""
+        law = self.fading(s)
+        sf, sx = float(law.std_db), float(self.shadow_db[s])
+        mp = self.mean_power_dbm(d3, s, tx)
+        shape = np.shape(mp)
+        if rssi.size:
+            n_tot = float(counts.sum())
+            ybar = float((counts * rssi).sum() / n_tot) - mp - law.mean_db
+            prec = 1.0 / (sx * sx) + n_tot / (sf * sf)
+            pm = (n_tot * ybar / (sf * sf)) / prec
+            psd = np.full(shape, _PROPOSAL_WIDEN / math.sqrt(prec))
+        else:
+            pm, psd = np.zeros(shape), np.full(shape, sx)
+        nodes, weights = _gh(GH_NODES_LIKELIHOOD)
+        x = pm[..., None] + psd[..., None] * nodes  # (..., G)
+        log_w = (np.log(weights) + 0.5 * nodes ** 2 + np.log(psd[..., None] * math.sqrt(2.0 * math.pi))
+                 - 0.5 * (x / sx) ** 2 - math.log(sx * math.sqrt(2.0 * math.pi)))
+        base = mp[..., None] + x  # (..., G): each frame's RSSI is base + F
+        for r, n in zip(rssi, counts):
+            log_w = log_w + law.log_density(r - base, int(round(n)))
+        q = channel_share * law.survival(self.sensitivity_dbm - base)
+        return log_w, np.log(np.clip(1.0 - q, _MIN_P, 1.0))
 
     def burst_log_likelihood(self, rssi_dbm, n_missed: int, horizontal_m, height_m, *, counts=None,
                              tx_offset_db=0.0, channel_share: float = 1.0) -> np.ndarray:
@@ -371,37 +384,31 @@ class A2GChannel:
         (``horizontal_m``, ``height_m``, ``tx_offset_db`` broadcast; the result has their shape).
 
         ``rssi_dbm`` (J,): heard values [dBm], each the mean of ``counts[j]`` frames (a sensor's slot;
-        default one frame each). Given the state and the shadowing X the frames are independent
-        N(mean + X, fast^2) and a missed frame has probability 1 - c Phi((mean + X - S) / fast),
-        c = ``channel_share`` (1 when ``n_missed`` counts frames on listened channels). The heard
-        values' Gaussian part is integrated over X in closed form and the misses over X's posterior
-        with Gauss-Hermite. Slots of several frames are taken as Gaussian means, ignoring that each
-        of their frames was above S (exact for one frame per slot). Constants that depend on
-        neither the geometry nor the counts are kept, so values compare across positions and counts."""
+        default one frame each). Given the state and the shadowing X the frames are independent with
+        RSSI = mean power + X + F (F the exact fading law; a slot's mean has the law of the mean of its
+        frames' F) and a missed frame has probability 1 - c P(F > S - mean power - X), c =
+        ``channel_share`` (1 when ``n_missed`` counts frames on listened channels). X is integrated by
+        importance-weighted Gauss-Hermite about its posterior. A slot's frames are not each required
+        to lie above S (exact for one frame per slot). Constants that depend on neither the geometry
+        nor the counts are kept, so values compare across positions and counts."""
         rssi = np.asarray(rssi_dbm, float).reshape(-1)
         cnt = np.ones(len(rssi)) if counts is None else np.asarray(counts, float).reshape(-1)
         h, z = np.broadcast_arrays(np.asarray(horizontal_m, float), np.asarray(height_m, float))
         tx = np.broadcast_to(np.asarray(tx_offset_db, float), h.shape)
         d3 = np.hypot(h, z)
         p_los = np.clip(self.los_probability(h, z), _MIN_P, 1.0)
-        _, weights = _gh(GH_NODES_LIKELIHOOD)
         parts = []
         for s, w in ((LOS, p_los), (NLOS, np.clip(1.0 - p_los, _MIN_P, 1.0))):
-            log_g, pm, psd = self._gauss_part(rssi, cnt, d3, s, tx)
-            ll = np.log(w) + log_g
-            if n_missed > 0:
-                lm = int(n_missed) * self._log_miss_terms(d3, s, tx, pm, psd, channel_share)
-                ll = ll + _logsumexp(lm + np.log(weights), axis=-1)
-            parts.append(ll)
+            log_w, log_miss = self._log_integrand_nodes(rssi, cnt, d3, s, tx, n_missed, channel_share)
+            parts.append(np.log(w) + _logsumexp(log_w + int(n_missed) * log_miss, axis=-1))
         return np.logaddexp(parts[0], parts[1])
 
     def burst_log_likelihood_unknown_sent(self, rssi_dbm, frames_pmf, horizontal_m, height_m, *, counts=None,
                                           tx_offset_db=0.0, channel_share: float = 1.0) -> np.ndarray:
         """As :meth:`burst_log_likelihood` when the number of frames sent is not known: summed over
         K frames sent with ``frames_pmf[K]`` (K = 0..Kmax, every channel), each sent frame reaching a
-        listened channel with ``channel_share``: sum_K p(K) C(K, N) E[(1 - c q)^(K - N)] times the
-        heard values' part, N the heard frames (the sum is a polynomial in 1 - c q, evaluated at
-        the shadowing's posterior nodes)."""
+        listened channel with ``channel_share``: sum_K p(K) C(K, N) E[(1 - c q)^(K - N) ...], N the
+        heard frames (a polynomial in 1 - c q at each node)."""
         from scipy.special import comb
 
         rssi = np.asarray(rssi_dbm, float).reshape(-1)
@@ -417,13 +424,11 @@ class A2GChannel:
         tx = np.broadcast_to(np.asarray(tx_offset_db, float), h.shape)
         d3 = np.hypot(h, z)
         p_los = np.clip(self.los_probability(h, z), _MIN_P, 1.0)
-        _, weights = _gh(GH_NODES_LIKELIHOOD)
         parts = []
         for s, w in ((LOS, p_los), (NLOS, np.clip(1.0 - p_los, _MIN_P, 1.0))):
-            log_g, pm, psd = self._gauss_part(rssi, cnt, d3, s, tx)
-            miss = np.exp(self._log_miss_terms(d3, s, tx, pm, psd, channel_share))  # (..., G)
-            poly = np.polynomial.polynomial.polyval(miss, coeffs) @ weights
-            parts.append(np.log(w) + log_g + np.log(np.maximum(poly, _MIN_P)))
+            log_w, log_miss = self._log_integrand_nodes(rssi, cnt, d3, s, tx, None, channel_share)
+            poly = np.polynomial.polynomial.polyval(np.exp(log_miss), coeffs)
+            parts.append(np.log(w) + _logsumexp(log_w + np.log(np.maximum(poly, _MIN_P)), axis=-1))
         return np.logaddexp(parts[0], parts[1])
 
 

@@ -13,10 +13,11 @@ frame (an on-board access point makes phones answer one frame at a time). For ev
   frames a few metres apart nearly share their state and shadowing; marginally every unit is drawn
   from the model exactly.
 
-Every frame adds its own fast fading N(fast_mean[state], fast[state]^2). Per call, 3 standard
-normals are drawn per frame (fast fading, and the two innovations, used when the frame starts a
-unit) in the frames' time order, so hearing a track in pieces gives the same numbers as at once; a
-burst cut by a piece boundary keeps its draw (the pair remembers its last unit).
+Every frame adds its own small-scale fading, drawn exactly (Rician in LoS, Rayleigh in NLoS:
+``A2GChannel.fading``). Per call, 4 standard normals are drawn per frame (two for the fading, two
+innovations used when the frame starts a unit) in the frames' time order, so hearing a track in
+pieces gives the same numbers as at once; a burst cut by a piece boundary keeps its draw (the pair
+remembers its last unit).
 """
 
 from __future__ import annotations
@@ -56,15 +57,16 @@ def draw_rssi_dbm(channel: A2GChannel, memory: PathMemory, rng: np.random.Genera
     ``burst`` (F,) the sender's burst index (-1 for an elicited frame), ``odometer_m`` (F,) the
     vehicle's distance flown at each frame, ``person_xy_m`` (F, 2) the sender's position,
     ``horizontal_m`` / ``height_m`` (F,) the geometry, ``tx_offset_db`` (F,) the sender's transmit
-    offset. Updates ``memory``; consumes 3F standard normals."""
+    offset. Updates ``memory``; consumes 4F standard normals."""
     f = len(person)
-    normals = rng.standard_normal((f, 3))
+    normals = rng.standard_normal((f, 4))
     if f == 0:
         return np.zeros(0)
     env = channel.environment
     d3 = np.hypot(horizontal_m, height_m)
     p_los = channel.los_probability(horizontal_m, height_m)
-    excess, shadow, fast, fast_mean = channel.excess_db, channel.shadow_db, channel.fast_db, channel.fast_mean_db
+    excess, shadow = channel.excess_db, channel.shadow_db
+    fades = [channel.fading(LOS), channel.fading(NLOS)]
     out = np.empty(f)
     for i in np.unique(person):
         rows = np.nonzero(person == i)[0]
@@ -85,7 +87,7 @@ def draw_rssi_dbm(channel: A2GChannel, memory: PathMemory, rng: np.random.Genera
             if first_ever:
                 log_rho[0] = -np.inf  # the pair's first unit is a fresh draw
             scale = np.sqrt(-np.expm1(2.0 * np.maximum(log_rho, -50.0)))
-            innov = scale[:, None] * normals[starts, 1:]
+            innov = scale[:, None] * normals[starts, 2:]
             x0 = np.array([memory.z[i], memory.u[i]])
             if first_ever:
                 x0 = np.zeros(2)
@@ -100,8 +102,8 @@ def draw_rssi_dbm(channel: A2GChannel, memory: PathMemory, rng: np.random.Genera
             z_u[~carried], u_u[~carried] = zu[unit[~carried], 0], zu[unit[~carried], 1]
             los_u[~carried] = unit_los[unit[~carried]]
         state = np.where(los_u, LOS, NLOS)
-        out[rows] = (channel.spreading_dbm(d3[rows], tx_offset_db[rows]) - excess[state] + shadow[state] * z_u
-                     + fast_mean[state] + fast[state] * normals[rows, 0])
+        fade = np.where(los_u, fades[LOS].sample(normals[rows, :2]), fades[NLOS].sample(normals[rows, :2]))
+        out[rows] = channel.spreading_dbm(d3[rows], tx_offset_db[rows]) - excess[state] + shadow[state] * z_u + fade
         if len(starts):
             memory.odometer_m[i], memory.xy_m[i] = odometer_m[starts[-1]], person_xy_m[starts[-1]]
         memory.key[i] = b[-1]
