@@ -1,8 +1,9 @@
 """``python -m benchmarks.pod_world``: the POD model (uavloc_gcs/search/pod.py) against the simulated
 field world.
 
-One vehicle flies straight passes (25 m/s, 100 m) over a 600 x 1000 m strip of static phones of
-``examples/field.toml``'s world; the fraction of phones with at least one / two distinct bursts heard
+One vehicle flies straight passes (25 m/s, at ``--altitude``: 100 m by default, a comma list for
+several) over a 600 x 1000 m strip of static phones of ``examples/field.toml``'s world (its urban
+air-to-ground channel: the model looks hearing up at the flight's height); the fraction of phones with at least one / two distinct bursts heard
 is compared with ``pod_from_tracks``'s area POD for the same tracks. Two starting times:
 
 - ``steady``: three hours into the phones' lives, where their burst processes (and long silences)
@@ -68,30 +69,35 @@ def main(argv=None) -> int:
     ap.add_argument("--seeds", type=int, default=5)
     ap.add_argument("--elicitation", type=float, default=0.0, help="emission.elicitation_rate_hz [Hz]")
     ap.add_argument("--cases", default="steady,cold", help="steady, cold or both (default)")
+    ap.add_argument("--altitude", default="100", help="flight height(s) above the phones [m], comma-separated")
     args = ap.parse_args(argv)
     sc = _strip(load_scenario("examples/field.toml"))
     if args.elicitation:
         sc = sc.replace(emission={"elicitation_rate_hz": args.elicitation})
     slot = sc.channel.slot_s
-    print(f"{args.people} static phones x {args.seeds} worlds, field.toml, one vehicle at 25 m/s, 100 m"
+    alts = [float(a) for a in args.altitude.split(",")]
+    print(f"{args.people} static phones x {args.seeds} worlds, field.toml ({sc.channel.environment or 'log-distance'}"
+          f" channel), one vehicle at 25 m/s, {', '.join(f'{a:g}' for a in alts)} m"
           + (f", elicitation {args.elicitation:g} Hz" if args.elicitation else ""))
-    print(f"{'case':<34} {'POD1 model':>10} {'heard>=1':>14} {'POD2 model':>10} {'heard>=2':>14}")
-    for start_name, t0 in (("steady", 3 * 3600.0), ("cold", 0.0)):
+    print(f"{'case':<40} {'POD1 model':>10} {'heard>=1':>14} {'POD2 model':>10} {'heard>=2':>14}")
+    for alt, (start_name, t0) in ((a, c) for a in alts for c in (("steady", 3 * 3600.0), ("cold", 0.0))):
         if start_name not in args.cases.split(","):
             continue
         for passes, sep in ((1, 0.0), (2, 30.0), (2, 600.0), (3, 600.0)):
-            tracks = [_pass(t0, -1500.0, 1500.0, slot)]
+            tracks = [_pass(t0, -1500.0, 1500.0, slot, alt=alt)]
             for k in range(1, passes):
                 end = tracks[-1][0][-1]
-                tracks.append(_pass(end + sep, 1500.0, -1500.0, slot) if k % 2 else _pass(end + sep, -1500.0, 1500.0, slot))
+                tracks.append(_pass(end + sep, 1500.0, -1500.0, slot, alt=alt) if k % 2
+                              else _pass(end + sep, -1500.0, 1500.0, slot, alt=alt))
             g = pod.pod_from_tracks(sc, [(t[::40], x[::40]) for t, x in tracks], pod.grid_for(sc, 40.0))
             counts = np.concatenate([heard_bursts(World(sc, seed=s, people=args.people), tracks)
                                      for s in range(1, args.seeds + 1)])
             n = len(counts)
             f1, f2 = np.mean(counts >= 1), np.mean(counts >= 2)
             se1, se2 = math.sqrt(f1 * (1 - f1) / n), math.sqrt(f2 * (1 - f2) / n)
-            case = f"{start_name}, {passes} pass{'es' if passes > 1 else ''}" + (f", {sep:g} s apart" if passes > 1 else "")
-            print(f"{case:<34} {g.overall(1):>10.3f} {f1:>8.3f}+-{se1:.3f} {g.overall(2):>10.3f} {f2:>8.3f}+-{se2:.3f}",
+            case = (f"{alt:g} m, {start_name}, {passes} pass{'es' if passes > 1 else ''}"
+                    + (f", {sep:g} s apart" if passes > 1 else ""))
+            print(f"{case:<40} {g.overall(1):>10.3f} {f1:>8.3f}+-{se1:.3f} {g.overall(2):>10.3f} {f2:>8.3f}+-{se2:.3f}",
                   flush=True)
     return 0
 

@@ -107,6 +107,12 @@ class ChannelSpec:
     # 802.11 channels the receiver listens on, one radio each (None: 1, 6 and 11, as the public
     # captures were made). Probe-request frames sent on other channels are not heard.
     listen_channels: list | None = None
+    # The air-to-ground environment (uavloc_gcs/a2g.py): "suburban", "urban", "dense-urban" or
+    # "high-rise". The chance of line of sight then rises with the elevation angle, blocked paths
+    # lose more, frames of a burst share their shadowing and each has its own fast fading; the
+    # log-distance law above is the free-space part of it. None: the i.i.d. log-normal channel with
+    # shadowing_sigma_db per frame (the world before issue 41).
+    environment: str | None = None
 
     @property
     def listen_channel_list(self) -> tuple:
@@ -495,6 +501,7 @@ def _resolve(sc: Scenario, base_dir: Path | None = None) -> Scenario:
         )
     _check_channels(sc)
     _check_emission(sc)
+    _check_environment(sc)
     _check(pe.max_speed_m_s >= 0, "must not be negative", sc, "people.max_speed_m_s")
     _check(
         pe.max_speed_m_s < f.speed_m_s,
@@ -602,6 +609,27 @@ def _check_channels(sc: Scenario) -> None:
         _check(isinstance(c, int) and not isinstance(c, bool) and 1 <= c <= 14,
                f"entries must be 2.4 GHz channel numbers 1..14, got {c!r}", sc, "channel.listen_channels")
     _check(len(set(chans)) == len(chans), "lists a channel twice", sc, "channel.listen_channels")
+
+
+def _check_environment(sc: Scenario) -> None:
+    """[channel] environment: a known name, in a world it is built for (bursts above a threshold)."""
+    from .a2g import ENVIRONMENTS
+
+    env = sc.channel.environment
+    if env is None:
+        return
+    key = "channel.environment"
+    _check(env in ENVIRONMENTS, f"unknown environment {env!r}; choose one of {', '.join(ENVIRONMENTS)}", sc, key)
+    _check(sc.channel.receiver_sensitivity_dbm is not None,
+           f"the {env!r} air-to-ground channel hears frames above a threshold: set "
+           "channel.receiver_sensitivity_dbm (dongles: about -90 to -95 dBm)", sc, key)
+    _check(sc.emission.model == "probe-bursts",
+           f"the {env!r} air-to-ground channel is built for phones that send probe bursts: set "
+           "[emission] model = \"probe-bursts\", or remove channel.environment for the paper's world", sc, key)
+    _check(not sc.simulation.correlated_shadowing,
+           f"the {env!r} air-to-ground channel draws its own shadowing, shared within a burst and "
+           "correlated between bursts: remove simulation.correlated_shadowing, or channel.environment", sc,
+           "simulation.correlated_shadowing")
 
 
 def _check_emission(sc: Scenario) -> None:

@@ -44,14 +44,15 @@ class Coverage:
         return float(np.mean(self.bursts >= 2)) if len(self.bursts) else math.nan
 
 
-def fly_scan(world: World, *, chunk_s: float = 60.0):
+def fly_scan(world: World, *, chunk_s: float = 60.0, altitude_m: float | None = None):
     """Hear the scenario's initial scan in ``world``; returns (SlotBatch of everything heard, scan
-    duration [s])."""
+    duration [s]). ``altitude_m``: fly the same lanes at this height instead of the scenario's."""
     from uavloc_gcs.observations import SlotBatch
 
     sc = world.scenario
     plan = plan_scan(sc)
-    speed, slot_s, h = sc.fleet.speed_m_s, sc.channel.slot_s, sc.fleet.altitude_m
+    speed, slot_s = sc.fleet.speed_m_s, sc.channel.slot_s
+    h = sc.fleet.altitude_m if altitude_m is None else float(altitude_m)
     out, t_end = [], 0.0
     for vs in plan.vehicles:
         path = np.vstack([np.zeros((1, 2)), vs.waypoints_xy_m, np.zeros((1, 2))])
@@ -67,9 +68,10 @@ def fly_scan(world: World, *, chunk_s: float = 60.0):
     return SlotBatch.concat(out), t_end
 
 
-def scan_coverage(world: World) -> Coverage:
-    """Distinct bursts heard per person during the scan (see the module docstring)."""
-    heard, t_end = fly_scan(world)
+def scan_coverage(world: World, *, altitude_m: float | None = None) -> Coverage:
+    """Distinct bursts heard per person during the scan (see the module docstring); ``altitude_m``
+    as for :func:`fly_scan`."""
+    heard, t_end = fly_scan(world, altitude_m=altitude_m)
     person = world.person_of(heard.address)
     if world.emission is None:
         burst = np.full(len(heard), -1)

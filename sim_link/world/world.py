@@ -15,8 +15,10 @@ Two emission models (``scenario.emission.model``, docs/readme/world.md): ``conti
 every phone in every slot, under its emitter id, heard within ``fleet.comm_range_m``) and
 ``probe-bursts`` (the field: :mod:`.emission`'s bursts under changing addresses). With
 ``channel.receiver_sensitivity_dbm`` set, a frame is heard when its RSSI exceeds it (no range gate),
-on the channels of ``channel.listen_channels`` (one radio each). ``person_of`` maps what was heard
-back to people (truth for tests and benchmarks; a sensor has only the address).
+on the channels of ``channel.listen_channels`` (one radio each). ``channel.environment`` makes it
+the air-to-ground channel of :mod:`uavloc_gcs.a2g` (line of sight by elevation, per burst; drawn by
+:mod:`.airground`). ``person_of`` maps what was heard back to people (truth for tests and
+benchmarks; a sensor has only the address).
 
 Example::
 
@@ -30,9 +32,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from uavloc_gcs.a2g import LOS, A2GChannel
 from uavloc_gcs.observations import SlotBatch
 from uavloc_gcs.scenario import Scenario
 
+from .airground import PathMemory, draw_rssi_dbm
 from .channel import ChannelParams, ShadowingState, draw_frame_shadowing_db, draw_shadowing_db
 from .emission import BurstParams, Frames, ProbeBursts
 from .people import Tracks, constant_velocity_tracks, make_tracks
@@ -59,6 +63,10 @@ class World:
         self.seed = int(sim.seed if seed is None else seed)
         self.motion = sim.motion if motion is None else motion
         self.channel = ChannelParams.from_scenario(scenario)
+        # [channel] environment: the air-to-ground channel (uavloc_gcs/a2g.py, .airground); None: the
+        # log-distance channel of .channel, i.i.d. or correlated shadowing per frame
+        self.a2g = A2GChannel.from_scenario(scenario)
+        self._paths: dict[int, PathMemory] = {}
         self.comm_range_m = scenario.fleet.comm_range_m
         if tracks is None:
             count = sim.people if people is None else int(people)
@@ -141,9 +149,13 @@ class World:
 
     def hearing_range_m(self) -> float:
         """3-D distance [m] at which a frame of a phone with no transmit offset is heard with
-        probability 1/2: where the median RSSI equals the sensitivity (fleet.comm_range_m without one)."""
+        probability 1/2: where the median RSSI equals the sensitivity (fleet.comm_range_m without one).
+        Under an air-to-ground environment, that of a frame in line of sight (the farthest any
+        frame's median reaches; blocked paths fall short of it)."""
         if self.sensitivity_dbm is None:
             return float(self.comm_range_m)
+        if self.a2g is not None:
+            return float(self.a2g.state_range_m(LOS))
         ch = self.channel
         margin = ch.reference_power_dbm - self.sensitivity_dbm
         return float(ch.reference_distance_m * 10.0 ** (margin / (10.0 * ch.path_loss_exponent)))
@@ -235,9 +247,18 @@ class World:
         # each sender at its frame's slot only: hearing costs what the frames cost
         pxy = self.tracks.positions_of(frames.person, t[slot])  # (F, 2)
         dz = xyz[slot, 2] if self.dem is None else xyz[slot, 2] - self.ground_above_launch_m(pxy)
-        d3 = np.sqrt(np.sum((pxy - xyz[slot, :2]) ** 2, axis=1) + dz ** 2)
-        psi = draw_frame_shadowing_db(self.channel, state, frames.person, odometer[slot], pxy, len(self))
-        rssi = self.channel.median_rssi_dbm(d3) + self.tx_offset_db[frames.person] + psi
+        if self.a2g is not None:  # the elevation-angle channel: state and shadowing per burst
+            paths = self._paths.get(vehicle)
+            if paths is None:
+                paths = self._paths[vehicle] = PathMemory.empty(len(self))
+            horizontal = np.linalg.norm(pxy - xyz[slot, :2], axis=1)
+            d3 = np.hypot(horizontal, dz)
+            rssi = draw_rssi_dbm(self.a2g, paths, state.rng, frames.person, frames.burst, odometer[slot], pxy,
+                                 horizontal, dz, self.tx_offset_db[frames.person])
+        else:
+            d3 = np.sqrt(np.sum((pxy - xyz[slot, :2]) ** 2, axis=1) + dz ** 2)
+            psi = draw_frame_shadowing_db(self.channel, state, frames.person, odometer[slot], pxy, len(self))
+            rssi = self.channel.median_rssi_dbm(d3) + self.tx_offset_db[frames.person] + psi
         heard = d3 <= self.comm_range_m if self.sensitivity_dbm is None else rssi > self.sensitivity_dbm
         frames, slot, rssi = frames.take(heard), slot[heard], rssi[heard]
         if len(frames) == 0:

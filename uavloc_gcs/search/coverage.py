@@ -109,12 +109,20 @@ class _Hearing:
         self.d = np.asarray(h.d_grid, float)
         self.p = np.asarray(h.table, float) @ (np.asarray(h.weights, float) / np.sum(h.weights))
         self.reach_m = float(h.max_range_m)
+        self.two_d = h.z_grid is not None  # air-to-ground: over (horizontal distance, height)
         if sc.emission.model == "continuous" or sc.emission.elicitation_rate_hz > 0:
             self.p = (self.p > 0.5).astype(float)
-            inside = self.d[self.p > 0]
-            self.reach_m = float(inside.max()) if len(inside) else 0.0
+            if not self.two_d:
+                inside = self.d[self.p > 0]
+                self.reach_m = float(inside.max()) if len(inside) else 0.0
 
-    def at(self, d3_m: np.ndarray) -> np.ndarray:
+    def at(self, d3_m: np.ndarray, horizontal_m=None, height_m=None) -> np.ndarray:
+        """P(a burst heard) at 3-D distances; an air-to-ground table is looked up by the horizontal
+        distance and height instead (both required then)."""
+        if self.two_d:
+            from .pod_a2g import lookup  # noqa: PLC0415
+
+            return lookup(self.p, horizontal_m, height_m)
         return np.interp(d3_m, self.d, self.p, right=0.0)
 
 
@@ -223,7 +231,12 @@ class Coverage:
             d3 = np.sqrt(np.einsum("ijk,ijk->ij", d, d) + dz * dz)  # (n, k)
             w = np.zeros(len(self.grid.xy_m))
             near = np.zeros(len(self.grid.xy_m), bool)
-            w[cand] = self._hearing.at(d3).mean(axis=1) * dt  # effective window gained [s]
+            if self._hearing.two_d:  # air-to-ground: the flight's own height above each cell
+                hxy = np.sqrt(np.einsum("ijk,ijk->ij", d, d))
+                p = self._hearing.at(d3, hxy, np.broadcast_to(dz, hxy.shape))
+            else:
+                p = self._hearing.at(d3)
+            w[cand] = p.mean(axis=1) * dt  # effective window gained [s]
             near[cand] = np.any(d3 <= reach, axis=1)
             self._extend(v, w, near)
             self.flown_s += dt

@@ -151,7 +151,7 @@ def _p_heard_table(sc):
         grid = np.linspace(0.0, 4.0 * max(float(sc.horizontal_range_m), 50.0) + 200.0, 241)
         h = float(sc.fleet.altitude_m)
         if elicited(sc):
-            table = elicited_rate_hz(sc, np.hypot(grid, h)) / sc.emission.elicitation_rate_hz
+            table = elicited_rate_hz(sc, np.hypot(grid, h), height_m=h) / sc.emission.elicitation_rate_hz
         else:
             table = p_burst_heard(sc, grid, h)
         _HEARD_CACHE[key] = (grid, np.asarray(table, float))

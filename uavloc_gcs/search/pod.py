@@ -45,7 +45,9 @@ from functools import lru_cache
 
 import numpy as np
 
+from ..a2g import A2GChannel
 from ..errors import ConfigError
+from . import pod_a2g
 
 # Share of a probe burst's frames on 2.4 GHz channels 1 / 6 / 11 (the public captures' sniffers; the
 # same numbers as sim_link/world/emission.py CHANNEL_WEIGHTS, a test keeps them equal).
@@ -282,6 +284,28 @@ class _Hearing:
     weights: np.ndarray  # (T,)
     max_range_m: float  # beyond this no type's burst is heard with more than P_EPS
     elicit: np.ndarray | None = None  # (G, T) heard elicited frames per second (None: no elicitation)
+    # heights [m] of an air-to-ground table (channel.environment, .pod_a2g): then d_grid is the
+    # horizontal distance and table / elicit are (G, Z, T); None: tables over 3-D distance
+    z_grid: np.ndarray | None = None
+    reach_by_z: np.ndarray | None = None  # (Z,) the 3-D reach of vehicles at or below each height [m]
+
+    def reach_m(self, max_height_m: float) -> float:
+        """The 3-D distance beyond which nothing is heard from vehicles at most ``max_height_m`` above
+        the phones (``max_range_m`` for 3-D tables)."""
+        if self.reach_by_z is None:
+            return self.max_range_m
+        j = int(np.clip(np.ceil(max_height_m / (self.z_grid[1] - self.z_grid[0])), 0, len(self.z_grid) - 1))
+        return float(self.reach_by_z[j])
+
+    def p_at(self, horizontal_m, height_m) -> np.ndarray:
+        """(..., T) per type at a horizontal distance and height (air-to-ground tables only)."""
+        return pod_a2g.lookup(self.table32, horizontal_m, height_m)
+
+    def rate_at(self, horizontal_m, height_m) -> np.ndarray:
+        """(..., T) heard elicited frames per second per type (air-to-ground tables only)."""
+        if self.elicit is None:
+            return np.zeros(np.shape(horizontal_m) + (self.table.shape[-1],), np.float32)
+        return pod_a2g.lookup(self.elicit, horizontal_m, height_m)
 
     def p(self, d3_m) -> np.ndarray:
         """(..., T) per type (the table's nearest distance, 1 m away at most)."""
@@ -347,6 +371,11 @@ def p_burst_heard(sc, horizontal_m, altitude_m, *, tx_offset_db=0.0, frames_medi
         w = w / w.sum()
         return sum(wi * p_burst_heard(sc, h, z, tx_offset_db=spread * xi, frames_median=frames_median)
                    for xi, wi in zip(x, w))
+    a2g = A2GChannel.from_scenario(sc)
+    if a2g is not None:  # the air-to-ground channel: the state by elevation, shadowing per burst
+        ks, wk = _frames_nodes(sc, frames_median)
+        return pod_a2g.burst_heard(a2g, h, z, tx_offset_db=tx_offset_db, ks=ks, weights=wk,
+                                   channel_share=_channel_share(sc))
     mu = ch.reference_power_dbm - 10.0 * ch.path_loss_exponent * np.log10(
         np.maximum(d3, 1e-3) / ch.reference_distance_m) + tx_offset_db
     q = _ndtr((mu - sens) / ch.shadowing_sigma_db)  # one frame above the sensitivity
@@ -390,6 +419,14 @@ def _hearing_table(sc) -> _Hearing:
     d = np.arange(0.0, 5000.0 + step, step)
     cols, weights, rates = [], [], []
     elicit = em.model != "continuous" and em.elicitation_rate_hz > 0 and channel.receiver_sensitivity_dbm is not None
+    a2g = A2GChannel.from_scenario(sc)
+    if a2g is not None:  # tables over (horizontal distance, height): the elevation decides line of sight
+        types = [_frames_nodes(sc, m) for m in med]
+        h, z, table, reach, el, reach_z = pod_a2g.tables(
+            a2g, tx, types, _channel_share(sc), P_EPS, em.elicitation_rate_hz if elicit else 0.0,
+            elicitation_range_m(sc))
+        weights = np.array([wt * wmm for wt in wtx for wmm in wm])
+        return _Hearing(h, table, weights, reach, el, z, reach_z)
     for t, wt in zip(tx, wtx):
         for m, wmm in zip(med, wm):
             cols.append(p_burst_heard(sc, d, 0.0, tx_offset_db=float(t), frames_median=m))
@@ -411,16 +448,28 @@ def elicitation_range_m(sc) -> float:
     ch = sc.channel
     if ch.receiver_sensitivity_dbm is None:
         return float(sc.fleet.comm_range_m)
+    a2g = A2GChannel.from_scenario(sc)
+    if a2g is not None:  # a frame in line of sight (as sim_link's World.hearing_range_m)
+        return float(a2g.state_range_m(0))
     margin = ch.reference_power_dbm - ch.receiver_sensitivity_dbm
     return float(ch.reference_distance_m * 10.0 ** (margin / (10.0 * ch.path_loss_exponent)))
 
 
-def elicited_rate_hz(sc, d3_m, *, tx_offset_db=0.0) -> np.ndarray:
+def elicited_rate_hz(sc, d3_m, *, tx_offset_db=0.0, height_m=None) -> np.ndarray:
     """Elicited frames heard per second from a phone at 3-D distance ``d3_m``: the phone answers
     at ``emission.elicitation_rate_hz`` within :func:`elicitation_range_m`, on the access point's
-    (listened) channel, each frame heard above the sensitivity."""
+    (listened) channel, each frame heard above the sensitivity. Under an air-to-ground environment
+    hearing depends on the elevation: give the vehicle's ``height_m`` above the phone."""
     ch = sc.channel
     d = np.asarray(d3_m, float)
+    a2g = A2GChannel.from_scenario(sc)
+    if a2g is not None:
+        if height_m is None:
+            raise ValueError("elicited_rate_hz: under channel.environment the rate depends on the "
+                             "elevation; pass height_m (the vehicle's height above the phone)")
+        z = np.asarray(height_m, float)
+        q = a2g.frame_heard_probability(np.sqrt(np.maximum(d * d - z * z, 0.0)), z, tx_offset_db)
+        return sc.emission.elicitation_rate_hz * q * (d <= elicitation_range_m(sc))
     mu = ch.reference_power_dbm - 10.0 * ch.path_loss_exponent * np.log10(
         np.maximum(d, 1e-3) / ch.reference_distance_m) + tx_offset_db
     q = _ndtr((mu - ch.receiver_sensitivity_dbm) / ch.shadowing_sigma_db)
@@ -527,9 +576,13 @@ def _looks(cx, cy, tracks, hearing: _Hearing, ground=None):
     """Per cell: looks (t0, t1, w[T]) over all tracks. Returns padded arrays t0, t1 (C, L), w (C, L, T)
     and a validity mask (C, L). ``ground`` (C,): each cell's ground above the launch point [m] (the
     tracks' heights are above the launch point); None: flat."""
-    C, T = len(cx), hearing.table.shape[1]
+    C, T = len(cx), hearing.table.shape[-1]
+    if hearing.z_grid is not None:
+        T = 2 * T  # air-to-ground: each type's integral of p, then of p^2 (pod_a2g.heard_12)
     g = np.zeros(C) if ground is None else np.asarray(ground, float)
     per_cell = [[] for _ in range(C)]
+    top = max((float(np.max(x[:, 2])) for _, x in tracks if len(x)), default=0.0) - float(np.min(g, initial=0.0))
+    reach_m = hearing.reach_m(top)
     for t_s, xyz_m in tracks:
         t, xyz = _resample(t_s, xyz_m)
         if len(t) < 2:
@@ -542,7 +595,7 @@ def _looks(cx, cy, tracks, hearing: _Hearing, ground=None):
             dy = xyz[None, :, 1] - cy[sl, None]
             dz = xyz[None, :, 2] - g[sl, None]
             d3 = np.sqrt(dx * dx + dy * dy + dz * dz)
-            near = d3 <= hearing.max_range_m
+            near = d3 <= reach_m
             rows, cols = np.nonzero(near)  # row-major: runs of consecutive samples per cell
             if len(rows) == 0:
                 continue
@@ -550,7 +603,12 @@ def _looks(cx, cy, tracks, hearing: _Hearing, ground=None):
             start[1:] = (rows[1:] != rows[:-1]) | (cols[1:] != cols[:-1] + 1)
             first = np.flatnonzero(start)
             last = np.append(first[1:], len(rows)) - 1
-            w = np.add.reduceat(hearing.p(d3[rows, cols]) * dt[cols, None], first, axis=0)  # (R, T)
+            if hearing.z_grid is None:
+                pr = hearing.p(d3[rows, cols])
+            else:  # air-to-ground: the sample's own height above the cell's ground
+                pr = hearing.p_at(np.hypot(dx[rows, cols], dy[rows, cols]), dz[rows, cols])
+                pr = np.concatenate([pr, pr * pr], axis=-1)
+            w = np.add.reduceat(pr * dt[cols, None], first, axis=0)  # (R, T)
             for r, a0, a1, ww in zip(rows[first], t[cols[first]], t[cols[last]], w):
                 per_cell[a + r].append((a0, a1, ww))
     L = max(1, max((len(c) for c in per_cell), default=1))
@@ -569,7 +627,7 @@ def _elicited(cx, cy, tracks, hearing: _Hearing, reach_m: float, ground=None):
     """Elicited detections per cell and type: every run of a track within ``reach_m`` (where the
     phone hears the access point) is one detection with probability 1 - exp(-m), m its elicited
     frames expected to be heard. Returns P(none) and P(exactly one), (C, T) each."""
-    C, T = len(cx), hearing.table.shape[1]
+    C, T = len(cx), hearing.table.shape[-1]
     g = np.zeros(C) if ground is None else np.asarray(ground, float)
     el0 = np.ones((C, T))
     el1 = np.zeros((C, T))
@@ -578,6 +636,8 @@ def _elicited(cx, cy, tracks, hearing: _Hearing, reach_m: float, ground=None):
         if len(t) < 2:
             continue
         dt = np.diff(np.concatenate([[t[0]], 0.5 * (t[1:] + t[:-1]), [t[-1]]]))
+        hxy = np.hypot(xyz[None, :, 0] - cx[:, None], xyz[None, :, 1] - cy[:, None])
+        dz = xyz[None, :, 2] - g[:, None]
         d3 = np.sqrt((xyz[None, :, 0] - cx[:, None]) ** 2 + (xyz[None, :, 1] - cy[:, None]) ** 2
                      + (xyz[None, :, 2] - g[:, None]) ** 2)
         rows, cols = np.nonzero(d3 <= reach_m)
@@ -586,7 +646,8 @@ def _elicited(cx, cy, tracks, hearing: _Hearing, reach_m: float, ground=None):
         start = np.ones(len(rows), bool)
         start[1:] = (rows[1:] != rows[:-1]) | (cols[1:] != cols[:-1] + 1)
         first = np.flatnonzero(start)
-        m = np.add.reduceat(hearing.rate(d3[rows, cols]) * dt[cols, None], first, axis=0)  # (R, T)
+        rate = hearing.rate(d3[rows, cols]) if hearing.z_grid is None else hearing.rate_at(hxy[rows, cols], dz[rows, cols])
+        m = np.add.reduceat(rate * dt[cols, None], first, axis=0)  # (R, T)
         pe = 1.0 - np.exp(-m)
         for r, p in zip(rows[first], pe):
             el0[r], el1[r] = el0[r] * (1.0 - p), el1[r] * (1.0 - p) + el0[r] * p
@@ -645,7 +706,8 @@ def pod_from_tracks(sc, tracks, grid: PodGrid | None = None, *, coarse: bool = F
         el = None
         if hearing.elicit is not None:
             el = _elicited(grid.x_m[idx], grid.y_m[idx], tracks, hearing, elicitation_range_m(sc), ground)
-        p1, p2 = _burst_pod(bt, t0 - start, t1 - start, w, valid, hearing.weights, horizon, 2 if coarse else 1, el)
+        p1, p2 = _burst_pod(bt, t0 - start, t1 - start, w, valid, hearing.weights, horizon, 2 if coarse else 1, el,
+                            uneven=hearing.z_grid is not None)
     pod1[idx], pod2[idx] = p1, p2
     return grid.with_pod(pod1, pod2)
 
@@ -662,7 +724,12 @@ def _continuous_pod(t0, t1, w, valid, hearing, slot_s):
     return 1 - q0, 1 - q0 - q1
 
 
-def _burst_pod(bt: BurstTiming, t0, t1, w, valid, type_w, horizon, stride: int = 1, elicited=None):
+def _burst_pod(bt: BurstTiming, t0, t1, w, valid, type_w, horizon, stride: int = 1, elicited=None,
+               uneven: bool = False):
+    """P(>= 1), P(>= 2) bursts heard per cell. ``uneven``: ``w`` holds each type's integral of p and
+    then of p^2 (air-to-ground), and a look is T_eff seconds of bursts heard with p_bar each
+    (:func:`.pod_a2g.heard_12`); otherwise a look is a window of w seconds in which every burst is
+    heard (thinning)."""
     C = len(t0)
     type_w = np.asarray(type_w, np.float32)
     sil_all = bt.silences(horizon)
@@ -679,21 +746,33 @@ def _burst_pod(bt: BurstTiming, t0, t1, w, valid, type_w, horizon, stride: int =
         span = np.maximum(m1 - m0, 1e-9)
         alive = 1.0 - _overlap(m0, np.maximum(m1, m0 + 1e-9), sil) / span  # (D, C, L)
         alive = np.where(mv[None], alive, 0.0).astype(np.float32)
-        mw32 = mw.astype(np.float32)  # (C, L, T)
+        if uneven:  # air-to-ground: a look is t_eff seconds of bursts heard with p_bar each (pod_a2g)
+            w1, w2 = mw[..., :nt], mw[..., nt:]
+            p_bar = np.where(w1 > 0, w2 / np.maximum(w1, 1e-300), 0.0).astype(np.float32)
+            win = np.where(p_bar > 0, w1 / np.maximum(p_bar, 1e-30), 0.0).astype(np.float32)  # (C, L, T)
+
+            def chances(x, cj=None, j=None):
+                a1, b1 = pod_a2g.heard_12(bt, x, p_bar if cj is None else p_bar[cj, j], iu)
+                return a1, a1 - b1
+        else:
+            win = mw.astype(np.float32)  # (C, L, T)
+
+            def chances(x, cj=None, j=None):
+                return bt.p_active_12(x, iu)
         # A look outside every long silence (alive 1: almost all of them, silences are rare) has the
-        # same hearing chances in every silence draw: computed once, and only the looks a silence
-        # cut short per draw. The same numbers as forming all (D, C, L, T) at once, 20-40x faster
-        # and with a fraction of the memory (a field demo's final summary took 266 s and 1.4 GB).
-        full1, full2 = bt.p_active_12(mw32, iu)  # (C, L, T)
-        D, C, T = alive.shape[0], mw.shape[0], mw.shape[2]
+        # same hearing chances in every silence draw: computed once, and only the looks a silence cut
+        # short per draw. The same numbers as forming all (D, C, L, T) at once, 20-40x faster and with
+        # a fraction of the memory (a field demo's final summary took 266 s and 1.4 GB).
+        full1, full2 = chances(win)  # (C, L, T)
+        D, T = alive.shape[0], win.shape[2]
         q0 = np.ones((D, C, T), np.float32)
         q1 = np.zeros_like(q0)
-        for j in range(mw.shape[1]):
+        for j in range(win.shape[1]):
             a1 = np.broadcast_to(full1[None, :, j], (D, C, T)).copy()
             a2 = np.broadcast_to(full2[None, :, j], (D, C, T)).copy()
-            dj, cj = np.nonzero((alive[:, :, j] != np.float32(1.0)) & mv[None, :, j])  # (no look: mw 0 already)
+            dj, cj = np.nonzero((alive[:, :, j] != np.float32(1.0)) & mv[None, :, j])  # (no look: window 0 already)
             if len(dj):
-                a1[dj, cj], a2[dj, cj] = bt.p_active_12(alive[dj, cj, j][:, None] * mw32[cj, j], iu)
+                a1[dj, cj], a2[dj, cj] = chances(alive[dj, cj, j][:, None] * win[cj, j], cj, j)
             e0, e1 = 1.0 - a1, a1 - a2
             q0, q1 = q0 * e0, q1 * e0 + q0 * e1
         q0, q1 = q0 * el0[None], q1 * el0[None] + q0 * el1[None]

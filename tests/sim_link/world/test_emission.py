@@ -27,6 +27,13 @@ def field():
     return load_scenario(EXAMPLES / "field.toml")
 
 
+@pytest.fixture(scope="module")
+def logdistance(field):
+    """The field world's log-distance channel as it was before issue 41 (i.i.d. 4 dB per frame,
+    eta 2.3: a frame heard with probability 1/2 at 150 m), without field.toml's environment."""
+    return field.replace(channel={"environment": None, "path_loss_exponent": 2.3, "reference_power_dbm": -40.0})
+
+
 def _bursts(n, seed=0, params=BurstParams()):
     return ProbeBursts(params, n, np.random.default_rng(seed), lambda i: np.random.default_rng([seed, 1, i]))
 
@@ -152,8 +159,8 @@ def _hover(sc, d_horizontal, seconds, seed=1, vehicle=1):
 
 
 @pytest.mark.parametrize("d_h", [60.0, 110.0, 160.0])
-def test_heard_fraction_of_frames_follows_phi(field, d_h):
-    sc = field.replace(simulation={"tx_power_spread_db": 0.0})
+def test_heard_fraction_of_frames_follows_phi(logdistance, d_h):
+    sc = logdistance.replace(simulation={"tx_power_spread_db": 0.0})
     world, heard, t = _hover(sc, d_h, 4 * 3600.0)
     frames = world.emission.frames(0.0, t[-1] + sc.channel.slot_s)
     sent = int(np.sum(np.isin(frames.channel, [1, 6, 11])))
@@ -168,10 +175,10 @@ def test_heard_fraction_of_frames_follows_phi(field, d_h):
     assert np.all(np.isin(heard.channel, [1, 6, 11]))
 
 
-def test_a_far_phone_is_never_heard_and_the_median_range_is_the_planning_range(field):
-    world, heard, _ = _hover(field, 1200.0, 3600.0)
+def test_a_far_phone_is_never_heard_and_the_median_range_is_the_planning_range(logdistance):
+    world, heard, _ = _hover(logdistance, 1200.0, 3600.0)
     assert len(heard) == 0  # 1.2 km: 26 dB below the sensitivity, 6.5 sigma
-    assert World(field).hearing_range_m() == pytest.approx(field.fleet.comm_range_m, rel=0.01)
+    assert World(logdistance).hearing_range_m() == pytest.approx(logdistance.fleet.comm_range_m, rel=0.01)
 
 
 def test_rows_are_per_slot_and_address_with_the_mean_of_heard_frames(field):
@@ -202,7 +209,10 @@ def test_continuous_world_with_a_sensitivity_counts_the_samples_above_it(paper):
 
 @pytest.mark.parametrize("correlated", [False, True])
 def test_burst_world_is_deterministic_and_slot_by_slot_equals_at_once(field, correlated):
-    sc = field.replace(simulation={"correlated_shadowing": correlated}, emission={"elicitation_rate_hz": 1.0})
+    # the log-distance channel (field.toml without its environment; the air-to-ground one:
+    # tests/sim_link/world/test_airground.py)
+    sc = field.replace(channel={"environment": None}, simulation={"correlated_shadowing": correlated},
+                       emission={"elicitation_rate_hz": 1.0})
     t = np.arange(0.0, 120.0, 0.025)
     xyz = np.column_stack([9.0 * t, np.full_like(t, 320.0), np.full_like(t, 100.0)])
     whole = World(sc, people=30, seed=5).hear_track(1, t, xyz)
@@ -220,9 +230,9 @@ def test_burst_world_is_deterministic_and_slot_by_slot_equals_at_once(field, cor
     assert not np.array_equal(other.address[:5], whole.address[:5])
 
 
-def test_elicitation_adds_a_stream_while_the_vehicle_is_in_range(field):
+def test_elicitation_adds_a_stream_while_the_vehicle_is_in_range(logdistance):
     rate = 4.0
-    sc = field.replace(emission={"elicitation_rate_hz": rate}, simulation={"tx_power_spread_db": 0.0})
+    sc = logdistance.replace(emission={"elicitation_rate_hz": rate}, simulation={"tx_power_spread_db": 0.0})
     # a phone that randomizes its probes' addresses, so that only the elicited frames carry its
     # network address (a stable phone probes under that address too): the first seed that draws one
     seed = next(k for k in range(1, 50) if World.with_people(sc, [[500.0, 300.0]], seed=k).emission.randomizes[0])

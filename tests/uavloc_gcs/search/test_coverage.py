@@ -142,3 +142,21 @@ def test_replans_while_passes_are_flown_do_not_use_up_the_rounds():
     assert "rounds of extra passes" in final_summary(cov).passes_end
     cov.passes_exhausted = True
     assert "energy" in final_summary(cov).passes_end
+
+
+def test_air_to_ground_live_pod_follows_the_flight_height():
+    """Under an air-to-ground environment the live figure looks hearing up by the flight's own height
+    (a lane at 60 m hears a cell 90 m aside more often than one at 32 m) and stays near the model.
+    (Positions below half the fleet altitude do not count at all: coverage.py's survey rule.)"""
+    sc = small_scenario(extra=FIELD.replace("[channel]\n", "[channel]\nenvironment = \"urban\"\n"))
+    assert sc.channel.environment == "urban"
+    pods = {}
+    for alt in (60.0, 32.0):
+        cov = Coverage(sc)
+        xy = cov.grid.xy_m
+        cell = int(np.argmin(np.linalg.norm(xy - xy.mean(axis=0), axis=1)))
+        _lane(cov, 1, float(xy[cell, 1]) + 90.0, xy[:, 0].min(), xy[:, 0].max(), alt=alt)
+        pods[alt] = float(cov.pod(1)[cell])
+        final = final_summary(cov)
+        assert abs(final.pod1[cell] - pods[alt]) < 0.1, (alt, final.pod1[cell], pods[alt])
+    assert 0.0 < pods[32.0] < 0.7 * pods[60.0]
