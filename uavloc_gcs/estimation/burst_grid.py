@@ -19,7 +19,14 @@ Per burst the likelihood depends on the person's position only through the horiz
 where the vehicle heard it (its height fixed over flat ground), so it is tabulated once over
 distance (:class:`BurstTable`) and read at every cell. The channel is a :class:`BurstModel`:
 :class:`LogDistanceBursts` for the log-distance channel with per-frame shadowing (the field world
-before the air-to-ground channel); the air-to-ground channel plugs in the same way.
+before the air-to-ground channel), :class:`A2GBursts` for the air-to-ground channel of
+``uavloc_gcs.a2g`` (``[channel] environment``: line of sight by elevation angle, one shadowing per
+burst), the model the simulated world draws from.
+
+Bursts are taken as independent. That holds for probe bursts tens of seconds apart (a vehicle flies
+hundreds of metres between them, past the channel's shadowing decorrelation distance); frames
+elicited by an on-board access point a second apart share their shadowing, and treating them as
+independent bursts overstates what they say.
 """
 
 from __future__ import annotations
@@ -133,6 +140,58 @@ class LogDistanceBursts:
         margin = self.reference_power_dbm + 3.0 * self.tx_sigma_db + 5.0 * self.shadowing_sigma_db - self.sensitivity_dbm
         d = self.reference_distance_m * 10.0 ** (margin / (10.0 * self.path_loss_exponent))
         return float(math.sqrt(max(d * d - height_m * height_m, 1.0)))
+
+
+@dataclass(frozen=True)
+class A2GBursts:
+    """The air-to-ground channel (``uavloc_gcs.a2g``, ``[channel] environment``): line of sight by
+    elevation angle, the burst's shared shadowing and each frame's fading integrated out by the
+    channel's own burst likelihood -- the model the simulated world draws from (issue 41 item 1:
+    the estimator, the POD and the look planner use the same channel)."""
+
+    channel: object  # a2g.A2GChannel (frozen, hashable)
+    tx_sigma_db: float
+    frames_pmf: tuple[float, ...]
+    channel_share: float = 1.0  # the share of a burst's frames sent on channels the sensor listens to
+
+    @staticmethod
+    def from_scenario(sc, frames_pmf, channel_share: float = 1.0) -> "A2GBursts | None":
+        """None when the scenario names no environment (the log-distance channel). ``channel_share``:
+        search.pod's share of probe frames on the listened channels."""
+        from ..a2g import A2GChannel
+
+        ch = A2GChannel.from_scenario(sc)
+        if ch is None:
+            return None
+        if ch.sensitivity_dbm is None:
+            raise EstimationError("the burst grid needs a receiver threshold ([channel] receiver_sensitivity_dbm)")
+        return A2GBursts(ch, max(sc.simulation.tx_power_spread_db, TX_FLOOR_DB), tuple(float(p) for p in frames_pmf),
+                         float(channel_share))
+
+    def _call(self, rssi_dbm, counts, frames_pmf, horizontal_m, height_m, tx_offset_db):
+        h, tx = np.broadcast_arrays(np.asarray(horizontal_m, float), np.asarray(tx_offset_db, float))
+        return self.channel.burst_log_likelihood_unknown_sent(
+            np.asarray(rssi_dbm, float), np.asarray(frames_pmf, float), h, float(height_m),
+            counts=np.asarray(counts, float), tx_offset_db=tx, channel_share=self.channel_share)
+
+    def heard_loglik(self, rssi_dbm, counts, frames_pmf, horizontal_m, height_m, tx_offset_db):
+        return self._call(rssi_dbm, counts, frames_pmf, horizontal_m, height_m, tx_offset_db)
+
+    def silent_loglik(self, frames_pmf, horizontal_m, height_m, tx_offset_db):
+        return self._call(np.zeros(0), np.zeros(0), frames_pmf, horizontal_m, height_m, tx_offset_db)
+
+    def reach_m(self, height_m: float) -> float:
+        return _a2g_reach_m(self, round(float(height_m)))
+
+
+@functools.lru_cache(maxsize=64)
+def _a2g_reach_m(model: A2GBursts, height_m: float) -> float:
+    """Where a burst of a phone 2 sigma louder than nominal is heard with probability 1e-3 (the
+    urban channel's line of sight at low elevation keeps a thin tail out to kilometres)."""
+    pmf = np.asarray(model.frames_pmf, float)
+    return max(float(model.channel.hearing_distance_m(height_m, frames=("pmf", pmf), p=1e-3,
+                                                      channel_share=model.channel_share,
+                                                      tx_offset_db=2.0 * model.tx_sigma_db, step_m=5.0)), 50.0)
 
 
 TX_FLOOR_DB = 1.0  # the offset prior is never narrower than this (no phone is exactly nominal)

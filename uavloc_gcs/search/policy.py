@@ -492,13 +492,17 @@ class SearchPolicy:
         if not (GRID_ESTIMATE and self._bursts and self.channel.sensitivity_dbm is not None):
             return None
         if self._grid is None:
-            from ..estimation.burst_grid import GridSpec, LogDistanceBursts
+            from ..estimation.burst_grid import A2GBursts, GridSpec, LogDistanceBursts
 
             sc = self.scenario
             fp = np.asarray(frames_prior(sc).p, float)
             pmf = np.concatenate([[0.0], fp / fp.sum()])  # K = 0 .. Kmax frames sent
             vmax = float(self.model_speed_m_s)
-            self._grid = GridSpec(LogDistanceBursts.from_scenario(sc), tuple(float(v) for v in pmf), vmax,
+            # the air-to-ground channel where the scenario names an environment (the world's own)
+            from .pod import _channel_share
+
+            model = A2GBursts.from_scenario(sc, pmf, _channel_share(sc)) or LogDistanceBursts.from_scenario(sc)
+            self._grid = GridSpec(model, tuple(float(v) for v in pmf), vmax,
                                   1.0 if vmax <= 0 else float(sc.people.static_share),
                                   tuple((float(x), float(y)) for x, y in self.area_xy_m), GRID_AREA_MARGIN_M)
         return self._grid

@@ -1,0 +1,92 @@
+"""The grid estimator of the field world (estimation/burst_grid.py) under the air-to-ground channel.
+
+The world draws bursts from ``a2g.A2GChannel``; the estimator must use the same channel (issue 41
+item 1) and place a trapped person orbited low inside its 95 % circle, the circle shrinking as
+bursts come in. One seeded world each: statistics over many belong to ``uavloc bench field``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from sim_link.world import World
+from uavloc_gcs.estimation.burst_grid import (A2GBursts, BurstGridEstimator, GridSpec, LogDistanceBursts,
+                                              bursts_from_slots)
+from uavloc_gcs.observations import SlotBatch
+from uavloc_gcs.scenario import load_scenario
+from uavloc_gcs.search.pod import _channel_share
+from uavloc_gcs.search.policy import SearchPolicy, frames_prior
+
+ROOT = Path(__file__).resolve().parents[3]
+
+
+def _field(static: bool = True):
+    sc = load_scenario(ROOT / "examples" / "field.toml")
+    return sc.replace(people={"max_speed_m_s": 0.0}) if static else sc
+
+
+def _pmf(sc) -> np.ndarray:
+    fp = np.asarray(frames_prior(sc).p, float)
+    return np.concatenate([[0.0], fp / fp.sum()])
+
+
+def test_the_field_world_estimates_with_its_own_air_to_ground_channel():
+    sc = _field(static=False)
+    assert sc.channel.environment is not None  # field.toml names its environment
+    spec = SearchPolicy(sc)._grid_spec()
+    assert isinstance(spec.model, A2GBursts)
+    assert spec.model.channel_share == pytest.approx(_channel_share(sc))
+    paper = load_scenario(ROOT / "examples" / "paper.toml")
+    assert A2GBursts.from_scenario(paper, _pmf(sc)) is None  # no environment: not this channel
+
+
+def test_a_burst_table_is_the_channels_own_likelihood_over_distance_and_offset():
+    sc = _field()
+    pmf = _pmf(sc)
+    m = A2GBursts.from_scenario(sc, pmf, _channel_share(sc))
+    h = np.array([0.0, 20.0, 60.0, 150.0])
+    tx = np.array([-3.0, 0.0, 3.0])[:, None]
+    got = m.heard_loglik(np.array([-72.0, -75.0]), np.array([2.0, 1.0]), pmf, h[None, :], 30.0, tx)
+    assert got.shape == (3, 4)
+    for i, t in enumerate(tx[:, 0]):
+        want = m.channel.burst_log_likelihood_unknown_sent(np.array([-72.0, -75.0]), pmf, h, 30.0,
+                                                          counts=np.array([2.0, 1.0]), tx_offset_db=t,
+                                                          channel_share=m.channel_share)
+        np.testing.assert_allclose(got[i], want, rtol=1e-9)
+    silent = m.silent_loglik(pmf, h[None, :], 30.0, tx)
+    assert np.all(np.diff(silent[1]) > 0)  # hearing nothing is likelier the farther the phone
+    assert m.reach_m(30.0) > 200.0  # the urban tail: a louder phone in line of sight is heard far
+
+
+def test_a_trapped_person_orbited_low_is_inside_a_circle_that_shrinks():
+    sc = _field()
+    pmf = _pmf(sc)
+    est = BurstGridEstimator(A2GBursts.from_scenario(sc, pmf, _channel_share(sc)), pmf,
+                             area_xy_m=sc.area_xy_m(), area_margin_m=100.0)
+    person = np.array([520.0, 300.0])
+    world = World.with_people(sc, [person], seed=7)
+    centre, alt, speed = person + np.array([40.0, -35.0]), 30.0, 8.0  # the scan put them ~50 m off
+    parts, radii, t0, ang0 = [], [], 0.0, 0.0
+    while t0 < 900.0 and (not radii or radii[-1] > 15.0):
+        t = np.arange(t0, t0 + 10.0, sc.channel.slot_s)
+        ang = ang0 + speed * (t - t0) / alt
+        xyz = np.column_stack([centre[0] + alt * np.cos(ang), centre[1] + alt * np.sin(ang), np.full(len(t), alt)])
+        parts.append(world.hear_track(1, t, xyz))
+        t0, ang0 = t0 + 10.0, float(ang[-1] + speed * sc.channel.slot_s / alt)
+        if len(parts[-1]):
+            post = est.posterior(bursts_from_slots(SlotBatch.concat(parts)), float(t[-1]))
+            centre = post.mean_xy_m  # the look follows the posterior (search/orbit.py ADAPTIVE_ORBITS)
+            radii.append(post.radius_about(post.mean_xy_m))
+            error = float(np.hypot(*(post.mean_xy_m - person)))
+    assert len(radii) >= 3, "too few bursts heard in 15 min from 30 m for this check"
+    assert radii[-1] < 0.5 * radii[0], radii
+    assert error <= radii[-1], (error, radii[-1])
+
+
+def test_the_log_distance_world_keeps_its_model():
+    sc = _field().replace(channel={"environment": None})
+    spec = SearchPolicy(sc)._grid_spec()
+    assert isinstance(spec.model, LogDistanceBursts) and isinstance(spec, GridSpec)
