@@ -86,7 +86,8 @@ class Flight:
     ``seg_speeds_m_s`` (one per segment) flies some segments slower: an orbit look's circle at the
     orbit speed (search/orbit.py)."""
 
-    def __init__(self, path_xy_m: np.ndarray, t0_s: float, speed_m_s: float, seg_speeds_m_s=None):
+    def __init__(self, path_xy_m: np.ndarray, t0_s: float, speed_m_s: float, seg_speeds_m_s=None,
+                 heights_m=None, vertical_m_s: tuple[float, float] = (1.5, 2.5)):
         self.path = np.asarray(path_xy_m, dtype=float).reshape(-1, 2)
         self.t0_s = float(t0_s)
         self.speed = float(speed_m_s)
@@ -94,7 +95,17 @@ class Flight:
         self.cum_m = np.concatenate([[0.0], np.cumsum(seg)])
         self.seg_speeds = None if seg_speeds_m_s is None else np.asarray(seg_speeds_m_s, dtype=float)
         sp = np.full(len(seg), self.speed) if self.seg_speeds is None else self.seg_speeds
-        self.cum_t = np.concatenate([[0.0], np.cumsum(seg / sp)])
+        # heights per path point [m above the ground] (None: the survey altitude throughout): a look
+        # flown at its own height (search/orbit.py OrbitLook.alt_m) is reached by a vertical leg at
+        # its entry, down at vertical_m_s[0] and up at vertical_m_s[1], as its mission flies it
+        self.heights = None if heights_m is None else np.asarray(heights_m, dtype=float).reshape(-1)
+        self.vert_s = np.zeros(len(seg))
+        if self.heights is not None:
+            dz = np.diff(self.heights)
+            self.vert_s = np.maximum(-dz, 0.0) / vertical_m_s[0] + np.maximum(dz, 0.0) / vertical_m_s[1]
+            if self.seg_speeds is None:
+                self.seg_speeds = sp
+        self.cum_t = np.concatenate([[0.0], np.cumsum(seg / sp + self.vert_s)])
 
     @property
     def length_m(self) -> float:
@@ -116,10 +127,19 @@ class Flight:
         if self.seg_speeds is None:
             flown = float(self.flown_m(t_to_s) - self.flown_m(t_from_s))
             return float(pw.leg_energy_j(flown, self.speed)), flown / self.speed
-        seg_e = np.diff(self.cum_t) * np.asarray(pw.power_w(self.seg_speeds), dtype=float)
+        level_s = np.diff(self.cum_t) - self.vert_s
+        seg_e = level_s * np.asarray(pw.power_w(self.seg_speeds), dtype=float)
+        if self.heights is not None:  # a vertical leg: hovering power and the climb's work W dh
+            seg_e = seg_e + self.vert_s * pw.hover_power_w() + pw.weight_n * np.maximum(np.diff(self.heights), 0.0)
         cum_e = np.concatenate([[0.0], np.cumsum(seg_e)])
         a, b = (min(max(x - self.t0_s, 0.0), float(self.cum_t[-1])) for x in (t_from_s, t_to_s))
         return float(np.interp(b, self.cum_t, cum_e) - np.interp(a, self.cum_t, cum_e)), b - a
+
+    def height(self, t_s, survey_m: float) -> np.ndarray:
+        """Height(s) [m] at time(s) t_s: ``survey_m`` throughout unless the path has its own."""
+        if self.heights is None:
+            return np.full(np.shape(t_s), float(survey_m))
+        return np.interp(np.asarray(t_s, dtype=float) - self.t0_s, self.cum_t, self.heights)
 
     def position(self, t_s) -> np.ndarray:
         """(2,) or (N, 2) position [m] at time(s) t_s."""
@@ -141,9 +161,22 @@ class Vehicle:
         self.accounted_t_s = 0.0
         self.home_t_s: float | None = None
 
-    def fly(self, path_xy_m: np.ndarray, t_s: float, seg_speeds_m_s=None) -> None:
+    def fly(self, path_xy_m: np.ndarray, t_s: float, seg_speeds_m_s=None, heights_m=None) -> None:
         self.account(t_s)
-        self.flight = Flight(path_xy_m, t_s, self.sc.fleet.speed_m_s, seg_speeds_m_s)
+        survey = float(self.sc.fleet.altitude_m)
+        now_m = float(self.flight.height(t_s, survey))
+        if heights_m is not None:  # starting where the last flight left it (a look at its own height)
+            heights_m = np.asarray(heights_m, float).copy()
+            heights_m[0] = now_m
+        elif abs(now_m - survey) > 0.5:  # replanned during a low look: back up where it is, then on
+            path_xy_m = np.vstack([np.asarray(path_xy_m, float)[:1], path_xy_m])
+            heights_m = np.concatenate([[now_m], np.full(len(path_xy_m) - 1, survey)])
+            n_seg = len(path_xy_m) - 1
+            base = (np.full(n_seg - 1, self.sc.fleet.speed_m_s) if seg_speeds_m_s is None
+                    else np.asarray(seg_speeds_m_s, float))
+            seg_speeds_m_s = np.concatenate([[self.sc.fleet.speed_m_s], base])
+        vertical = (self.sc.terrain.max_descent_m_s, self.sc.terrain.max_climb_m_s) if heights_m is not None else (1.5, 2.5)
+        self.flight = Flight(path_xy_m, t_s, self.sc.fleet.speed_m_s, seg_speeds_m_s, heights_m, vertical)
         self.home_t_s = None
 
     def account(self, t_s: float) -> None:
@@ -239,7 +272,7 @@ def hear(world: World, vehicles: list[Vehicle], t_from_s: float, t_to_s: float, 
         if len(tt) == 0:
             continue
         xy = v.flight.position(tt)
-        xyz = np.column_stack([xy, np.full(len(tt), sc.fleet.altitude_m)])
+        xyz = np.column_stack([xy, v.flight.height(tt, sc.fleet.altitude_m)])
         out.append(world.hear_track(v.index, tt, xyz))
         if policy is not None and not policy.tracks_from_slots:
             policy.ingest_track(v.index, tt, xyz)
@@ -285,8 +318,9 @@ def max_error_m(world: World, statuses: list) -> float:
     return float(np.max(errs)) if errs and not any(math.isnan(e) for e in errs) else math.nan
 
 
-def _orbit_path(task, start_xy_m, cruise_m_s: float):
-    """A task's path with its orbit looks flown (search/orbit.py), and each segment's speed."""
+def _orbit_path(task, start_xy_m, cruise_m_s: float, survey_m: float = 0.0):
+    """A task's path with its orbit looks flown (search/orbit.py), each segment's speed, and each
+    point's height where a look flies at its own (else None)."""
     from uavloc_gcs.search.orbit import expand_path
 
     pts = np.asarray(task.waypoints_xy_m, dtype=float).reshape(-1, 2)
@@ -294,7 +328,26 @@ def _orbit_path(task, start_xy_m, cruise_m_s: float):
     path = np.vstack([path, pts[-1:]])  # home
     seg_orbit = np.append(seg_orbit, -1)
     speeds = np.array([cruise_m_s if k < 0 else task.orbits[k].speed_m_s for k in seg_orbit])
-    return path, speeds
+    alts = [None if k < 0 else getattr(task.orbits[k], "alt_m", None) for k in seg_orbit]
+    if all(a is None for a in alts):
+        return path, speeds, None
+    return _with_heights(path, speeds, alts, survey_m)
+
+
+def _with_heights(path, speeds, alts, survey_m: float):
+    """The path with a vertical leg (a repeated point) down to each look's height at its entry and
+    back up at its end, and the height of every point."""
+    out_p, out_s, out_z = [path[0]], [], [survey_m]
+    for i, a in enumerate(alts):
+        z = survey_m if a is None else float(a)
+        if abs(z - out_z[-1]) > 1e-9:  # change height where the vehicle is, then fly the segment
+            out_p.append(out_p[-1])
+            out_s.append(speeds[i])
+            out_z.append(z)
+        out_p.append(path[i + 1])
+        out_s.append(speeds[i])
+        out_z.append(z)
+    return np.asarray(out_p), np.asarray(out_s), np.asarray(out_z)
 
 
 def simulate_mission(
@@ -367,8 +420,9 @@ def simulate_mission(
             for task, v in zip(plan.tasks, vehicles):
                 start = v.flight.position(t).reshape(1, 2)
                 if any(o is not None for o in getattr(task, "orbits", ())):
-                    path, speeds = _orbit_path(task, start[0], scenario.fleet.speed_m_s)
-                    v.fly(path, t, speeds)
+                    path, speeds, heights = _orbit_path(task, start[0], scenario.fleet.speed_m_s,
+                                                        scenario.fleet.altitude_m)
+                    v.fly(path, t, speeds, heights)
                 else:
                     v.fly(np.vstack([start, task.waypoints_xy_m]), t)
         t_next = t + dt_s

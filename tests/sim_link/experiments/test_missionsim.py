@@ -113,7 +113,8 @@ def test_an_orbit_is_flown_at_its_speed_and_charged_at_its_power(small):
     cruise = small.fleet.speed_m_s
     orb = OrbitLook((0.0, 300.0), 100.0, 120.0, 8.0)
     task = SimpleNamespace(waypoints_xy_m=np.array([[0.0, 200.0], [0.0, 0.0]]), orbits=(orb,))
-    path, speeds = _orbit_path(task, np.zeros(2), cruise)
+    path, speeds, heights = _orbit_path(task, np.zeros(2), cruise, small.fleet.altitude_m)
+    assert heights is None  # at the survey altitude: no vertical legs
     v = Vehicle(1, small)
     v.fly(path, 0.0, speeds)
     t_end = 200.0 / cruise + orb.flown_s + 200.0 / cruise
