@@ -13,10 +13,12 @@ What each autopilot reports, as measured on ``../shared/sitl`` (docs/readme/sitl
   voltage tells). ``MAV_CMD_BATTERY_RESET`` (param1 the battery mask, param2 the percentage) sets
   the remaining and clears the consumed figures. BATTERY_STATUS: id 0, function 0, type 0,
   ``voltages[0]`` the pack (the rest UINT16_MAX), current [cA], consumed [mAh] and [hJ],
-  time_remaining 0. Below ``BATT_LOW_VOLT`` for ``BATT_LOW_TIMER`` s its low-voltage failsafe
-  latches until a reboot: arming is refused "Arm: Battery failsafe" (SITL: also after the voltage
-  came back); ``BATT_ARM_VOLT`` and ``BATT_ARM_MAH`` refuse arming below them ("Arm: Battery 1
-  below minimum arming voltage" / "... capacity"). ``BATT_LOW_VOLT`` is ArduCopter's default
+  time_remaining 0. Below ``BATT_LOW_VOLT`` for ``BATT_LOW_TIMER`` s on the ground it refuses to
+  arm, "Arm: Battery 1 low voltage failsafe", until the voltage is back; the same in the air
+  triggers the battery failsafe (charge state LOW), which stays until a reboot: "Arm: Battery
+  failsafe" also after a fresh pack (SITL). It arms on a used pack otherwise (35 % measured):
+  ``BATT_ARM_VOLT`` and ``BATT_ARM_MAH`` are 0 unless set ("Arm: Battery 1 below minimum arming
+  voltage" / "... capacity"). ``BATT_LOW_VOLT`` is ArduCopter's default
   10.5 V, below this pack's empty 14.0 V, so it trips only where a test sets it.
   ``SIM_BATT_VOLTAGE`` is SITL's simulated pack: setting it gives the pack the charge of that
   resting voltage (full at 16.8 V here).
@@ -54,7 +56,8 @@ class Battery:
     used_j: float = 0.0  # taken from the pack in this pack's life
     consumed_j: float = 0.0  # ArduPilot's monitor: integrated since boot or the last reset
     consumed_mah: float = 0.0
-    failsafe: bool = False  # ArduPilot's low-voltage failsafe, latched until reboot
+    failsafe: bool = False  # ArduPilot's battery failsafe (triggered in the air), latched until reboot
+    low: bool = False  # below BATT_LOW_VOLT for BATT_LOW_TIMER s (a pre-arm failure on the ground)
     low_since_s: float | None = None
     refill_on_disarm: bool = False  # PX4 SIH's battery simulator
 
@@ -89,7 +92,7 @@ class Battery:
     def on_boot(self) -> None:
         """The autopilot restarts: ArduPilot's monitor starts again at 100 %, its failsafe clears."""
         self.consumed_j = self.consumed_mah = 0.0
-        self.failsafe, self.low_since_s = False, None
+        self.failsafe, self.low, self.low_since_s = False, False, None
 
     def on_disarm(self) -> None:
         if self.refill_on_disarm:
@@ -113,16 +116,16 @@ class Battery:
             return max(0.0, 1.0 - self.consumed_j / self.capacity_j)
         return self.charge
 
-    def watch(self, t_s: float, params: dict) -> None:
-        """ArduPilot's low-voltage failsafe: latched after BATT_LOW_TIMER s below BATT_LOW_VOLT."""
-        low = float(params.get("BATT_LOW_VOLT", 0.0))
-        if self.flavour != "ardupilot" or low <= 0.0 or self.voltage_v >= low:
-            self.low_since_s = None
+    def watch(self, t_s: float, params: dict, armed: bool) -> None:
+        """ArduPilot's low voltage: BATT_LOW_TIMER s below BATT_LOW_VOLT; armed, the failsafe latches."""
+        threshold = float(params.get("BATT_LOW_VOLT", 0.0))
+        if self.flavour != "ardupilot" or threshold <= 0.0 or self.voltage_v >= threshold:
+            self.low, self.low_since_s = False, None
             return
         if self.low_since_s is None:
             self.low_since_s = t_s
-        if t_s - self.low_since_s >= float(params.get("BATT_LOW_TIMER", AP_LOW_TIMER_S)):
-            self.failsafe = True
+        self.low = t_s - self.low_since_s >= float(params.get("BATT_LOW_TIMER", AP_LOW_TIMER_S))
+        self.failsafe |= self.low and armed
 
     def charge_state(self, params: dict) -> int:
         """MAV_BATTERY_CHARGE_STATE."""
@@ -141,6 +144,8 @@ class Battery:
         if self.flavour == "ardupilot":
             if self.failsafe:
                 return "Arm: Battery failsafe"
+            if self.low:
+                return "Arm: Battery 1 low voltage failsafe"
             if float(params.get("BATT_ARM_VOLT", 0.0)) > 0 and self.voltage_v < params["BATT_ARM_VOLT"]:
                 return "Arm: Battery 1 below minimum arming voltage"
             cap_mah = float(params.get("BATT_CAPACITY", 0.0))

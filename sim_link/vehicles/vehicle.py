@@ -393,7 +393,7 @@ class FakeVehicle(TelemetryMixin):
             p0, t0 = self.kin.pos.copy(), self.t_s
             self._physics(PHYSICS_DT_S)
             self.t_s = t0 + PHYSICS_DT_S
-            self.battery.watch(self.t_s, self.params)
+            self.battery.watch(self.t_s, self.params, self.armed)
             self._slots(t0, p0, self.t_s, self.kin.pos, slot_t, slot_xyz)
             self._telemetry_due()
         self._hear(slot_t, slot_xyz)

@@ -161,6 +161,17 @@ def test_arming_is_refused_on_a_pack_the_autopilot_refuses():
     assert _command(v, mav.MAV_CMD_COMPONENT_ARM_DISARM, 1) == mav.MAV_RESULT_FAILED  # latched until a reboot
     v.reboot()
     assert _command(v, mav.MAV_CMD_COMPONENT_ARM_DISARM, 1) == mav.MAV_RESULT_ACCEPTED
+    # on the ground below BATT_LOW_VOLT (for BATT_LOW_TIMER s): refused until the voltage is back
+    g = _vehicle(ARDUPILOT)
+    g.energy_used_j = 0.8 * BUDGET_J  # 14.56 V
+    g.params["BATT_LOW_VOLT"] = 15.0
+    g.advance(g.t_s + 12.0)
+    assert g.set_mode("GUIDED") and _command(g, mav.MAV_CMD_COMPONENT_ARM_DISARM, 1) == mav.MAV_RESULT_FAILED
+    assert "Arm: Battery 1 low voltage failsafe" in [
+        r.msg.text for r in g.advance(g.t_s + 0.5) if r.msg.get_type() == "STATUSTEXT"]
+    g.swap_pack()
+    g.advance(g.t_s + 0.5)
+    assert _command(g, mav.MAV_CMD_COMPONENT_ARM_DISARM, 1) == mav.MAV_RESULT_ACCEPTED  # not latched on the ground
     # BATT_ARM_VOLT: below it, no arming
     w = _vehicle(ARDUPILOT)
     w.params["BATT_ARM_VOLT"] = 16.5
