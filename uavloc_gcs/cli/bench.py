@@ -21,6 +21,7 @@ BENCHMARKS = {
     "sense": "Wi-Fi capture parser vs dpkt and scapy dissectors (frames/s on one core, fields agreeing)",
     "field": "the search for real phones vs the paper's plan, a lawnmower and the clairvoyant (located, time, energy, POD)",
     "demos": "uavloc demo run N times: people located and given up, the reasons, given up near the truth",
+    "sorties": "the POD the scan planner reaches with 1, 2, 3 packs per vehicle and the time it needs, swaps included",
 }
 
 

@@ -103,7 +103,8 @@ class PodPlan:
         (2-min swaps)" (the POD the fine grid gives; with one pack, without the packs)."""
         c, f = self.chosen, self.scenario.fleet
         reached = min(self.grid.overall(1), self.grid.overall(2))
-        head = f"POD {self.target:g}" if self.met else f"POD {reached:.2f}"
+        # short of the target: rounded down, so that 0.946 is not called the 0.95 it missed
+        head = f"POD {self.target:g}" if self.met else f"POD {math.floor(reached * 100 + 1e-9) / 100:.2f}"
         if f.batteries == 1:
             return f"{head} in {sortie_mod.minutes(c.time_s)} with one pack per vehicle"
         swap = f.battery_swap_s
