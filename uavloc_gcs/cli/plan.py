@@ -26,7 +26,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--pod", type=number(float, above=0, max=0.999), metavar="P",
                    help="plan lane spacing, speed and passes for this probability of detection (one and two "
                         "heard bursts) under the scenario's emission model and energy (overrides "
-                        "search.pod_target); writes pod.png and pod.geojson; exit 2 if out of reach")
+                        "search.pod_target), over the scenario's packs (fleet.batteries: one mission per sortie); "
+                        "writes pod.png and pod.geojson; exit 2 if out of reach, naming the packs that would reach it")
     p.add_argument("--best-effort", action="store_true",
                    help="with --pod: when the target is out of reach, plan the highest POD the energy allows")
     p.add_argument("--svg", action="store_true", help="also write preview.svg")
@@ -62,7 +63,10 @@ def run(args: argparse.Namespace) -> int:
                               "or plan without --pod / search.pod_target")
         # from the scenario key: the scan `uavloc daemon` flies, which keeps energy for the looks
         share = 1.0 if args.pod is not None else SEARCH_SCAN_SHARE
-        podplan = plan_for_pod(sc, target, best_effort=args.best_effort, energy_share=share, advise=True)
+        # --pod: when the scenario's packs fall short, also say how many would do (planning it again
+        # with one pack more at a time); the scenario key plans what the daemon flies, as it is
+        podplan = plan_for_pod(sc, target, best_effort=args.best_effort, energy_share=share,
+                               advise=args.pod is not None)
         sc, plan = podplan.scenario, podplan.plan
     elif args.lane_spacing is not None:
         sc = override(sc, "--lane-spacing", scan={"lane_spacing_m": args.lane_spacing})
