@@ -113,8 +113,9 @@ def split_path(path_xy_m, *, speed_m_s: float, pack_j: float, first_pack_j: floa
     while True:
         x0 = _at(pts, arc, seg, u0)
         back0 = float(np.linalg.norm(x0 - home))
-        u1 = _last_feasible(pts, arc, seg, g, home, budget_m - back0 + u0, u0)
-        if u1 < total - 1e-9 and u1 - u0 < MIN_PROGRESS_M:
+        reachable = 2.0 * back0 <= budget_m * (1 + 1e-12) + 1e-9  # there and straight back
+        u1 = _last_feasible(pts, arc, seg, g, home, budget_m - back0 + u0, u0) if reachable else u0
+        if not reachable or (u1 < total - 1e-9 and u1 - u0 < MIN_PROGRESS_M):
             which = "its first pack" if not sorties and first_pack_j is not None else "a fresh pack"
             left = max(budget_m - 2.0 * back0, 0.0)
             raise InfeasibleError(
@@ -125,7 +126,9 @@ def split_path(path_xy_m, *, speed_m_s: float, pack_j: float, first_pack_j: floa
         x1 = _at(pts, arc, seg, u1)
         inner = pts[(arc > u0 + _DEDUPE_M) & (arc < u1 - _DEDUPE_M)]
         wps = _dedupe(np.vstack([x0[None], inner, x1[None]]))
-        length = back0 + (u1 - u0) + float(np.linalg.norm(x1 - home))
+        # the route as flown (the dedupe only drops centimetres: never longer than the cut allowed)
+        route = np.vstack([home[None], wps, home[None]])
+        length = float(np.sum(np.linalg.norm(np.diff(route, axis=0), axis=1)))
         sorties.append(Sortie(wps, float(u0), float(u1), float(length), float(length / speed_m_s),
                               float(length * e_per_m)))
         if u1 >= total - 1e-9:

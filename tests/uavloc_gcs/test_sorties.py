@@ -74,7 +74,8 @@ def test_sorties_cover_the_path_in_order_each_within_its_pack(points, pack_m):
     assert sp.sorties[-1].path_to_m == pytest.approx(sp.path_m)
     for a, b in zip(sp.sorties, sp.sorties[1:]):
         assert b.path_from_m == a.path_to_m
-        assert a.energy_j == pytest.approx(pack_j, rel=1e-6)  # greedy: every sortie but the last empties its pack
+        # greedy: every sortie but the last empties its pack (less the centimetres of dropped duplicate points)
+        assert a.energy_j == pytest.approx(pack_j, rel=1e-6, abs=0.1 * float(ZENG_2019.energy_per_m_j(12.0)))
     for s in sp.sorties:
         assert s.energy_j <= pack_j * (1 + 1e-9)
         route = np.vstack([[0, 0], s.waypoints_xy_m, [0, 0]])
