@@ -509,7 +509,8 @@ def plan_scan(scenario) -> ScanPlan:
     For every candidate lane direction two splits are tried -- whole rows per vehicle (exact
     min-max) and one serpentine cut anywhere (finer balance) -- and the shortest longest flight
     wins (then the shortest total). Raises ConfigError for an unusable lane spacing and
-    InfeasibleError when a vehicle's scan needs more than ``scenario.usable_energy_j``.
+    InfeasibleError when a vehicle's scan needs more than ``scenario.usable_energy_j`` (with
+    ``fleet.batteries`` > 1: more sorties than packs, ``sorties.scan_sorties``).
     """
     from shapely.geometry import Polygon
 
@@ -636,6 +637,11 @@ def _ccw(xy: np.ndarray) -> np.ndarray:
 
 
 def _check_energy(scenario, plan: ScanPlan) -> None:
+    if scenario.fleet.batteries > 1:  # flown in sorties, one pack each (issue 38): at most fleet.batteries
+        from .sorties import scan_sorties
+
+        scan_sorties(scenario, plan)
+        return
     budget = scenario.usable_energy_j
     for v in plan.vehicles:
         if v.energy_j > budget:

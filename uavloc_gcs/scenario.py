@@ -85,9 +85,13 @@ class FleetSpec:
     speed_m_s: float = 25.0
     comm_range_m: float = 150.0
     autopilot: Literal["ardupilot", "px4"] = "ardupilot"
-    energy_budget_j: float = 250_000.0
-    energy_reserve_fraction: float = 0.15
+    energy_budget_j: float = 250_000.0  # per pack (issue 38: a vehicle flies one sortie per pack)
+    energy_reserve_fraction: float = 0.15  # per pack
     max_acceleration_m_s2: float = 5.0
+    # Sorties (issue 38): packs each vehicle has, and the time on the ground to swap one (landed
+    # to ready to take off again). 1 pack: one sortie per vehicle, the behaviour before sorties.
+    batteries: int = 1
+    battery_swap_s: float = 120.0
 
 
 @dataclass(frozen=True)
@@ -192,6 +196,9 @@ class SearchSpec:
 
     pod_target: float | None = None
     max_orbit_looks: int | None = None
+    # The longest the search may take [s], swaps on the ground included (None: as long as the packs
+    # last); the POD planner plans within it (issue 38).
+    time_limit_s: float | None = None
 
 
 @dataclass(frozen=True)
@@ -499,6 +506,7 @@ def _resolve(sc: Scenario, base_dir: Path | None = None) -> Scenario:
             sc,
             "channel.receiver_sensitivity_dbm",
         )
+    _check_sorties(sc)
     _check_channels(sc)
     _check_emission(sc)
     _check_environment(sc)
@@ -598,6 +606,23 @@ def _resolve_terrain(sc: Scenario, area_xy: np.ndarray, base_dir: Path | None) -
     sc = dataclasses.replace(sc, terrain=dataclasses.replace(sc.terrain, dem=path))
     check_covers(sc.dem, np.vstack([area_xy, np.zeros((1, 2))]), "the area or the launch point", source=sc.source)
     return sc
+
+
+MAX_BATTERIES = 50  # packs per vehicle accepted (a team carries a few; this catches a typo)
+
+
+def _check_sorties(sc: Scenario) -> None:
+    """[fleet] batteries / battery_swap_s and [search] time_limit_s (issue 38), each refused in one
+    sentence naming its key."""
+    f, limit = sc.fleet, sc.search.time_limit_s
+    _check(1 <= f.batteries <= MAX_BATTERIES, f"must be 1-{MAX_BATTERIES} packs per vehicle, got {f.batteries}",
+           sc, "fleet.batteries")
+    _check(0.0 <= f.battery_swap_s <= 3600.0, f"must be 0-3600 s on the ground per swap, got {f.battery_swap_s}",
+           sc, "fleet.battery_swap_s")
+    if limit is not None:
+        _check(limit > 0.0, f"must be a positive number of seconds, got {limit}", sc, "search.time_limit_s")
+        _check(limit <= 7 * 24 * 3600.0, f"{limit:g} s is more than a week; give the search's limit in seconds",
+               sc, "search.time_limit_s")
 
 
 def _check_channels(sc: Scenario) -> None:

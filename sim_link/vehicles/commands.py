@@ -6,7 +6,8 @@ DO_SET_MODE (176) and SET_MODE, MISSION_START (300; PX4 also arms a disarmed veh
 NAV_RETURN_TO_LAUNCH (20), NAV_LAND (21),
 DO_SET_MISSION_CURRENT (224; param1 -1 = keep, FAILED if out of range), DO_CHANGE_SPEED (178),
 SET_MESSAGE_INTERVAL (511), REQUEST_MESSAGE (512), REQUEST_AUTOPILOT_CAPABILITIES (520),
-GET_HOME_POSITION (410), PREFLIGHT_REBOOT_SHUTDOWN (246, param1 = 1), DO_REPOSITION (192, COMMAND_INT
+GET_HOME_POSITION (410), PREFLIGHT_REBOOT_SHUTDOWN (246, param1 = 1), BATTERY_RESET (42651; ArduPilot:
+param1 battery mask, param2 percentage, battery.py; PX4: UNSUPPORTED), DO_REPOSITION (192, COMMAND_INT
 x/y degE7, z metres above home; the vehicle flies there and holds). SET_POSITION_TARGET_GLOBAL_INT
 (position bits) does the same in GUIDED. Anything else: UNSUPPORTED. NaN parameters mean "unset".
 """
@@ -18,6 +19,7 @@ from typing import TYPE_CHECKING
 
 from uavloc_gcs.dialect import mavlink as mav
 
+from .battery import MAV_CMD_BATTERY_RESET
 from .mission_server import Peer, Reply
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -143,6 +145,8 @@ def _dispatch(v: "FakeVehicle", cmd: int, p: list, extra: list, is_int: bool = F
             return UNSUPPORTED
         extra.extend(Reply(r.msg, None, r.component) for r in replies)
         return ACCEPTED
+    if cmd == MAV_CMD_BATTERY_RESET:
+        return v.battery.reset(_i(p[0]), float(p[1]) if math.isfinite(p[1]) else -1.0)
     if cmd == mav.MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN:
         return ACCEPTED if _i(p[0]) == 1 and not v.armed else (DENIED if v.armed else UNSUPPORTED)
     return UNSUPPORTED

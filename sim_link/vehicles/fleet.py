@@ -322,6 +322,25 @@ class FakeFleet:
         else:
             self._reboot_now(ep, keep_mission, silence_s)
 
+    def swap_pack(self, i: int, *, reboot: bool = True, silence_s: float = REBOOT_SILENCE_S) -> None:
+        """The team gives vehicle ``i`` a fresh pack (issue 38; it must be on the ground, disarmed).
+        On a multirotor the pack powers the autopilot too, so the swap is a reboot (``reboot``):
+        silent for ``silence_s``, then a fresh start whose ArduPilot monitor counts from 100 %.
+        Without the reboot ArduPilot still reports the old pack's remaining until told otherwise
+        (MAV_CMD_BATTERY_RESET), PX4 the new pack's (it reads the voltage)."""
+        ep = self._endpoints[i - 1]
+        if ep.vehicle.armed or not ep.vehicle.landed:
+            raise RuntimeError(f"uav{i} is {'armed' if ep.vehicle.armed else 'in the air'}: a pack is swapped on the ground")
+
+        def now() -> None:
+            ep.vehicle.swap_pack()
+            if reboot:
+                self._reboot_now(ep, None, silence_s)
+        if self.loop is not None and self.loop.is_running():
+            self.loop.call_soon_threadsafe(now)
+        else:
+            now()
+
     def _reboot_now(self, ep: _VehicleEndpoint, keep_mission: bool | None,
                     silence_s: float = REBOOT_SILENCE_S) -> None:
         ep.vehicle.reboot(keep_mission)

@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING
 
 from uavloc_gcs.dialect import mavlink as mav
 
+from .battery import default_battery_params
 from .mission_server import Peer, Reply
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -30,6 +31,7 @@ def default_params(v: "FakeVehicle") -> dict[str, float]:
             # the same two under the names of the 2025-26 ArduCopter master (../shared/sitl), in m/s
             "WP_SPD": c.cruise_speed_m_s, "RTL_SPEED_MS": 0.0,
             "FS_GCS_ENABLE": 1.0, "FS_GCS_TIMEOUT": 5.0,  # a fleet set up for the field: RTL on link loss
+            **default_battery_params("ardupilot"),
         }
     return {  # PX4 units: m, m/s, m/s^2
         "MAV_SYS_ID": float(v.sysid), "MPC_XY_CRUISE": c.cruise_speed_m_s, "MPC_ACC_HOR": c.max_accel_m_s2,
@@ -38,6 +40,7 @@ def default_params(v: "FakeVehicle") -> dict[str, float]:
         "MPC_Z_V_AUTO_DN": c.descent_rate_m_s, "RTL_RETURN_ALT": c.rtl_alt_m,
         "MIS_TAKEOFF_ALT": v.flavour.takeoff_alt_default_m,
         "NAV_DLL_ACT": 2.0, "COM_DL_LOSS_T": 10.0,  # a fleet set up for the field: return on link loss
+        **default_battery_params("px4"),
     }
 
 
@@ -75,6 +78,8 @@ def _apply(v: "FakeVehicle", name: str, value: float) -> None:
         v.speed_m_s = value * k
         if name == "WPNAV_SPEED":
             v.params["WP_SPD"] = v.speed_m_s
+    elif name == "SIM_BATT_VOLTAGE" and v.flavour.name == "ardupilot":
+        v.battery.set_resting_voltage(value)  # ArduPilot SITL: the simulated pack starts again at this voltage
     elif name == "WP_SPD" and value > 0:
         v.speed_m_s = value
         v.params["WPNAV_SPEED"] = value * 100

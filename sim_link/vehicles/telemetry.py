@@ -3,8 +3,9 @@
 Streams are scheduled in simulated time at the nominal rates of a real telemetry link, so the
 byte rate per simulated second is what a radio would carry (``docs/readme/sim.md``):
 HEARTBEAT 1 Hz (optionally also from the companion, component 191), GLOBAL_POSITION_INT 5 Hz,
-SYS_STATUS 1 Hz, SYSTEM_TIME 1 Hz, MISSION_CURRENT 1 Hz and on change, EXTENDED_SYS_STATE 1 Hz.
-MAV_CMD_SET_MESSAGE_INTERVAL changes a stream's interval.
+SYS_STATUS 1 Hz, SYSTEM_TIME 1 Hz, MISSION_CURRENT 1 Hz and on change, EXTENDED_SYS_STATE 1 Hz;
+GPS_RAW_INT and BATTERY_STATUS (battery.py) when asked. MAV_CMD_SET_MESSAGE_INTERVAL changes a
+stream's interval, MAV_CMD_REQUEST_MESSAGE sends a message once.
 """
 
 from __future__ import annotations
@@ -24,8 +25,8 @@ DEFAULT_INTERVALS_S = {
     mav.MAVLINK_MSG_ID_MISSION_CURRENT: 1.0,
     mav.MAVLINK_MSG_ID_EXTENDED_SYS_STATE: 1.0,
     mav.MAVLINK_MSG_ID_GPS_RAW_INT: math.inf,  # on request (SET_MESSAGE_INTERVAL), as the daemon asks
+    mav.MAVLINK_MSG_ID_BATTERY_STATUS: math.inf,  # on request (the daemon asks when it judges a pack)
 }
-BATTERY_FULL_V, BATTERY_EMPTY_V = 16.8, 14.0  # 4S LiPo
 CAPABILITIES = (
     mav.MAV_PROTOCOL_CAPABILITY_MISSION_FLOAT | mav.MAV_PROTOCOL_CAPABILITY_MISSION_INT
     | mav.MAV_PROTOCOL_CAPABILITY_COMMAND_INT | mav.MAV_PROTOCOL_CAPABILITY_MAVLINK2
@@ -87,6 +88,7 @@ class TelemetryMixin:
         build = {
             mav.MAVLINK_MSG_ID_GLOBAL_POSITION_INT: self._global_position_int,
             mav.MAVLINK_MSG_ID_SYS_STATUS: self._sys_status,
+            mav.MAVLINK_MSG_ID_BATTERY_STATUS: self._battery_status,
             mav.MAVLINK_MSG_ID_GPS_RAW_INT: self._gps_raw_int,
             mav.MAVLINK_MSG_ID_SYSTEM_TIME: self._system_time,
             mav.MAVLINK_MSG_ID_MISSION_CURRENT: lambda: self.mission_current_reply().msg,
@@ -153,16 +155,20 @@ class TelemetryMixin:
             int(round((self.cfg.home_alt_amsl_m + p[2]) * 1000)), int(round(p[2] * 1000)),
             _i16(v[1] * 100), _i16(v[0] * 100), _i16(-v[2] * 100), self._last_yaw_cdeg)
 
+    def _power_w(self) -> float:
+        return 0.0 if self.landed else float(self.cfg.power.power_w(self.kin.ground_speed_m_s))
+
     def _sys_status(self):
-        frac = self.battery_remaining_fraction
-        volts = BATTERY_EMPTY_V + (BATTERY_FULL_V - BATTERY_EMPTY_V) * frac
-        power = 0.0 if self.landed else float(self.cfg.power.power_w(self.kin.ground_speed_m_s))
+        b = self.battery
         sensors = mav.MAV_SYS_STATUS_SENSOR_3D_GYRO | mav.MAV_SYS_STATUS_SENSOR_GPS | mav.MAV_SYS_STATUS_PREARM_CHECK
         # the pre-arm check bit healthy once it would arm (both autopilots report it so)
         health = sensors if self.ready_to_arm else sensors & ~mav.MAV_SYS_STATUS_PREARM_CHECK
         return mav.MAVLink_sys_status_message(
-            sensors, sensors, health, 100, int(volts * 1000), int(power / volts * 100),
-            int(round(frac * 100)), 0, 0, 0, 0, 0, 0)
+            sensors, sensors, health, 100, int(b.voltage_v * 1000), b.current_ca(self._power_w()),
+            int(round(b.remaining * 100)), 0, 0, 0, 0, 0, 0)
+
+    def _battery_status(self):
+        return self.battery.battery_status(self._power_w(), self.params)
 
     def _gps_raw_int(self):
         lat, lon = self.cfg.frame.to_wgs84(self.kin.pos[0], self.kin.pos[1])

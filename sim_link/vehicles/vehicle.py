@@ -25,6 +25,7 @@ from uavloc_gcs.energy import RotorcraftPower
 from uavloc_gcs.geo import LocalFrame
 from uavloc_gcs.mission import WireItem
 
+from .battery import Battery
 from .commands import handle_command, handle_position_target, handle_set_mode
 from .executor import CIRCLE_ACCEL_M_S2, NAV_COMMANDS, TAKEOFF, MissionExecutor, Target, corner
 from .flavour import Flavour
@@ -86,6 +87,9 @@ class VehicleConfig:
     # refused "Mode change to Auto failed: requires position" this long after boot [simulated s],
     # while it still arms in a manual mode (issue 26: armed in STABILIZE, refused AUTO x3, disarmed).
     position_after_boot_s: float = 0.0
+    # PX4 SIH's battery simulator: every disarm gives a full pack (measured on ../shared/sitl/px4).
+    # Off by default: a real pack does not refill; the team swaps it (FakeFleet.swap_pack).
+    refill_on_disarm: bool = False
 
 
 class FakeVehicle(TelemetryMixin):
@@ -99,7 +103,7 @@ class FakeVehicle(TelemetryMixin):
         self.executor.reset()
         self.batcher = RssiBatcher(cfg.frame, cfg.epoch_unix_s, cfg.slot_s)
         self.t_s = t_s
-        self.energy_used_j = 0.0
+        self.battery = Battery(cfg.flavour.name, cfg.energy_budget_j, refill_on_disarm=cfg.refill_on_disarm)
         self.rssi_slots = 0
         self._boot(t_s)
         self.on_reboot_request: Callable[[], None] | None = None
@@ -147,8 +151,23 @@ class FakeVehicle(TelemetryMixin):
         return self.executor.current
 
     @property
+    def energy_used_j(self) -> float:
+        """Energy taken from the pack it carries [J] (issue 38: a swap gives a fresh one)."""
+        return self.battery.used_j
+
+    @energy_used_j.setter
+    def energy_used_j(self, value: float) -> None:
+        self.battery.used_j = float(value)
+
+    @property
     def battery_remaining_fraction(self) -> float:
-        return max(0.0, 1.0 - self.energy_used_j / self.cfg.energy_budget_j)
+        """What the autopilot reports as remaining (ArduPilot: its monitor; PX4: the pack)."""
+        return self.battery.remaining
+
+    def swap_pack(self) -> None:
+        """The team puts in a fresh pack (on the ground). Without a reboot ArduPilot's monitor
+        keeps its count (FakeFleet.swap_pack reboots, as a real pack swap does)."""
+        self.battery.swap()
 
     # ---------------------------------------------------------------- inputs
     def handle(self, msg, peer: Peer, wall_s: float) -> list[Reply]:
@@ -183,10 +202,14 @@ class FakeVehicle(TelemetryMixin):
 
     # ---------------------------------------------------------------- actions (commands call these)
     def arm_refusal(self) -> tuple[int, str] | None:
-        """(MAV_RESULT, STATUSTEXT) while the vehicle is not ready to arm after boot, else None."""
+        """(MAV_RESULT, STATUSTEXT) while the vehicle is not ready to arm after boot or on its pack
+        (battery.py), else None."""
         wait = self.cfg.arm_refused_after_boot_s
         wait = self.flavour.arm_refused_after_boot_s if wait is None else wait
-        return self.flavour.arm_refusal if self.t_s - self.boot_t_s < wait else None
+        if self.t_s - self.boot_t_s < wait:
+            return self.flavour.arm_refusal
+        pack = self.battery.arm_refusal(self.params)
+        return None if pack is None else (self.flavour.arm_refusal[0], pack)
 
     @property
     def position_ready(self) -> bool:
@@ -226,6 +249,7 @@ class FakeVehicle(TelemetryMixin):
             self.landed = True
         self.takeoff_alt_m = None
         self._out.append(self.text(mav.MAV_SEVERITY_INFO, "Disarming motors"))
+        self.battery.on_disarm()
         return True
 
     def set_mode(self, mode: str) -> bool:
@@ -356,6 +380,7 @@ class FakeVehicle(TelemetryMixin):
         self.mission.upload = None
         self.executor.reset()
         self.executor.started = False
+        self.battery.on_boot()
         self._boot(self.t_s)
         self._init_telemetry()
 
@@ -368,6 +393,7 @@ class FakeVehicle(TelemetryMixin):
             p0, t0 = self.kin.pos.copy(), self.t_s
             self._physics(PHYSICS_DT_S)
             self.t_s = t0 + PHYSICS_DT_S
+            self.battery.watch(self.t_s, self.params, self.armed)
             self._slots(t0, p0, self.t_s, self.kin.pos, slot_t, slot_xyz)
             self._telemetry_due()
         self._hear(slot_t, slot_xyz)
@@ -414,7 +440,7 @@ class FakeVehicle(TelemetryMixin):
 
     def _burn(self, dt: float) -> None:
         if not self.landed:
-            self.energy_used_j += float(self.cfg.power.power_w(self.kin.ground_speed_m_s)) * dt
+            self.battery.burn(float(self.cfg.power.power_w(self.kin.ground_speed_m_s)), dt)
 
     def _land(self, dt: float) -> bool:
         # ArduPilot: LAND_SPEED_HIGH down to 10 m, then LAND_SPEED (0.5 m/s) to touchdown

@@ -60,6 +60,13 @@ def test_heading_rotates_the_rectangle():
         ("[people]\nmax_speed_m_s = 30\n", "people.max_speed_m_s", "slower than the vehicles"),
         ("[channel]\nshadowing_sigma_db = -1\n", "channel.shadowing_sigma_db", "positive"),
         ("[wind]\nspeed = 3\n", "wind", "unknown section"),
+        ("[fleet]\nbatteries = 0\n", "fleet.batteries", "1-50 packs"),
+        ("[fleet]\nbatteries = 2.5\n", "fleet.batteries", "whole number"),
+        ("[fleet]\nbatteries = 500\n", "fleet.batteries", "1-50 packs"),
+        ("[fleet]\nbattery_swap_s = -10\n", "fleet.battery_swap_s", "0-3600 s"),
+        ("[fleet]\nbattery_swap_s = 'two minutes'\n", "fleet.battery_swap_s", "number"),
+        ("[search]\ntime_limit_s = 0\n", "search.time_limit_s", "positive"),
+        ("[search]\ntime_limit_s = 1e9\n", "search.time_limit_s", "more than a week"),
     ],
 )
 def test_bad_values_name_the_key(extra, key, fragment):
@@ -69,6 +76,15 @@ def test_bad_values_name_the_key(extra, key, fragment):
     assert msg.startswith("mission.toml")
     assert f"'{key}'" in msg
     assert fragment in msg
+
+
+def test_sortie_keys_default_to_one_pack_and_are_read():
+    """issue 38: one pack is the behaviour before sorties; the keys are read as given."""
+    sc = loads_scenario(RECT)
+    assert sc.fleet.batteries == 1 and sc.search.time_limit_s is None
+    sc = loads_scenario(RECT + "[fleet]\nbatteries = 3\nbattery_swap_s = 90\n[search]\ntime_limit_s = 3600\n")
+    assert (sc.fleet.batteries, sc.fleet.battery_swap_s, sc.search.time_limit_s) == (3, 90.0, 3600.0)
+    assert sc.usable_energy_j == pytest.approx(sc.fleet.energy_budget_j * 0.85)  # per pack
 
 
 def test_area_errors():

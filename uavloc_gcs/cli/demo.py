@@ -18,7 +18,7 @@ import signal
 import sys
 from pathlib import Path
 
-from ._inputs import number, override
+from ._inputs import number, override, require_one_pack
 from .daemon import add_web_options, print_web_url, reporter, web_options_from
 
 MAX_PEOPLE = 1000  # simulated people: beyond this the fake fleet's world does not start in time
@@ -53,6 +53,7 @@ def run(args: argparse.Namespace) -> int:
     from ..service.lock import store_lock
 
     sc = load_scenario(scenario_path(args.scenario or "field"))
+    require_one_pack(sc, "demo")
     sim = {}
     if args.speedup is not None:
         sim["speedup"] = args.speedup

@@ -26,7 +26,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--pod", type=number(float, above=0, max=0.999), metavar="P",
                    help="plan lane spacing, speed and passes for this probability of detection (one and two "
                         "heard bursts) under the scenario's emission model and energy (overrides "
-                        "search.pod_target); writes pod.png and pod.geojson; exit 2 if out of reach")
+                        "search.pod_target), over the scenario's packs (fleet.batteries: one mission per sortie); "
+                        "writes pod.png and pod.geojson; exit 2 if out of reach, naming the packs that would reach it")
     p.add_argument("--best-effort", action="store_true",
                    help="with --pod: when the target is out of reach, plan the highest POD the energy allows")
     p.add_argument("--svg", action="store_true", help="also write preview.svg")
@@ -62,7 +63,10 @@ def run(args: argparse.Namespace) -> int:
                               "or plan without --pod / search.pod_target")
         # from the scenario key: the scan `uavloc daemon` flies, which keeps energy for the looks
         share = 1.0 if args.pod is not None else SEARCH_SCAN_SHARE
-        podplan = plan_for_pod(sc, target, best_effort=args.best_effort, energy_share=share)
+        # --pod: when the scenario's packs fall short, also say how many would do (planning it again
+        # with one pack more at a time); the scenario key plans what the daemon flies, as it is
+        podplan = plan_for_pod(sc, target, best_effort=args.best_effort, energy_share=share,
+                               advise=args.pod is not None)
         sc, plan = podplan.scenario, podplan.plan
     elif args.lane_spacing is not None:
         sc = override(sc, "--lane-spacing", scan={"lane_spacing_m": args.lane_spacing})
@@ -70,15 +74,24 @@ def run(args: argparse.Namespace) -> int:
             plan = plan_scan(sc)
     else:
         plan = plan_scan(sc)
-    missions = scan_missions(sc, plan)
     from ..terrain_missions import terrain_safe  # over the DEM's ground when terrain.dem is given
-    missions = [terrain_safe(m, sc, name=f"uav{v.index + 1}") for m, v in zip(missions, plan.vehicles)]
-    capacity_notes = _check_lengths(sc, plan, missions)
+    sorties = None
+    if sc.fleet.batteries > 1:  # one mission per sortie (issue 38): uavK-sortieJ
+        from ..sorties import scan_sorties, sortie_missions
+        sorties = podplan.sorties if podplan is not None else scan_sorties(sc, plan)
+        files = [(f"uav{v.index + 1}-sortie{j + 1}", terrain_safe(m, sc, name=f"uav{v.index + 1} sortie {j + 1}"))
+                 for v, per in zip(plan.vehicles, sortie_missions(sc, plan, sorties)) for j, m in enumerate(per)]
+        missions = [m for _, m in files]
+        capacity_notes = []  # each sortie is a part of the vehicle's scan
+    else:
+        missions = scan_missions(sc, plan)
+        missions = [terrain_safe(m, sc, name=f"uav{v.index + 1}") for m, v in zip(missions, plan.vehicles)]
+        capacity_notes = _check_lengths(sc, plan, missions)
+        files = [(f"uav{v.index + 1}", m) for v, m in zip(plan.vehicles, missions)]
     fc = geojson.scan_feature_collection(sc, plan)
     written = []
     with atomic_output_dir(args.out) as tmp:
-        for v, mission in zip(plan.vehicles, missions):
-            stem = f"uav{v.index + 1}"
+        for stem, mission in files:
             plan_file.write(tmp / f"{stem}.plan", mission)
             wpl_file.write(tmp / f"{stem}.waypoints", mission)
             written += [f"{stem}.plan", f"{stem}.waypoints"]
@@ -92,7 +105,7 @@ def run(args: argparse.Namespace) -> int:
             written.append("preview.svg")
         if podplan is not None:
             written += podplan.write(tmp)
-    print(summary(sc, plan, missions))
+    print(summary(sc, plan, missions) if sorties is None else sortie_summary(sc, plan, sorties, files))
     if podplan is not None:
         print("\n" + podplan.summary())
         if args.pod is None:
@@ -110,7 +123,7 @@ def run(args: argparse.Namespace) -> int:
                    if p.suffix in (".plan", ".waypoints") and p.name not in written)
     if stale:
         print(f"Note: {', '.join(stale)} in {Path(args.out)}/ are from an earlier run, not from this plan.")
-    print(f"Look at them: uavloc preview {Path(args.out) / 'uav1.plan'}   (or open preview.png; "
+    print(f"Look at them: uavloc preview {Path(args.out) / ((files[0][0] if files else 'uav1') + '.plan')}   (or open preview.png; "
           "scan.kml opens in Google Earth)")
     return 0
 
@@ -130,6 +143,35 @@ def _check_lengths(sc, plan, missions) -> list[str]:
         if note := many_note(n, sc.fleet.autopilot):
             notes.append(f"Note: uav{v.index + 1}'s scan has {note}; check the vehicle's capacity before flying it.")
     return notes
+
+
+def sortie_summary(sc, plan, sorties, files) -> str:
+    """The text printed after planning a scan flown in sorties: one row per sortie of each vehicle."""
+    from ..render.terminal import format_table
+    from ..sorties import _mmss, packs_sentence, search_time_s
+
+    f = sc.fleet
+    usable = sc.usable_energy_j
+    head = (f"Scan plan '{sc.name}' ({sc.source}): {f.vehicles} {'ArduPilot' if f.autopilot == 'ardupilot' else 'PX4'} "
+            f"vehicles at {f.altitude_m:g} m and {f.speed_m_s:g} m/s, launch {sc.launch_latlon_deg[0]:.6f}, "
+            f"{sc.launch_latlon_deg[1]:.6f}; {f.batteries} packs per vehicle, {f.battery_swap_s:g} s per swap\n"
+            f"Lanes {plan.lane_spacing_m:.1f} m apart at bearing {plan.lane_heading_deg:.0f} deg, {plan.coverage} coverage.")
+    rows = []
+    missions = iter(m for _, m in files)
+    for v, sp in zip(plan.vehicles, sorties):
+        for j, (s, t0) in enumerate(zip(sp.sorties, sp.start_times_s())):
+            m = next(missions)
+            rows.append([f"uav{v.index + 1}", j + 1, _mmss(t0), len(m.waypoints()), len(m.items),
+                         f"{s.length_m / 1000:.2f}", _mmss(s.duration_s), f"{s.energy_j / 1000:.1f}",
+                         f"{100 * s.energy_j / usable:.1f}"])
+    table = format_table(["vehicle", "sortie", "takes off m:s", "waypoints", "items", "length km", "time m:s",
+                          "energy kJ", "% of a pack"], rows)
+    foot = (f"% of a pack = share of the usable {usable / 1000:.1f} kJ of one pack ({f.energy_budget_j / 1000:g} kJ "
+            f"minus {f.energy_reserve_fraction:.0%} reserve); each sortie ends with RTL, the next takes off from home "
+            f"{f.battery_swap_s:g} s after it lands; times at cruise speed, take-off, landing, climb and turns not "
+            f"included. Sorties: {packs_sentence(sorties, f.battery_swap_s)}; the scan takes "
+            f"{_mmss(search_time_s(sorties))} from the first take-off to the last landing.")
+    return head + "\n\n" + table + "\n" + foot
 
 
 def summary(sc, plan, missions) -> str:

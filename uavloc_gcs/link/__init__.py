@@ -7,6 +7,7 @@ named constants next to the MAVLink devguide's values.
 """
 
 from .autopilots import ARDUPILOT, PX4, Flavour, flavour_for, flavour_named
+from .battery import BatteryReading, PackLimits, PackVerdict, check_fresh_pack, judge_pack, pack_limits, read_battery
 from .command import (arm, command_long, disarm, return_to_launch, set_current_item, set_message_interval,
                       set_mode, start_mission, takeoff)
 from .connection import Link, LinkStats, Subscription, open_link, parse_signing_key
@@ -21,6 +22,7 @@ from .transport import parse_connection
 
 __all__ = [
     "ARDUPILOT", "PX4", "Flavour", "flavour_for", "flavour_named",
+    "BatteryReading", "PackLimits", "PackVerdict", "check_fresh_pack", "judge_pack", "pack_limits", "read_battery",
     "arm", "command_long", "disarm", "return_to_launch", "set_current_item", "set_message_interval", "set_mode",
     "start_mission", "takeoff",
     "Link", "LinkStats", "Subscription", "open_link", "parse_signing_key",

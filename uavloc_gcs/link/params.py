@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import logging
 import math
+import struct
 from dataclasses import dataclass
 
 from ..dialect import mavlink
@@ -35,6 +36,25 @@ async def read_param(link: Link, target_system: int, target_component: int, name
     return await _exchange(link, target_system, target_component, name, None, timeout_s, retries)
 
 
+_INT_FORMATS = {mavlink.MAV_PARAM_TYPE_UINT8: "<B", mavlink.MAV_PARAM_TYPE_INT8: "<b", mavlink.MAV_PARAM_TYPE_UINT16: "<H",
+                mavlink.MAV_PARAM_TYPE_INT16: "<h", mavlink.MAV_PARAM_TYPE_UINT32: "<I", mavlink.MAV_PARAM_TYPE_INT32: "<i"}
+
+
+async def read_param_number(link: Link, target_system: int, target_component: int, name: str, *, bytewise: bool,
+                            timeout_s: float = PARAM_TIMEOUT_S, retries: int = PARAM_RETRIES) -> float | None:
+    """The value of parameter ``name`` as a number whatever its type, or None without an answer.
+    ``bytewise``: the vehicle packs integer parameters into PARAM_VALUE's float bit for bit (PX4;
+    measured: its BAT1_N_CELLS 4 arrives as 5.6e-45), not by value (ArduPilot)."""
+    msg = await _exchange(link, target_system, target_component, name, None, timeout_s, retries, whole=True)
+    if msg is None:
+        return None
+    fmt = _INT_FORMATS.get(int(msg.param_type))
+    if bytewise and fmt is not None:
+        raw = struct.pack("<f", float(msg.param_value))
+        return float(struct.unpack(fmt, raw[:struct.calcsize(fmt)])[0])
+    return float(msg.param_value)
+
+
 async def set_param(link: Link, target_system: int, target_component: int, name: str, value: float, *,
                     timeout_s: float = PARAM_TIMEOUT_S, retries: int = PARAM_RETRIES) -> float:
     """Set ``name`` and return the value the vehicle reports back (it may clamp it). LinkError if
@@ -47,7 +67,7 @@ async def set_param(link: Link, target_system: int, target_component: int, name:
 
 
 async def _exchange(link: Link, sysid: int, compid: int, name: str, value: float | None,
-                    timeout_s: float, retries: int) -> float | None:
+                    timeout_s: float, retries: int, *, whole: bool = False):
     def is_ours(m) -> bool:
         pid = m.param_id if isinstance(m.param_id, str) else m.param_id.decode(errors="replace")
         return pid.rstrip("\x00") == name
@@ -63,7 +83,7 @@ async def _exchange(link: Link, sysid: int, compid: int, name: str, value: float
                 msg = await sub.get(timeout_s)
             except (TimeoutError, LinkError):
                 continue
-            return float(msg.param_value)
+            return msg if whole else float(msg.param_value)
     return None
 
 

@@ -7,6 +7,9 @@ route of vehicle ``v`` is the next ``counts[v]`` targets of ``order``. EPSO/PSO 
 the GA's two-part chromosome both decode to this. For evaluation each solution becomes one
 sequence of ``n + 2m`` slots ``[start_1, targets..., home_1, start_2, ...]``; starts and homes
 are disks of radius 0, so one coordinate-descent sweep over the sequence handles everything.
+
+Vehicles with spare packs (issue 38) fly their routes in sorties: ``planning/sorties.py`` decides
+the trips home and the swaps and adds their slots; without spare packs nothing here changes.
 """
 
 from __future__ import annotations
@@ -16,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import sorties as _sorties
 from .access import _norm, best_point_between, best_point_in_intersection
 from .problem import Plan, Route, RoutingProblem
 
@@ -69,6 +73,10 @@ class Evaluator:
         self.node_svc_e_m = (np.concatenate([problem.service_energy_j, zeros]) if self.n else zeros) \
             / problem.energy_per_m_j
         self.has_service = bool(np.any(self.node_svc_s > 0) or np.any(self.node_svc_e_m > 0))
+        self.total_len = self.max_len  # with spare packs: the first pack and every spare one
+        self.sorties = problem.has_sorties
+        if self.sorties:
+            _sorties.extend_nodes(self)
         self.nfev = 0
 
     # --- encodings ------------------------------------------------------------------------------
@@ -112,7 +120,11 @@ class Evaluator:
             Y = D[:, jj] + _norm(pos[:, jj] - h_xy) - R
             L = X[:, :, None] + Y[:, None, :]
             L[:, empty] = float(_norm(s_xy - h_xy))
-            if self.max_len[v] < np.inf:
+            if self.sorties and self.spares[v] > 0:  # sorties: a swap (and a trip home) per pack beyond the first
+                more = np.ceil(np.maximum(L - self.max_len[v], 0.0) / self.pack_len[v])
+                L = (L + np.minimum(more, self.spares[v]) * (self.swap_s * self.speed + self.sortie_detour_m[v])
+                     + ENERGY_PENALTY * np.maximum(L - self.total_len[v], 0.0))
+            elif self.max_len[v] < np.inf:
                 L = L + ENERGY_PENALTY * np.maximum(L - self.max_len[v], 0.0)
             if f_prev is None:
                 f_v = L[:, 0, :]
@@ -258,12 +270,56 @@ class Evaluator:
                  newton: int = SEARCH_NEWTON) -> Evaluation:
         order = np.atleast_2d(order)
         counts = np.atleast_2d(counts)
+        if self.sorties:
+            return self._evaluate_sorties(order, counts, sweeps, newton)
         lay = self.layout(order, counts)
         Q = self.access_points(lay, sweeps, newton)
         self.nfev += order.shape[0]
         return self._score(lay, Q)
 
+    def _evaluate_sorties(self, order, counts, sweeps: int, newton: int, Q0=None, lay0=None) -> Evaluation:
+        """Reloads decided on the points of one sweep without them (or ``Q0`` in ``lay0``), then the
+        sweeps and the score with them (planning/sorties.py)."""
+        if lay0 is None:
+            lay0 = self.layout(order, counts)
+            Q0 = self.access_points(lay0, 1, newton)
+        mask = _sorties.reload_mask(self, order, counts, Q0)
+        lay = _sorties.layout(self, order, counts, mask)
+        Q = self.access_points(lay, sweeps, newton, Q=_sorties.initial_points(self, lay, lay0, Q0))
+        if self.moving:  # the swaps delay the later looks, and moving disks move meanwhile: decide again
+            Q0 = _sorties.plain_points(self, lay0, lay, Q)
+            mask = _sorties.reload_mask(self, order, counts, Q0)
+            lay = _sorties.layout(self, order, counts, mask)
+            Q = self.access_points(lay, sweeps, newton, Q=_sorties.initial_points(self, lay, lay0, Q0))
+        self.nfev += order.shape[0]
+        return self._score(lay, Q)
+
+    def evaluate_routes(self, routes: list[list[int]], points: np.ndarray | None = None,
+                        sweeps: int = 12, newton: int = 4) -> tuple[Evaluation, np.ndarray]:
+        """One solution given as routes (target indices per vehicle), its access points warm-started
+        from ``points`` (n, 2) when given: (evaluation, its centres (P=1, L, 2))."""
+        order, counts = self.from_routes(routes)
+        order, counts = order[None, :], counts[None, :]
+        lay0 = self.layout(order, counts)
+        Q0 = self.node_xy[lay0.seq].copy()
+        if points is not None:
+            tmask = lay0.seq[0] < self.n
+            Q0[0, tmask] = points[lay0.seq[0, tmask]]
+        if not self.sorties:
+            Q = self.access_points(lay0, sweeps, newton, Q=Q0)
+            self.nfev += 1
+            ev = self._score(lay0, Q)
+        else:
+            Q0 = self.access_points(lay0, 1 if points is None else 0, newton, Q=Q0)
+            ev = self._evaluate_sorties(order, counts, sweeps, newton, Q0=Q0, lay0=lay0)
+        return ev, self._centres(ev.layout, ev.points_xy_m)
+
     def _score(self, lay: Layout, Q: np.ndarray) -> Evaluation:
+        if self.sorties:
+            lengths, makespan, excess = _sorties.score(self, lay, Q)
+            fitness = makespan + ENERGY_PENALTY * excess
+            fitness = np.where(np.isfinite(fitness), fitness, np.inf)
+            return Evaluation(fitness, makespan, lengths, excess <= 1e-9, Q, lay)
         seg = _norm(np.diff(Q, axis=1))
         cum = np.concatenate([np.zeros((Q.shape[0], 1)), np.cumsum(seg, axis=1)], axis=1)
         lengths = np.take_along_axis(cum, lay.home_slot, 1) - np.take_along_axis(cum, lay.start_slot, 1)
@@ -295,6 +351,8 @@ class Evaluator:
             for p in range(Q.shape[0]):
                 tm = lay.seq[p] < self.n
                 Q[p, tm] = points[lay.seq[p, tm]]
+        if self.sorties:  # the reloads, decided on the converged points of the routes without them
+            lay, Q = self._final_reloads(order, counts, lay, Q, max_sweeps, deadline)
         Q = self.access_points(lay, max_sweeps, FINAL_NEWTON, Q=Q, tol_m=1e-4, deadline=deadline)
         # Coordinate descent can stall where consecutive access points coincide (the length is
         # not differentiable there, typically at a crossing of two overlapping circles).
@@ -313,13 +371,40 @@ class Evaluator:
                 break
             Q = self.access_points(lay, max_sweeps, FINAL_NEWTON, Q=Q, tol_m=tol_m,
                                    deadline=deadline)
-        new_len = self._score(lay, Q).lengths_m.sum(axis=1)
-        worse = new_len > best_len
+        new = self._score(lay, Q)
+        worse = new.lengths_m.sum(axis=1) > best_len
+        if self.sorties:  # nor may the smoothing leave a sortie beyond its pack
+            worse |= ~new.feasible & self._score(lay, best).feasible
         Q[worse] = best[worse]
         if self.moving:
             self._meet_moving(lay, Q)
         self.nfev += order.shape[0]
         return self._score(lay, Q)
+
+    def _final_reloads(self, order, counts, lay0: Layout, Q0: np.ndarray, max_sweeps: int,
+                       deadline: float | None, rounds: int = 3) -> tuple[Layout, np.ndarray]:
+        """The reload layout of a final plan and its converged points: the reloads decided on the
+        converged points without them, then again on the points with them while a sortie is over
+        its pack (moving people: the swaps delay the later looks) -- at most ``rounds`` times."""
+        Q0 = self.access_points(lay0, max_sweeps, FINAL_NEWTON, Q=Q0, tol_m=1e-4, deadline=deadline)
+        plain = Q0
+        # moving people: a swap delays the later looks and the disks move meanwhile, by up to the
+        # people's speed over the vehicle's per metre of delay; the last rounds plan that much short
+        slacks = [0.0] * rounds + ([self.people_speed_ratio] * 2 if self.moving else [])
+        first = None
+        for k, slack in enumerate(slacks):
+            if k == rounds:
+                Q0 = plain
+            lay = _sorties.layout(self, order, counts, _sorties.reload_mask(self, order, counts, Q0, slack))
+            Q = _sorties.initial_points(self, lay, lay0, Q0)
+            Q = self.access_points(lay, max_sweeps, FINAL_NEWTON, Q=Q, tol_m=1e-4, deadline=deadline)
+            if self.moving:
+                self._meet_moving(lay, Q)
+            if np.all(self._score(lay, Q).feasible):
+                return lay, Q
+            first = first or (lay, Q)
+            Q0 = _sorties.plain_points(self, lay0, lay, Q)
+        return first
 
     def _meet_moving(self, lay: Layout, Q: np.ndarray, passes: int = 20) -> None:
         """Make every access point lie in its disk at the time the vehicle gets there.
@@ -403,6 +488,8 @@ class Evaluator:
         lay = ev.layout
         t = self._times_s(lay, Q[None])[0] + pb.t0_s
         e_per_m = pb.energy_per_m_j
+        if self.sorties:
+            return Plan(tuple(self._sortie_routes(ev, t)), float(ev.makespan_s[0]), float(lower_bound_s))
         routes = []
         for v, veh in enumerate(pb.vehicles):
             s0, h0 = lay.start_slot[0, v], lay.home_slot[0, v]
@@ -419,3 +506,31 @@ class Evaluator:
                 energy_j=(length - svc_s * self.speed) * e_per_m + svc_e,
             ))
         return Plan(tuple(routes), float(ev.makespan_s[0]), float(lower_bound_s))
+
+    def _sortie_routes(self, ev: Evaluation, t: np.ndarray) -> list[Route]:
+        """The routes of solution 0 of ``ev`` (laid out with reloads), with their swaps and sorties."""
+        pb, n, lay = self.problem, self.n, ev.layout
+        Q = ev.points_xy_m[0]
+        e_per_m = pb.energy_per_m_j
+        energies = _sorties.sortie_energies_m(self, lay, ev.points_xy_m, 0)
+        routes = []
+        for v, veh in enumerate(pb.vehicles):
+            s0, h0 = lay.start_slot[0, v], lay.home_slot[0, v]
+            idx = lay.seq[0, s0 + 1:h0]
+            slots = np.arange(s0 + 1, h0)[idx < n]
+            targets = idx[idx < n]
+            reload_before = lay.seq[0, slots - 1] >= n + 2 * self.m  # the slot before is a reload (pads never are)
+            length = float(ev.lengths_m[0, v])
+            svc_s = float(self.node_svc_s[idx].sum()) if len(idx) else 0.0
+            svc_e = float(self.node_svc_e_m[idx].sum()) * e_per_m if len(idx) else 0.0
+            routes.append(Route(
+                vehicle_id=veh.id,
+                target_ids=tuple(pb.targets[i].id for i in targets),
+                access_points_xy_m=Q[slots].copy(),
+                access_times_s=t[slots].copy(),
+                duration_s=length / self.speed,
+                energy_j=(length - svc_s * self.speed) * e_per_m + svc_e,
+                swaps_before=tuple(int(k) for k in np.flatnonzero(reload_before)),
+                sortie_energy_j=tuple(e * e_per_m for u, e in energies if u == v),
+            ))
+        return routes

@@ -6,7 +6,10 @@ Instance (metres, seconds, joules)::
      "vehicles": [{"id": "uav1", "start_xy_m": [x, y], "home_xy_m": [x, y], "energy_j": E}],
      "targets": [{"id": "p1", "xy_m": [x, y], "velocity_m_s": [vx, vy], "radius_m": r}]}
 
-``t0_s`` and a target's ``velocity_m_s`` and ``radius_m`` are optional (0, [0, 0], 0).
+``t0_s`` and a target's ``velocity_m_s`` and ``radius_m`` are optional (0, [0, 0], 0). Sorties
+(issue 38), optional: a vehicle's ``"spare_packs": k, "pack_energy_j": E`` and the instance's
+``"battery_swap_s": s``; the result's routes then say ``swaps_before`` (indices into ``targets``)
+and ``sortie_energy_j``.
 """
 
 from __future__ import annotations
@@ -82,8 +85,16 @@ def loads_problem(text: str, path: str = "<string>") -> RoutingProblem:
         energy = _num(v, "energy_j", w, path)
         if energy < 0:
             raise FileFormatError(f"energy must be >= 0, got {energy}", path=path, field=w + "energy_j")
+        spare = v.get("spare_packs", 0)
+        if isinstance(spare, bool) or not isinstance(spare, int) or spare < 0:
+            raise FileFormatError(f"expected a whole number of packs, 0 or more, got {spare!r}", path=path,
+                                  field=w + "spare_packs")
+        pack = _num(v, "pack_energy_j", w, path, 0.0)
+        if spare and pack <= 0:
+            raise FileFormatError(f"a spare pack's usable energy must be > 0 J, got {pack}", path=path,
+                                  field=w + "pack_energy_j")
         vehicles.append(VehicleState(_id(v, w, path), _pair(v, "start_xy_m", w, path),
-                                     _pair(v, "home_xy_m", w, path), energy))
+                                     _pair(v, "home_xy_m", w, path), energy, spare, pack))
     targets = []
     for k, t in enumerate(_list(doc, "targets", path)):
         w = f"targets[{k}]."
@@ -101,7 +112,11 @@ def loads_problem(text: str, path: str = "<string>") -> RoutingProblem:
     if speed > MAX_SPEED_M_S:  # the power model's cube of it overflowed into "needs nan J"
         raise FileFormatError(f"{speed:g} m/s is beyond any multirotor (at most {MAX_SPEED_M_S:g}, as a scenario's "
                               "fleet.speed_m_s)", path=path, field="speed_m_s")
-    return RoutingProblem(tuple(vehicles), tuple(targets), speed, _num(doc, "t0_s", "", path, 0.0))
+    swap = _num(doc, "battery_swap_s", "", path, 0.0)
+    if swap < 0:
+        raise FileFormatError(f"swap time must be >= 0 s, got {swap}", path=path, field="battery_swap_s")
+    return RoutingProblem(tuple(vehicles), tuple(targets), speed, _num(doc, "t0_s", "", path, 0.0),
+                          battery_swap_s=swap)
 
 
 def dumps_problem(problem: RoutingProblem) -> str:
@@ -109,10 +124,14 @@ def dumps_problem(problem: RoutingProblem) -> str:
         "speed_m_s": problem.speed_m_s,
         "t0_s": problem.t0_s,
         "vehicles": [{"id": v.id, "start_xy_m": list(v.start_xy_m), "home_xy_m": list(v.home_xy_m),
-                      "energy_j": v.energy_j} for v in problem.vehicles],
+                      "energy_j": v.energy_j,
+                      **({"spare_packs": v.spare_packs, "pack_energy_j": v.pack_energy_j} if v.spare_packs else {})}
+                     for v in problem.vehicles],
         "targets": [{"id": t.id, "xy_m": list(t.xy_m), "velocity_m_s": list(t.velocity_m_s),
                      "radius_m": t.radius_m} for t in problem.targets],
     }
+    if problem.has_sorties:
+        doc["battery_swap_s"] = problem.battery_swap_s
     return json.dumps(doc, indent=2) + "\n"
 
 
@@ -134,6 +153,8 @@ def result_to_dict(result: PlanResult, solver: str) -> dict:
                 "access_times_s": [round(float(t), 3) for t in r.access_times_s],
                 "duration_s": round(r.duration_s, 6),
                 "energy_j": round(r.energy_j, 3),
+                **({"swaps_before": list(r.swaps_before),
+                    "sortie_energy_j": [round(e, 3) for e in r.sortie_energy_j]} if r.sortie_energy_j else {}),
             }
             for r in plan.routes
         ],

@@ -7,6 +7,10 @@ the moved target's disk between its new neighbours. For static disks that is an 
 the length after the access points are re-optimized (the old points stay feasible), so an
 improving move found here is a real improvement. After each round the access points are
 re-optimized by the shared evaluator and the round is kept only if the makespan went down.
+
+With spare packs (issue 38) the moves are filtered by a route's energy over all its packs
+(``Evaluator.total_len``) and judged by the shared fitness, which places the trips home and the
+swaps (planning/sorties.py); the move values do not count the swaps, so they only propose.
 """
 
 from __future__ import annotations
@@ -94,11 +98,20 @@ class LocalSearch:
 
     def __init__(self, ev: Evaluator):
         self.ev = ev
-        self.max_len = ev.max_len
+        self.max_len = ev.total_len if ev.sorties else ev.max_len
 
     def evaluate(self, routes: list[list[int]], points: np.ndarray | None = None):
         """(fitness, per-target points (n,2), per-target centres (n,2), lengths (m,))."""
         ev = self.ev
+        if ev.sorties:  # the shared fitness places the reloads
+            sc, C = ev.evaluate_routes(routes, points, sweeps=12 if points is None else 4)
+            lay, Q = sc.layout, sc.points_xy_m
+            tmask = lay.seq[0] < ev.n
+            pts = np.zeros((ev.n, 2))
+            cen = np.zeros((ev.n, 2))
+            pts[lay.seq[0, tmask]] = Q[0, tmask]
+            cen[lay.seq[0, tmask]] = C[0, tmask]
+            return float(sc.fitness[0]), pts, cen, sc.lengths_m[0]
         order, counts = ev.from_routes(routes)
         lay = ev.layout(order, counts)
         Q0 = ev.node_xy[lay.seq].copy()
@@ -287,6 +300,14 @@ class LocalSearch:
                 best, move = float(score[k]), (v, int(k[0]), int(k[1]))
         return best, move
 
+    def _with_swaps(self, length_m: np.ndarray, veh: np.ndarray) -> np.ndarray:
+        """Route lengths [m] with the swaps they need beyond the first pack, each costing its time on
+        the ground and a trip home (the giant-tour split's estimate, Evaluator.split)."""
+        ev = self.ev
+        pack = np.where(ev.pack_len[veh] > 0, ev.pack_len[veh], np.inf)
+        swaps = np.minimum(np.ceil(np.maximum(length_m - ev.max_len[veh], 0.0) / pack), ev.spares[veh])
+        return length_m + swaps * (ev.swap_s * ev.speed + ev.sortie_detour_m[veh])
+
     def run(self, routes: list[list[int]], deadline: float, max_rounds: int = 200,
             points: np.ndarray | None = None):
         """Improve ``routes`` until no move helps or ``deadline`` (perf_counter) passes.
@@ -369,6 +390,8 @@ class LocalSearch:
             _, ins = best_point_between(U, W, cen[t], ev.node_r[t], newton_steps=6)
             new = L[R] + ins - _norm(W - U)
             over = np.maximum(new - self.max_len[R], 0.0)
+            if ev.sorties:  # a route beyond its first pack pays for its swaps and trips home
+                new, L = self._with_swaps(new, R), self._with_swaps(L, np.arange(len(L)))
             # Longest route other than the edge's own: the top route, or the second for the top one.
             top = int(np.argmax(L))
             second = float(np.max(np.delete(L, top))) if len(L) > 1 else 0.0

@@ -10,6 +10,13 @@ A target may have a *service*: an orbit look (search/orbit.py) keeps the vehicle
 seconds on a circle through its access point and spends ``service_energy_j`` there. The makespan,
 the access times of the later targets and the energy check count both; ``service_s = 0`` (every
 fly-by, the paper) changes nothing.
+
+Sorties (issue 38): a vehicle with ``spare_packs`` > 0 may go home, swap its pack
+(``battery_swap_s`` on the ground, counted in the makespan and the later access times) and go on
+with a fresh one of ``pack_energy_j``, once per spare pack: a multi-trip routing problem with
+reloads at the depot. Each sortie (start or home -> targets -> home) must fit its pack: the first
+the vehicle's ``energy_j``, the later ones ``pack_energy_j``. With no spare packs (the default)
+the problem is the single-trip one, and every solver computes exactly what it did before.
 """
 
 from __future__ import annotations
@@ -26,12 +33,16 @@ from ..errors import ConfigError, InfeasibleError
 
 @dataclass(frozen=True)
 class VehicleState:
-    """A vehicle as the planner sees it: where it is, where it must end, energy left [J]."""
+    """A vehicle as the planner sees it: where it is, where it must end, energy left [J] in the pack
+    it flies now (beyond its reserve), and the fresh packs waiting at home (each a sortie after a
+    swap; ``pack_energy_j`` usable in each)."""
 
     id: str
     start_xy_m: tuple[float, float]
     home_xy_m: tuple[float, float]
     energy_j: float
+    spare_packs: int = 0
+    pack_energy_j: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -54,6 +65,7 @@ class RoutingProblem:
     speed_m_s: float
     t0_s: float = 0.0
     power: RotorcraftPower = ZENG_2019
+    battery_swap_s: float = 0.0  # time on the ground to swap a pack [s] (vehicles with spare packs)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "vehicles", tuple(self.vehicles))
@@ -98,8 +110,23 @@ class RoutingProblem:
 
     @property
     def max_length_m(self) -> np.ndarray:
-        """Longest route [m] each vehicle's energy allows at ``speed_m_s``."""
+        """Longest route [m] each vehicle's energy allows at ``speed_m_s`` (its first sortie's, with
+        spare packs)."""
         return self.energies_j / self.energy_per_m_j
+
+    @property
+    def spare_packs(self) -> np.ndarray:
+        return np.array([v.spare_packs for v in self.vehicles], dtype=int)
+
+    @property
+    def pack_length_m(self) -> np.ndarray:
+        """Longest sortie [m] a fresh pack allows at ``speed_m_s``, per vehicle (0 without spares)."""
+        return np.array([v.pack_energy_j if v.spare_packs > 0 else 0.0 for v in self.vehicles]) / self.energy_per_m_j
+
+    @property
+    def has_sorties(self) -> bool:
+        """Whether some vehicle has a spare pack (the multi-trip problem)."""
+        return any(v.spare_packs > 0 for v in self.vehicles)
 
 
 @dataclass(frozen=True)
@@ -110,8 +137,15 @@ class Route:
     target_ids: tuple[str, ...]
     access_points_xy_m: np.ndarray  # (k, 2)
     access_times_s: np.ndarray  # (k,), absolute (t0_s + flight time)
-    duration_s: float  # start -> accesses -> home
-    energy_j: float
+    duration_s: float  # start -> accesses -> home (with sorties: the trips home and the swaps too)
+    energy_j: float  # of all its sorties
+    swaps_before: tuple[int, ...] = ()  # indices k: before target_ids[k] it flies home and swaps its pack
+    sortie_energy_j: tuple[float, ...] = ()  # energy of each sortie, in flight order (with spare packs)
+
+    def sorties(self) -> tuple[tuple[str, ...], ...]:
+        """The target ids of each sortie in flight order (one sortie without swaps)."""
+        cuts = [0, *self.swaps_before, len(self.target_ids)]
+        return tuple(tuple(self.target_ids[a:b]) for a, b in zip(cuts, cuts[1:]))
 
 
 @dataclass(frozen=True)
@@ -156,6 +190,8 @@ def validate(problem: RoutingProblem) -> None:
         raise ConfigError(f"speed must be a positive finite number, got {problem.speed_m_s} m/s")
     if not math.isfinite(problem.t0_s):
         raise ConfigError(f"t0 must be finite, got {problem.t0_s} s")
+    if not (math.isfinite(problem.battery_swap_s) and problem.battery_swap_s >= 0):
+        raise ConfigError(f"battery swap time must be finite and not negative, got {problem.battery_swap_s} s")
     seen: set[str] = set()
     for v in problem.vehicles:
         if v.id in seen:
@@ -169,6 +205,11 @@ def validate(problem: RoutingProblem) -> None:
                 f"or energy {v.energy_j} J")
         if v.energy_j < 0:
             raise ConfigError(f"vehicle {v.id}: negative energy {v.energy_j} J")
+        if isinstance(v.spare_packs, bool) or not isinstance(v.spare_packs, (int, np.integer)) or v.spare_packs < 0:
+            raise ConfigError(f"vehicle {v.id}: spare packs must be a whole number, 0 or more, got {v.spare_packs!r}")
+        if v.spare_packs > 0 and not (math.isfinite(v.pack_energy_j) and v.pack_energy_j > 0):
+            raise ConfigError(f"vehicle {v.id}: {v.spare_packs} spare pack(s) of {v.pack_energy_j} J; a pack's "
+                              "usable energy must be a positive number of joules")
     seen = set()
     for t in problem.targets:
         if t.id in seen:
@@ -195,7 +236,8 @@ def validate(problem: RoutingProblem) -> None:
 
 def check_reachable(problem: RoutingProblem) -> None:
     """InfeasibleError if some vehicle cannot even get home, or a target no vehicle can reach
-    and return from within its energy (measured with the shortest start -> disk -> home detour)."""
+    and return from within its energy (measured with the shortest start -> disk -> home detour, or,
+    for a vehicle with a spare pack, home -> disk -> home on a fresh one)."""
     from .access import single_visit_length_m  # local: access imports this module
 
     e_per_m = problem.energy_per_m_j
@@ -205,6 +247,8 @@ def check_reachable(problem: RoutingProblem) -> None:
     for v, d, cap in zip(problem.vehicles, direct, max_len):
         if d > cap * (1 + 1e-9):
             if d < 1.0:  # at home already: nothing left to fly with
+                if v.spare_packs > 0:
+                    continue  # at home: the next sortie starts with a fresh pack
                 raise InfeasibleError(f"vehicle {v.id} cannot reach home: its usable energy is spent "
                                       f"({v.energy_j:.0f} J left beyond its reserve)")
             raise InfeasibleError(
@@ -213,14 +257,25 @@ def check_reachable(problem: RoutingProblem) -> None:
     if not problem.targets:
         return
     need = single_visit_length_m(problem) + (problem.service_energy_j / e_per_m)[:, None]  # (n, m)
+    ok = need <= max_len * (1 + 1e-9)
+    if problem.has_sorties:  # or on a fresh pack from home, after a swap (disks where they are at t0)
+        fresh = _home_visit_length_m(problem) + (problem.service_energy_j / e_per_m)[:, None]
+        ok |= (problem.spare_packs > 0) & (fresh <= problem.pack_length_m * (1 + 1e-9))
     for i, t in enumerate(problem.targets):
-        ok = need[i] <= max_len * (1 + 1e-9)
-        if not ok.any():
+        if not ok[i].any():
             best = int(np.argmin(need[i] - max_len))
+            v = problem.vehicles[best]
+            packs = f" (and {v.pack_energy_j:.0f} J in each of {v.spare_packs} spare packs)" if v.spare_packs else ""
             raise InfeasibleError(
                 f"target {t.id} at ({t.xy_m[0]:.1f}, {t.xy_m[1]:.1f}) m, radius {t.radius_m:.1f} m "
-                f"is out of reach: the best vehicle {problem.vehicles[best].id} needs "
+                f"is out of reach: the best vehicle {v.id} needs "
                 f"{need[i, best]:.1f} m = {need[i, best] * e_per_m:.0f} J there and home"
                 f"{f' with its {t.service_s:.0f} s look' if t.service_s > 0 else ''}, "
-                f"it has {problem.vehicles[best].energy_j:.0f} J")
+                f"it has {v.energy_j:.0f} J{packs}")
 
+
+def _home_visit_length_m(problem: RoutingProblem) -> np.ndarray:
+    """(n, m): home -> disk -> home for each target and vehicle (a sortie on a fresh pack)."""
+    c = problem.centres_xy_m[:, None, :]
+    d = np.linalg.norm(c - problem.homes_xy_m[None, :, :], axis=2)
+    return 2.0 * np.maximum(d - problem.radii_m[:, None], 0.0)

@@ -69,6 +69,21 @@ def greedy_routes(problem: RoutingProblem, ev: Evaluator) -> list[list[int]]:
     return LocalSearch(ev).insert([[] for _ in problem.vehicles], list(np.argsort(-far)))
 
 
+def relaxed_routes(problem: RoutingProblem, deadline: float) -> list[list[int]]:
+    """Routes of ``problem`` planned as if every pack were endless (greedy seed, then local search
+    until ``deadline``): a seed for the multi-trip problem. Where the best routes need no swap it
+    finds them; where they do, their order is still good and the fitness places the swaps. Without
+    it the search starts from routes the sorties' swaps make costly to rebalance (a swap costs its
+    minutes on the ground whatever the route gains)."""
+    import dataclasses
+
+    endless = dataclasses.replace(problem, vehicles=tuple(
+        dataclasses.replace(v, energy_j=1e15, spare_packs=0, pack_energy_j=0.0) for v in problem.vehicles))
+    ev = Evaluator(endless)
+    routes, _ = LocalSearch(ev).run(greedy_routes(endless, ev), deadline)
+    return routes
+
+
 def solve(problem: RoutingProblem, *, method: str = "epso", rng=None, time_limit_s: float = 1.0,
           max_iter: int | None = None, local_search: bool = True, warm_start: Plan | None = None,
           callback: Callable[[Progress], bool | None] | None = None, **options) -> PlanResult:
@@ -110,6 +125,8 @@ def solve(problem: RoutingProblem, *, method: str = "epso", rng=None, time_limit
         seeds.append(warm_routes(problem, ev, warm_start))
     if local_search:
         seeds.append(greedy_routes(problem, ev))
+        if ev.sorties:
+            seeds.append(relaxed_routes(problem, t_start + 0.15 * time_limit_s))
 
     # Keep back time for the final access-point refinement and, with local search, a last
     # polish of the best solution.
@@ -156,6 +173,8 @@ def solve(problem: RoutingProblem, *, method: str = "epso", rng=None, time_limit
 
 def _result(ev: Evaluator, order, counts, plan: Plan, nit: int, message: str, t_start: float,
             x: np.ndarray) -> PlanResult:
+    if ev.sorties:
+        return _sortie_result(ev, plan, nit, message, t_start, x)
     energy_m = np.array([r.energy_j for r in plan.routes]) / ev.problem.energy_per_m_j  # flight + services' energy, in metres
     feasible = bool(np.all(energy_m <= ev.max_len * (1 + 1e-9) + 1e-6))
     if not feasible:
@@ -164,4 +183,21 @@ def _result(ev: Evaluator, order, counts, plan: Plan, nit: int, message: str, t_
         message = "no energy-feasible plan found: " + "; ".join(
             f"vehicle {vid} needs {need:.0f} J, has {have:.0f} J" for vid, need, have in over)
     return PlanResult(x=x, fun=plan.makespan_s, nit=nit, nfev=ev.nfev, success=feasible,
+                      message=message, plan=plan, runtime_s=time.perf_counter() - t_start)
+
+
+def _sortie_result(ev: Evaluator, plan: Plan, nit: int, message: str, t_start: float, x: np.ndarray) -> PlanResult:
+    """As ``_result``, each sortie checked against its pack: the first against the vehicle's energy,
+    the later ones against a fresh pack, and no more sorties than packs."""
+    over = []
+    for r, v in zip(plan.routes, ev.problem.vehicles):
+        caps = [v.energy_j] + [v.pack_energy_j] * v.spare_packs
+        if len(r.sortie_energy_j) > len(caps):
+            over.append(f"vehicle {v.id} needs {len(r.sortie_energy_j)} packs, has {len(caps)}")
+        for k, (need, have) in enumerate(zip(r.sortie_energy_j, caps)):
+            if need > have * (1 + 1e-9) + 1e-6 * ev.problem.energy_per_m_j:
+                over.append(f"vehicle {v.id} sortie {k + 1} needs {need:.0f} J, its pack has {have:.0f} J")
+    if over:
+        message = "no energy-feasible plan found: " + "; ".join(over)
+    return PlanResult(x=x, fun=plan.makespan_s, nit=nit, nfev=ev.nfev, success=not over,
                       message=message, plan=plan, runtime_s=time.perf_counter() - t_start)
