@@ -149,20 +149,62 @@ class Flight:
         return np.stack([x, y], axis=-1)
 
 
+SWAP_BELOW = 0.5  # a landed vehicle with a spare pack gets it when less than this share of its pack is left
+
+
 class Vehicle:
-    """Energy and flight bookkeeping of one simulated vehicle."""
+    """Energy and flight bookkeeping of one simulated vehicle (with ``fleet.batteries`` > 1, the
+    packs it flies one after another, a swap of ``fleet.battery_swap_s`` on the ground between)."""
 
     def __init__(self, index: int, sc: Scenario):
         self.index = index  # world/MAVLink vehicle number (1-based)
         self.id = str(index)
         self.sc = sc
         self.flight = Flight(np.zeros((1, 2)), 0.0, sc.fleet.speed_m_s)
-        self.energy_j = 0.0
+        self.energy_j = 0.0  # used from the pack it flies now
+        self.spent_j = 0.0  # used from the packs swapped out before it (sorties)
         self.accounted_t_s = 0.0
         self.home_t_s: float | None = None
+        # sorties (issue 38): the packs waiting at home, and the end of a swap in progress
+        self.spare_packs = int(getattr(sc.fleet, "batteries", 1)) - 1
+        self.swap_until_s: float | None = None
+        self.sorties_flown = 0
+
+    @property
+    def total_energy_j(self) -> float:
+        return self.spent_j + self.energy_j
+
+    def swap_if_due(self, t_s: float) -> bool:
+        """On the ground with a spare pack and less than SWAP_BELOW of the usable energy left: the
+        team swaps it (``fleet.battery_swap_s`` on the ground). True when a swap ends at ``t_s``:
+        the vehicle is ready again with a fresh pack."""
+        if self.home_t_s is None:
+            return False
+        if self.swap_until_s is None:
+            left = self.sc.usable_energy_j - self.energy_j
+            if self.spare_packs > 0 and left < SWAP_BELOW * self.sc.usable_energy_j:
+                self.swap_until_s = self.home_t_s + float(self.sc.fleet.battery_swap_s)
+            else:
+                return False
+        if t_s + 1e-9 < self.swap_until_s:
+            return False
+        self.account(t_s)
+        self.spent_j += self.energy_j
+        self.energy_j = 0.0
+        self.spare_packs -= 1
+        self.swap_until_s = None
+        return True
+
+    @property
+    def in_swap(self) -> bool:
+        return self.swap_until_s is not None
 
     def fly(self, path_xy_m: np.ndarray, t_s: float, seg_speeds_m_s=None, heights_m=None) -> None:
+        if self.in_swap:  # not before its fresh pack is in (a plan made during the swap waits for it)
+            return
         self.account(t_s)
+        if self.home_t_s is not None and len(path_xy_m) > 1:
+            self.sorties_flown += 1
         survey = float(self.sc.fleet.altitude_m)
         now_m = float(self.flight.height(t_s, survey))
         if heights_m is not None:  # starting where the last flight left it (a look at its own height)
@@ -205,7 +247,10 @@ class Vehicle:
 
         self.account(t_s)
         xy = self.flight.position(t_s)
-        left = max(0.0, self.sc.usable_energy_j - self.energy_j)
+        left = 0.0 if self.in_swap else max(0.0, self.sc.usable_energy_j - self.energy_j)
+        if self.spare_packs > 0:  # on the ground in a swap: energy 0 with its packs (search/policy.py)
+            return VehicleState(self.id, (float(xy[0]), float(xy[1])), (0.0, 0.0), left, self.spare_packs,
+                                float(self.sc.usable_energy_j))
         return VehicleState(self.id, (float(xy[0]), float(xy[1])), (0.0, 0.0), left)
 
 
@@ -269,6 +314,7 @@ def hear(world: World, vehicles: list[Vehicle], t_from_s: float, t_to_s: float, 
     out = []
     for v in vehicles:
         tt = t if v.home_t_s is None else t[t < v.home_t_s]
+        tt = tt[tt >= v.flight.t0_s]  # on the ground before a flight (a swap): deaf
         if len(tt) == 0:
             continue
         xy = v.flight.position(tt)
@@ -385,19 +431,51 @@ def simulate_mission(
         attach(scenario, policy)  # cells below the POD target get another pass, as in the daemon
     m = scenario.fleet.vehicles
     vehicles = [Vehicle(i + 1, scenario) for i in range(m)]
-    for vs in scan.vehicles:
-        vehicles[vs.index].fly(np.vstack([np.zeros((1, 2)), vs.waypoints_xy_m]), 0.0)
-    t_scan = max((v.flight.end_t_s for v in vehicles), default=0.0)
+    home = np.zeros((1, 2))
+    queued: dict[int, list] = {}  # scan sorties still to fly after a swap, per vehicle (sorties)
+    if int(getattr(scenario.fleet, "batteries", 1)) > 1:
+        from uavloc_gcs.search.pod_plan import scan_pod_plan
+        from uavloc_gcs.sorties import scan_sorties
+
+        pp = scan_pod_plan(scenario)
+        sorties = pp.sorties if pp is not None and pp.sorties else scan_sorties(scenario, scan)
+        for vs, sp in zip(scan.vehicles, sorties):
+            paths = [np.vstack([home, s.waypoints_xy_m, home]) for s in sp.sorties]
+            vehicles[vs.index].fly(paths[0], 0.0)
+            queued[vs.index] = paths[1:]
+    else:
+        for vs in scan.vehicles:
+            vehicles[vs.index].fly(np.vstack([home, vs.waypoints_xy_m]), 0.0)
+
+    def scanning(t_s: float) -> bool:
+        for i, v in enumerate(vehicles):
+            v.land_if_home(t_s)
+            if v.swap_if_due(t_s) and queued.get(i):
+                v.fly(queued[i].pop(0), t_s)  # the next sortie of its scan, on the fresh pack
+        return any(queued.values()) or any(v.flight.end_t_s > t_s for v in vehicles)
 
     err_t, err_v = [], []
     t = 0.0
-    while t < t_scan:  # the scan: listen, re-estimate now and then for the error curve
-        t_next = min(t + scan_update_s, t_scan)
-        policy.ingest(hear(world, vehicles, t, t_next, policy))
-        policy.update(t_next)
-        t = t_next
-        err_t.append(t)
-        err_v.append(max_error_m(world, policy.people(t)))
+    if not queued:  # one pack each: the scan as one flight per vehicle
+        t_scan = max((v.flight.end_t_s for v in vehicles), default=0.0)
+        while t < t_scan:  # the scan: listen, re-estimate now and then for the error curve
+            t_next = min(t + scan_update_s, t_scan)
+            policy.ingest(hear(world, vehicles, t, t_next, policy))
+            policy.update(t_next)
+            t = t_next
+            err_t.append(t)
+            err_v.append(max_error_m(world, policy.people(t)))
+    else:  # sorties: each lands, is swapped and flies the next part of its scan
+        while scanning(t):
+            nxt = [v.swap_until_s for v in vehicles if v.swap_until_s is not None and v.swap_until_s > t]
+            nxt += [v.flight.end_t_s for v in vehicles if v.flight.end_t_s > t]
+            t_next = min([t + scan_update_s, *nxt])
+            policy.ingest(hear(world, vehicles, t, t_next, policy))
+            policy.update(t_next)
+            t = t_next
+            err_t.append(t)
+            err_v.append(max_error_m(world, policy.people(t)))
+        t_scan = t
 
     replans = 0
     changed = policy.update(t)
@@ -406,12 +484,16 @@ def simulate_mission(
         for v in vehicles:
             v.fly(np.vstack([v.flight.position(t).reshape(1, 2), np.zeros((1, 2))]), t)
     while True:
+        fresh = False
         for v in vehicles:
             v.land_if_home(t)
+            fresh |= adaptive and not policy.done(t) and v.swap_if_due(t)
         all_home = all(v.home_t_s is not None for v in vehicles)
+        swapping = any(v.in_swap for v in vehicles)
         if (policy.done(t) or not adaptive) and all_home:
             break
-        force = all(v.home_t_s is not None or v.flight.end_t_s <= t for v in vehicles) and not policy.done(t)
+        force = fresh or (all(v.home_t_s is not None or v.flight.end_t_s <= t for v in vehicles)
+                          and not policy.done(t) and not swapping)
         if t >= max_time_s:
             break
         if adaptive and (force or policy.needs_replan(t, changed) or (policy.done(t) and policy.current_plan is None)):
@@ -443,7 +525,7 @@ def simulate_mission(
     return MissionResult(
         method=method, people=len(world), seed=seed, completion_time_s=float(t_end), scan_time_s=float(t_scan),
         planner_runtime_s=policy.planner_runtime_s, estimator_runtime_s=policy.estimator_runtime_s,
-        replans=replans, energy_j=tuple(v.energy_j for v in vehicles),
+        replans=replans, energy_j=tuple(v.total_energy_j for v in vehicles),
         persons=person_results(world, statuses, t_end), oracle_completion_time_s=t_oracle,
         error_times_s=np.asarray(err_t), max_error_m=np.asarray(err_v),
         pod_overall=policy.coverage.overall() if getattr(policy, "coverage", None) is not None else math.nan,

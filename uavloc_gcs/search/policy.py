@@ -290,6 +290,7 @@ class SearchPolicy:
         self._reach_poly = None  # the area grown by LOOK_AREA_MARGIN (_inside_reach)
         self._frames_prior = None  # estimation.evidence.FramesPrior of the scenario's bursts (frames_prior)
         self._burst_rates = None  # and their rate law (burst_rates), for the bursts nobody heard
+        self._deferred: set[int] = set()  # people waiting for a fresh pack in the current plan (replan)
         self._grid = None  # estimation.burst_grid.GridSpec of this scenario (the field world, _grid_spec)
         # where the estimates are computed (estimation.fitting): in this thread by default; the
         # daemon passes a ProcessFitter so that fitting never stops its event loop
@@ -651,9 +652,22 @@ class SearchPolicy:
         self._target_t_pass = {}
         rng = np.random.default_rng([self.seed, self._replans])
         runtime = 0.0
+        # Sorties (issue 38): looks are routed on the packs the vehicles fly now; a person whom no
+        # pack in the air can reach but a fresh pack from home can (a vehicle with spare_packs) waits
+        # for the swap instead of being given up (self._deferred, for this plan)
+        spare = [v for v in vehicles if getattr(v, "spare_packs", 0) > 0]
+        vehicles = [replace(v, spare_packs=0, pack_energy_j=0.0) if getattr(v, "spare_packs", 0) else v
+                    for v in vehicles]
+        self._deferred = set()
         targets = self._targets(t_s, vehicles, None)
         result = None
-        flyable = list(vehicles)  # minus those that can only just get home: they are sent home
+        # minus those that can only just get home (they are sent home) and those on the ground in a
+        # swap (at home, no energy, a spare pack: planned once the fresh pack is in)
+        swapping = {v.id for v in spare if v.energy_j <= 1.0
+                    and math.dist(v.start_xy_m, v.home_xy_m) < 1.0}
+        flyable = [v for v in vehicles if v.id not in swapping]
+        if not flyable:
+            targets = []
         while targets:
             problem = RoutingProblem(tuple(flyable), tuple(targets), self.speed_m_s, t0_s=t_s,
                                      power=self.scenario.power_model)
@@ -668,6 +682,9 @@ class SearchPolicy:
                 if stuck and len(flyable) > 1:
                     flyable.remove(stuck[0])
                     log.info("vehicle %s is left out of the looks: %s", stuck[0].id, exc)
+                    continue
+                if spare and self._defer_for_pack(problem, str(exc), spare):
+                    targets = self._targets(t_s, flyable, None)
                     continue
                 if not self._drop_unreachable(problem, str(exc)):
                     # no single person to blame (a vehicle cannot even get home): nobody can be
@@ -768,6 +785,8 @@ class SearchPolicy:
         before = {t.id: t for t in previous} if previous is not None else {}
         out = []
         for eid in self.pending_ids():
+            if eid in self._deferred:  # waits for a fresh pack (sorties): not in this plan
+                continue
             p = self._people[eid]
             cand = self._candidate(p) if self._ok(p) else None
             if cand is None:  # heard, but too little to fit: fly over where it was heard
@@ -824,6 +843,28 @@ class SearchPolicy:
             rho = 0.0
         self._access_cache[key] = (p.estimate, rho)
         return rho
+
+    def _defer_for_pack(self, problem, message: str, spare: list) -> bool:
+        """The target named in an InfeasibleError waits for a fresh pack if a vehicle with a spare
+        pack could reach its look from home and come back on one (home -> look -> home within the
+        pack's energy); False if none can, or no target is named."""
+        from ..planning import RoutingProblem, VehicleState
+        from ..planning.problem import check_reachable
+
+        for t in problem.targets:
+            if f"target {t.id} " not in message or int(t.id) in self._deferred:
+                continue
+            for v in spare:  # the vehicle at home on a fresh pack, alone with this target
+                fresh = VehicleState(v.id, v.home_xy_m, v.home_xy_m, float(v.pack_energy_j))
+                try:
+                    check_reachable(RoutingProblem((fresh,), (t,), problem.speed_m_s, t0_s=problem.t0_s,
+                                                   power=problem.power))
+                except InfeasibleError:
+                    continue
+                self._deferred.add(int(t.id))
+                log.info("emitter %s waits for a fresh pack (vehicle %s has %d)", t.id, v.id, v.spare_packs)
+                return True
+        return False
 
     def _drop_unreachable(self, problem, message: str) -> bool:
         """Give up the target named in an InfeasibleError; False if no target can be blamed."""

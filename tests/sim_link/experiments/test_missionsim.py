@@ -141,3 +141,39 @@ def test_a_scan_alone_flies_home_after_it_and_plans_no_look(small):
     far = math.hypot(small.area.width_m, small.area.height_m)
     assert alone.completion_time_s <= alone.scan_time_s + far / small.fleet.speed_m_s + 2.0
     assert sum(p.located for p in full.persons) >= sum(p.located for p in alone.persons)
+
+
+def test_a_vehicle_with_a_spare_pack_is_swapped_on_the_ground_and_planned_again(small):
+    """Sorties (issue 38): a vehicle that lands with less than half its pack left and a spare pack is
+    on the ground for fleet.battery_swap_s (no energy to plan with, its spare pack stated, deaf),
+    then flies on a fresh pack; the energy of the packs before is kept."""
+    sc = small.replace(fleet={"batteries": 2, "battery_swap_s": 60.0})
+    v = Vehicle(1, sc)
+    assert v.spare_packs == 1
+    far = 0.3 * sc.usable_energy_j / sc.power_model.energy_per_m_j(sc.fleet.speed_m_s)  # 60 % of a pack there and back
+    v.fly(np.array([[0.0, 0.0], [far, 0.0], [0.0, 0.0]]), 0.0)
+    t_land = v.flight.end_t_s
+    v.land_if_home(t_land + 1.0)
+    assert not v.swap_if_due(t_land + 1.0) and v.in_swap
+    st = v.state(t_land + 30.0)
+    assert st.energy_j == 0.0 and st.spare_packs == 1 and st.pack_energy_j == pytest.approx(sc.usable_energy_j)
+    v.fly(np.array([[0.0, 0.0], [100.0, 0.0]]), t_land + 30.0)  # a plan made during the swap is not flown
+    assert v.home_t_s is not None
+    used = v.energy_j
+    assert v.swap_if_due(t_land + 60.0) and not v.in_swap
+    assert v.energy_j == 0.0 and v.total_energy_j == pytest.approx(used) and v.spare_packs == 0
+    st = v.state(t_land + 60.0)
+    assert st.energy_j == pytest.approx(sc.usable_energy_j) and st.spare_packs == 0
+
+
+def test_a_scan_longer_than_a_pack_is_flown_in_sorties_within_the_packs(small):
+    """With packs too small for a vehicle's scan, the scan is cut into sorties (uavloc_gcs.sorties)
+    and flown one after another with a swap between; no vehicle uses more than its packs hold, and
+    at least one needed more than one."""
+    sc = small.replace(fleet={"batteries": 3, "battery_swap_s": 60.0, "energy_budget_j": 15000.0})
+    world = World(sc, seed=11, people=3, motion="static")
+    res = simulate_mission(sc, world, seed=1, time_limit_s=5.0, max_iter=15)
+    usable = sc.usable_energy_j
+    assert max(res.energy_j) > 1.02 * usable  # a second pack was flown
+    assert all(e <= 3 * usable * 1.02 for e in res.energy_j)
+    assert res.completion_time_s >= res.scan_time_s
