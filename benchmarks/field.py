@@ -58,8 +58,36 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--elicitation", type=number(float, min=0.0, max=1000.0), default=None, metavar="HZ",
                         help="an on-board access point that makes phones in range answer at HZ frames a second "
                              "(emission.elicitation_rate_hz; default: the scenario's)")
+    parser.add_argument("--packs", type=_packs, default=(1,), metavar="N[,N...]",
+                        help="packs per vehicle (fleet.batteries) of uavloc's and the lawnmower's rows, a comma list, "
+                             "e.g. 1,3 (default 1; the paper's plan flies one)")
+    parser.add_argument("--plans", type=_plans, default=PLANS, metavar="NAME[,NAME...]",
+                        help=f"which plans to fly, a comma list of {', '.join(PLANS)} (default all)")
     parser.add_argument("--trapped", action="store_true",
                         help="people who cannot move (simulation.motion = static, people.max_speed_m_s = 0)")
+
+
+def _packs(text: str) -> tuple[int, ...]:
+    try:
+        out = tuple(int(x) for x in text.split(",") if x.strip())
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected whole numbers of packs separated by commas, got {text!r}") from None
+    if not out or any(not 1 <= n <= 10 for n in out):
+        raise argparse.ArgumentTypeError(f"packs per vehicle must be 1 to 10, got {text!r}")
+    return out
+
+
+def _plans(text: str) -> tuple[str, ...]:
+    out = tuple(x.strip() for x in text.split(",") if x.strip())
+    bad = [x for x in out if x not in PLANS]
+    if not out or bad:
+        raise argparse.ArgumentTypeError(f"unknown plan {', '.join(bad) or repr(text)}; choose from {', '.join(PLANS)}")
+    return out
+
+
+def label(plan: str, packs: int) -> str:
+    """A row's name: the plan, with its packs when more than one."""
+    return plan if packs == 1 else f"{plan} {packs} packs"
 
 
 def overrides(args: argparse.Namespace) -> dict:
@@ -82,7 +110,7 @@ def scenario_for(plan: str, sc, pod_target: float):
 
 def _fly(job):
     """One mission of one plan on one world (in a worker: the switches are module globals)."""
-    plan, scenario_file, people, seed, pod_target, changes = job
+    plan, scenario_file, people, seed, pod_target, changes, packs = job
     from sim_link.experiments import missionsim
     from sim_link.world import World
     from uavloc_gcs.scenario import load_scenario
@@ -93,6 +121,8 @@ def _fly(job):
     if changes:
         sc = sc.replace(**changes)
     sc = sc.replace(simulation={"people": people, "seed": seed})
+    if packs > 1:
+        sc = sc.replace(fleet={"batteries": int(packs)})
     sc = scenario_for(plan, sc, pod_target)
     try:
         if plan != "uavloc":  # the POD accumulator measures; no passes are added
@@ -110,7 +140,7 @@ def _fly(job):
     located = [p for p in heard if p.located]
     inside = [p for p in located if p.error_m <= p.claimed_radius_m]
     why = [_kind(p.reason) for p in heard if not p.located]
-    return {"plan": plan, "seed": seed, "present": len(res.persons), "heard": len(heard), "located": len(located),
+    return {"plan": plan, "label": label(plan, packs), "seed": seed, "present": len(res.persons), "heard": len(heard), "located": len(located),
             "inside": len(inside), "fix_s": [float(p.fix_t_s) for p in located],
             "within_m": [float(p.error_m) for p in located], "time_s": res.completion_time_s, "oracle_s": res.oracle_completion_time_s,
             "energy_kj": float(np.mean(res.energy_j)) / 1e3, "pod": res.pod_overall, "why": why}
@@ -137,13 +167,15 @@ def table(rows: list[dict], runs: int) -> list[str]:
     from sim_link.experiments import mean_ci95
 
     out = []
-    head = (f"{'plan':12s} {'heard':>9s} {'located':>9s} {'located %':>9s} {'by 15/30/60 min':>15s} "
+    head = (f"{'plan':16s} {'heard':>9s} {'located':>9s} {'located %':>9s} {'by 15/30/60 min':>15s} "
             f"{'inside r95':>10s} {'time m:s':>14s} {'/ clairv.':>9s} {'kJ/vehicle':>10s} {'POD':>5s}")
     out += [head, "-" * len(head)]
-    oracle = [r["oracle_s"] for r in rows if r["plan"] == "uavloc" and math.isfinite(r["oracle_s"])]
+    oracle = [r["oracle_s"] for r in rows if r.get("label", r["plan"]) == "uavloc" and math.isfinite(r["oracle_s"])]
+    if not oracle:
+        oracle = [r["oracle_s"] for r in rows if r["plan"] == "uavloc" and math.isfinite(r["oracle_s"])]
     t_oracle = float(np.mean(oracle)) if oracle else math.nan
-    for plan in PLANS:
-        rs = [r for r in rows if r["plan"] == plan]
+    for plan in dict.fromkeys(r.get("label", r["plan"]) for r in rows):
+        rs = [r for r in rows if r.get("label", r["plan"]) == plan]
         if not rs:
             continue
         present, heard, located, inside = (sum(r[k] for r in rs) for k in ("present", "heard", "located", "inside"))
@@ -152,11 +184,11 @@ def table(rows: list[dict], runs: int) -> list[str]:
         pod = float(np.mean([r["pod"] for r in rs]))
         fixes = [t for r in rs for t in r.get("fix_s", [])]
         by = "/".join(f"{100.0 * sum(f <= m * 60.0 for f in fixes) / max(present, 1):.0f}" for m in BY_MINUTES) + " %"
-        out.append(f"{plan:12s} {f'{heard}/{present}':>9s} {f'{located}/{present}':>9s} "
+        out.append(f"{plan:16s} {f'{heard}/{present}':>9s} {f'{located}/{present}':>9s} "
                    f"{100.0 * located / max(present, 1):8.0f}% {by:>15s} {inside / max(located, 1):10.2f} {t:>14s} "
                    f"{m / t_oracle if t_oracle else math.nan:9.2f} {np.mean([r['energy_kj'] for r in rs]):10.1f} "
                    f"{pod:5.2f}")
-    out.append(f"{'clairvoyant':12s} {'':>9s} {'':>9s} {'':>9s} {'':>15s} {'':>10s} {_mmss(t_oracle):>14s} {1.0:9.2f}")
+    out.append(f"{'clairvoyant':16s} {'':>9s} {'':>9s} {'':>9s} {'':>15s} {'':>10s} {_mmss(t_oracle):>14s} {1.0:9.2f}")
     return out
 
 
@@ -166,25 +198,29 @@ def main(args: argparse.Namespace) -> int:
     scenario_file = str(scenario_path(args.scenario))
     seeds = [args.seed + k for k in range(args.runs)]
     changes = overrides(args)
-    jobs = [(plan, scenario_file, args.people, s, args.pod, changes) for s in seeds for plan in PLANS]
+    jobs = [(plan, scenario_file, args.people, s, args.pod, changes, p) for s in seeds for plan in args.plans
+            for p in (args.packs if plan != "paper" else (1,))]
     bar = Progress(len(jobs))
     rows = []
     with ProcessPoolExecutor(max(1, args.jobs)) as pool:
         for row in pool.map(_fly, jobs):
             rows.append(row)
-            bar.step(f"{row['plan']} world {row['seed']}")
+            bar.step(f"{row['label']} world {row['seed']}")
     extra = "".join([f", access point {args.elicitation:g} Hz" if args.elicitation is not None else "",
                      ", trapped (static) people" if args.trapped else ""])
     print(f"the search for real phones on '{args.scenario}'{extra}: {args.people} people, {args.runs} paired world(s) "
           f"(seeds {seeds[0]}-{seeds[-1]}), POD target {args.pod:g}")
     for line in table(rows, args.runs):
         print(line)
-    for plan in PLANS:
-        why = Counter(k for r in rows if r["plan"] == plan for k in r["why"])
+    for plan in dict.fromkeys(r["label"] for r in rows):
+        why = Counter(k for r in rows if r["label"] == plan for k in r["why"])
         if why:
             print(f"heard, not located, {plan}: " + "; ".join(f"{n} {k}" for k, n in why.most_common(4)))
-    u = [r for r in rows if r["plan"] == "uavloc"]
-    lm = [r for r in rows if r["plan"] == "lawnmower"]
+    most = max(args.packs)
+    u = [r for r in rows if r["label"] == label("uavloc", most)]
+    lm = [r for r in rows if r["label"] == label("lawnmower", most)]
+    if not u or not lm:
+        return 0
     located = sum(r["located"] for r in u) / max(1, sum(r["present"] for r in u))
     pod = float(np.mean([r["pod"] for r in u]))
     faster = float(np.mean([r["time_s"] for r in u])) < float(np.mean([r["time_s"] for r in lm]))

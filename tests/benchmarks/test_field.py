@@ -3,6 +3,8 @@ in the benchmark, not here: minutes per world)."""
 
 import math
 
+import pytest
+
 from benchmarks import field
 from uavloc_gcs.examples import scenario_path
 from uavloc_gcs.scenario import load_scenario
@@ -44,3 +46,16 @@ def test_an_access_point_and_trapped_people_are_options_of_the_worlds():
     sc = load_scenario(scenario_path("field")).replace(**ch)
     assert sc.emission.elicitation_rate_hz == 2.0 and sc.people.max_speed_m_s == 0.0
     assert sc.simulation.motion == "static"
+
+
+def test_packs_and_plans_options_are_checked_in_one_sentence():
+    import argparse
+
+    p = argparse.ArgumentParser()
+    field.add_arguments(p)
+    a = p.parse_args(["--packs", "1,3", "--plans", "uavloc"])
+    assert a.packs == (1, 3) and a.plans == ("uavloc",)
+    assert field.label("uavloc", 3) == "uavloc 3 packs" and field.label("paper", 1) == "paper"
+    for bad in (["--packs", "0"], ["--packs", "x"], ["--plans", "nope"]):
+        with pytest.raises(SystemExit):
+            p.parse_args(bad)
