@@ -355,9 +355,14 @@ class A2GChannel:
 
         The proposal is the shadowing's posterior under a Gaussian-in-dB stand-in for the fading
         (closed form), widened by :data:`_PROPOSAL_WIDEN` so the exact, skewed law stays covered."""
+        return self._log_integrand_at(rssi, counts, self.mean_power_dbm(d3, s, tx), s, channel_share)
+
+    def _log_integrand_at(self, rssi, counts, mp, s, channel_share: float):
+        """:meth:`_log_integrand_nodes` at local mean powers ``mp`` [dBm] in state s: everything in a
+        burst's likelihood given the state depends on the geometry and offset only through them."""
         law = self.fading(s)
         sf, sx = float(law.std_db), float(self.shadow_db[s])
-        mp = self.mean_power_dbm(d3, s, tx)
+        mp = np.asarray(mp, float)
         shape = np.shape(mp)
         if rssi.size:
             n_tot = float(counts.sum())
@@ -430,6 +435,28 @@ class A2GChannel:
             poly = np.polynomial.polynomial.polyval(np.exp(log_miss), coeffs)
             parts.append(np.log(w) + _logsumexp(log_w + np.log(np.maximum(poly, _MIN_P)), axis=-1))
         return np.logaddexp(parts[0], parts[1])
+
+
+    def state_log_likelihood_unknown_sent(self, rssi_dbm, frames_pmf, mean_power_dbm, state: int, *, counts=None,
+                                          channel_share: float = 1.0) -> np.ndarray:
+        """The state-``state`` term of :meth:`burst_log_likelihood_unknown_sent` (before its weight
+        P(state)) as a function of the local mean power alone [dBm] (``mean_power_dbm`` any shape):
+        a smooth function of one variable, which callers tabulate once per burst."""
+        from scipy.special import comb
+
+        rssi = np.asarray(rssi_dbm, float).reshape(-1)
+        cnt = np.ones(len(rssi)) if counts is None else np.asarray(counts, float).reshape(-1)
+        n_heard = int(round(cnt.sum()))
+        pmf = np.asarray(frames_pmf, float)
+        pmf = pmf / pmf.sum()
+        mp = np.asarray(mean_power_dbm, float)
+        kk = np.arange(n_heard, len(pmf))
+        if kk.size == 0 or pmf[kk].sum() <= 0:
+            return np.full(mp.shape, -np.inf)
+        coeffs = pmf[kk] * comb(kk, n_heard)
+        log_w, log_miss = self._log_integrand_at(rssi, cnt, mp, state, channel_share)
+        poly = np.polynomial.polynomial.polyval(np.exp(log_miss), coeffs)
+        return _logsumexp(log_w + np.log(np.maximum(poly, _MIN_P)), axis=-1)
 
 
 def _logsumexp(a: np.ndarray, axis: int) -> np.ndarray:

@@ -55,7 +55,7 @@ def test_a_burst_table_is_the_channels_own_likelihood_over_distance_and_offset()
         want = m.channel.burst_log_likelihood_unknown_sent(np.array([-72.0, -75.0]), pmf, h, 30.0,
                                                           counts=np.array([2.0, 1.0]), tx_offset_db=t,
                                                           channel_share=m.channel_share)
-        np.testing.assert_allclose(got[i], want, rtol=1e-9)
+        np.testing.assert_allclose(got[i], want, rtol=1e-4, atol=1e-3)  # interpolated over the mean power
     silent = m.silent_loglik(pmf, h[None, :], 30.0, tx)
     assert np.all(np.diff(silent[1]) > 0)  # hearing nothing is likelier the farther the phone
     assert m.reach_m(30.0) > 200.0  # the urban tail: a louder phone in line of sight is heard far
