@@ -683,6 +683,13 @@ class SearchPolicy:
                     flyable.remove(stuck[0])
                     log.info("vehicle %s is left out of the looks: %s", stuck[0].id, exc)
                     continue
+                if spare and stuck:  # nobody in the air can fly a look: they wait for fresh packs
+                    for t in problem.targets:
+                        if not self._defer_for_pack(problem, f"target {t.id} ", spare):
+                            self._people[int(t.id)].gave_up = (
+                                f"no vehicle has the energy for a look that could locate it, even on a fresh pack ({exc})")
+                    targets, result = [], None
+                    break
                 if spare and self._defer_for_pack(problem, str(exc), spare):
                     targets = self._targets(t_s, flyable, None)
                     continue
@@ -1105,6 +1112,8 @@ class SearchPolicy:
         if not self._ok(p):
             return f"estimate status {getattr(p.estimate, 'status', '?')}"
         unplanned = "; the last plan had no look for it" if p.emitter_id in self._unplanned else ""
+        if p.emitter_id in self._deferred:
+            unplanned = "; its look waits for a fresh pack (no pack in the air reaches it)"
         if p.contradicted:
             return f"95 % radius {self._radius95(p):.1f} m, but {p.contradicted}" + unplanned
         if self._ambiguous(p):

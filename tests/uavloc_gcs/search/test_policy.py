@@ -344,6 +344,36 @@ def test_no_replan_loop_when_no_vehicle_has_energy_for_a_look(small):
     assert replans == 0
 
 
+def test_people_no_pack_in_the_air_reaches_wait_for_a_fresh_pack_instead_of_being_given_up(small):
+    """Sorties (issue 38): the same short packs as above, but each vehicle has a spare pack at
+    home. Nobody is given up for energy: each waits for the swap, says so, and is planned once a
+    vehicle reports its fresh pack; a vehicle on the ground in its swap gets no look meanwhile."""
+    from dataclasses import replace
+
+    sc = small.replace(people={"required_accuracy_m": 4.0})
+    world = World(sc, seed=3, people=3, motion="static")
+    policy, _, t_end, states = _scan_policy(sc, world)
+    pending = policy.pending_ids()
+    assert pending
+    short = [replace(s, spare_packs=1, pack_energy_j=sc.usable_energy_j)
+             for s in _with_energy(states, [500.0] * len(states))]
+    plan = policy.replan(t_end, short)
+    assert all(task.target_ids == () for task in plan.tasks)
+    assert policy.pending_ids() == pending and not policy.done(t_end)
+    reasons = {p.emitter_id: p.reason for p in policy.people(t_end)}
+    assert all("waits for a fresh pack" in reasons[e] for e in pending), reasons
+    # on the ground in the swap (home, no energy, the spare stated): still nobody given up, no look
+    ground = [replace(s, start_xy_m=(0.0, 0.0), energy_j=0.0) for s in short]
+    plan = policy.replan(t_end + 60.0, ground)
+    assert all(task.target_ids == () for task in plan.tasks) and policy.pending_ids() == pending
+    # one vehicle's fresh pack is in: it looks
+    ready = [replace(ground[0], energy_j=sc.usable_energy_j, spare_packs=0)] + ground[1:]
+    plan = policy.replan(t_end + 120.0, ready)
+    looked = {e for task in plan.tasks for e in task.target_ids}
+    assert looked and looked <= set(pending)
+    assert {task.vehicle_id for task in plan.tasks if task.target_ids} == {ready[0].id}
+
+
 def test_a_vehicle_that_can_only_get_home_is_left_out_and_the_others_look(small):
     sc = small.replace(people={"required_accuracy_m": 4.0})
     world = World(sc, seed=3, people=3, motion="static")
