@@ -119,10 +119,9 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.out) if args.out else Path(f"uavloc-{scenario.name}")
     if out.exists() and not out.is_dir():
         raise ConfigError(f"output path {out} exists and is not a directory")
-    from ._inputs import discard_empty_leftovers, existing_files, require_fleet, require_one_pack
+    from ._inputs import discard_empty_leftovers, existing_files, require_fleet
 
     require_fleet(scenario)
-    require_one_pack(scenario, "daemon")
     with store_lock(out, "daemon"):
         if args.fresh:
             for f in [out / "search.sqlite", out / "search.sqlite-wal", out / "search.sqlite-shm",
