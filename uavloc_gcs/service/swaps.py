@@ -133,7 +133,7 @@ class PackSwaps:
         if not v.waiting:
             return f"vehicle {vehicle} does not wait for a pack (it is {v.phase}); nothing to do"
         v.operator_fresh = True
-        text = f"the operator says vehicle {vehicle} has a fresh pack; it is checked and launched"
+        text = f"the operator says vehicle {vehicle} has a fresh pack; it is checked before it is launched"
         self._event("operator", text, vehicle)
         return text
 

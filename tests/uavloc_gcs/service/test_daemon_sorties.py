@@ -146,7 +146,7 @@ def test_a_pack_that_is_not_fresh_is_never_launched_whatever_the_operator_says(t
 
             watcher = asyncio.ensure_future(watch())
             # the operator says so, but it reports the used pack's remaining
-            assert "checked and launched" in d.pack_fresh(1)
+            assert "checked before it is launched" in d.pack_fresh(1)
             await _until(lambda: not v.operator_fresh, "the operator's word judged")
             # the team puts in a used pack (half charged): the reboot makes ArduPilot say 100 %
             loop = asyncio.get_running_loop()
