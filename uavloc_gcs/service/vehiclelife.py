@@ -178,6 +178,8 @@ class VehicleLife:
         (kind, text). ``home_by(v)``: the mission time by which ``v`` flying home should have landed."""
         events: list[tuple[str, str]] = []
         silent = f.silent_s > lost_timeout_s
+        if self.phase == "waiting for pack" and not self.lost:
+            return events  # on the ground for its swap, which powers it off: silence is not a loss
         if silent and not self.lost:
             self.lost = True
             events.append(("lost", f"vehicle {self.id} silent for {lost_timeout_s:g} s: marked lost; "
