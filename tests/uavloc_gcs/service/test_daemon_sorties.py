@@ -110,6 +110,7 @@ def test_a_vehicle_home_from_its_first_sortie_flies_its_second_after_the_teams_s
                          "vehicle 1 scanning its second sortie, on its second pack")
             assert v.packs_left == 0 and not v.sorties
             assert fake.battery.charge > 0.9  # it flies the fresh pack
+            assert d._packs_text() == "Sorties flown (packs left): vehicle 1 2 (0 left)."
         finally:
             await _stop(task)
             await fleet.aclose()
