@@ -298,7 +298,8 @@ class Daemon(FleetPreparation, VehicleCommands, PackSwaps):
 
     def snapshot(self) -> StatusSnapshot:
         t = self.now_s()
-        vs = [VehicleStatus(v.id, f"waiting for {v.waiting}" if v.waiting else v.phase, v.agent.tel.mode if v.agent else "?",
+        vs = [VehicleStatus(v.id, f"waiting for {v.waiting}" if v.waiting else v.phase,
+                            v.agent.tel.mode if v.agent else "?",
                             v.agent.tel.battery_pct if v.agent else None,
                             v.agent.tel.mission_seq if v.agent else None, v.end_seq or None, v.lost)
               for v in self.vehicles.values()]

@@ -301,7 +301,8 @@ def request_pack_fresh(path: str | Path, vehicle: int) -> None:
         raise ConfigError(f"no store at {path}: give the --out directory of the running daemon")
     with sqlite3.connect(path, timeout=10.0) as conn:
         conn.execute("INSERT INTO events (t_s, wall_s, vehicle, kind, text) VALUES (NULL, ?, ?, ?, ?)",
-                     (time.time(), int(vehicle), PACK_FRESH_REQUEST, f"the operator says vehicle {vehicle} has a fresh pack"))
+                     (time.time(), int(vehicle), PACK_FRESH_REQUEST,
+                      f"the operator says vehicle {vehicle} has a fresh pack"))
     conn.close()
 
 

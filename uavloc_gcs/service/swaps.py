@@ -76,9 +76,10 @@ class PackSwaps:
         for vid, p, sp, missions in zip(sorted(self.vehicles), plan.vehicles, sorties,
                                         sortie_missions(self.sc, plan, sorties)):
             last = len(missions) - 1
-            out[vid] = [to_wire(terrain_safe(with_hold_before_rtl(m, longest - sp.duration_s + hold_s) if j == last else m,
-                                             self.sc, name=f"uav{p.index + 1} sortie {j + 1}"), self.sc.fleet.autopilot)
-                        for j, m in enumerate(missions)]
+            held = [with_hold_before_rtl(m, longest - sp.duration_s + hold_s) if j == last else m
+                    for j, m in enumerate(missions)]
+            out[vid] = [to_wire(terrain_safe(m, self.sc, name=f"uav{p.index + 1} sortie {j + 1}"),
+                                self.sc.fleet.autopilot) for j, m in enumerate(held)]
         return out
 
     def _pack_step(self, v: _Vehicle) -> None:
@@ -120,8 +121,8 @@ class PackSwaps:
         text = f"Sorties flown (packs left): {rows}."
         for v in self.vehicles.values():
             if v.unflown_sorties:
-                text += (f" Vehicle {v.id} did not fly {v.unflown_sorties} sortie(s) of its scan (its packs were spent); "
-                         "that part of the area was not searched.")
+                text += (f" Vehicle {v.id} did not fly {v.unflown_sorties} sortie(s) of its scan (its packs were "
+                         "spent); that part of the area was not searched.")
         return text
 
     def pack_fresh(self, vehicle: int) -> str:
@@ -158,19 +159,21 @@ class PackSwaps:
         since_wall, heard = time.time(), 0  # the operator's requests from another process (uavloc pack-fresh)
         while True:
             heard = self._operator_requests(v, since_wall, heard)
-            verdict, why = None, "it does not answer (a swap reboots it)"
-            if a.silent_for_s() < 1.0 and a.on_ground() and not a.tel.armed:
+            verdict, why, asked = None, "it does not answer (a swap reboots it)", False
+            if a.silent_for_s() < 1.0 and a.on_ground() and not a.tel.armed:  # heard now, on the ground
+                asked = True
                 try:
                     if limits is None:
                         limits = await pack_limits(v.link, v.id, a.flavour)
-                    verdict = await check_fresh_pack(v.link, v.id, a.flavour, limits=limits, vehicle=f"vehicle {v.id}")
+                    verdict = await check_fresh_pack(v.link, v.id, a.flavour, limits=limits,
+                                                     vehicle=f"vehicle {v.id}")
                     why = verdict.reason
                 except LinkError as exc:
                     why = f"it did not report its battery ({exc})"
             if verdict is not None and verdict.fresh:
                 break
-            if v.operator_fresh:
-                if not _reported_not_fresh(verdict) and verdict is not None:
+            if v.operator_fresh and asked:  # (while it does not answer, the operator's word waits)
+                if not _reported_not_fresh(verdict):
                     break
                 v.operator_fresh = False
                 self._event("pack", f"vehicle {v.id}: the operator said its pack is fresh, but {why}; "
@@ -179,7 +182,7 @@ class PackSwaps:
                 self._event("pack", f"vehicle {v.id} waits for a fresh pack: {why}", v.id)
             said = why
             await asyncio.sleep(PACK_POLL_S)
-        how = verdict.reason if verdict.fresh else f"the operator said so, and {verdict.reason}"
+        how = verdict.reason if verdict is not None and verdict.fresh else f"the operator said so ({why})"
         v.packs_left -= 1
         v.waiting, v.operator_fresh, v.pack_counted = "", False, False
         self._event("pack", f"vehicle {v.id} is ready again: {how}; {v.packs_left} pack(s) left; it is prepared "

@@ -174,3 +174,20 @@ def test_a_pack_that_is_not_fresh_is_never_launched_whatever_the_operator_says(t
     assert "% remaining" in refused[0] and "not a fresh pack" in refused[0]
     assert "100 % remaining" in refused[1] and "below the" in refused[1], refused[1]  # the voltage tells
     assert not any("started sortie 2" in e for e in events)
+
+
+def test_the_operators_word_counts_only_where_the_vehicle_reports_nothing_against_it():
+    from uavloc_gcs.link.battery import BatteryReading, PackLimits, judge_pack
+    from uavloc_gcs.service.swaps import _reported_not_fresh
+
+    limits = PackLimits(FULL_V, EMPTY_V, "test")
+
+    def against(remaining, volts, lim=limits):
+        return _reported_not_fresh(judge_pack(BatteryReading(volts, remaining, source="test"), lim))
+
+    assert not _reported_not_fresh(None)  # no battery message at all
+    assert not against(None, FULL_V)  # no remaining charge
+    assert not against(100.0, None)  # a remaining charge, no voltage to check it against
+    assert not against(100.0, FULL_V)  # fresh
+    assert against(19.0, None) and against(19.0, FULL_V)  # a used pack by its remaining
+    assert against(100.0, EMPTY_V + 0.5 * (FULL_V - EMPTY_V))  # ArduPilot's 100 % after a reboot: the voltage
