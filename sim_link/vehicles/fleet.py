@@ -50,6 +50,7 @@ MAX_STEP_WALL_S = 0.1
 SLIP_REPORT_S = 30.0  # wall seconds between two warnings that the fleet runs behind its speed-up
 PEER_TIMEOUT_S = 30.0
 REBOOT_SILENCE_S = 2.0  # simulated seconds a rebooting vehicle is silent
+TEAM_SWAP_BELOW = 0.5  # the team swaps a pack at most this charged (the daemon's SWAP_BELOW_PCT)
 
 
 class BindError(LinkError, OSError):
@@ -224,6 +225,7 @@ class FakeFleet:
         route: bool = False,
         peer_timeout_s: float = PEER_TIMEOUT_S,
         vehicle_options: dict | None = None,
+        team_swaps: bool = False,
     ):
         if signing_key is not None and len(signing_key) != 32:
             raise ValueError(f"signing_key must be 32 bytes, got {len(signing_key)}")
@@ -262,6 +264,11 @@ class FakeFleet:
         ]
         for ep in self._endpoints:
             ep.vehicle.on_reboot_request = (lambda e=ep: self.loop.call_soon(self._reboot_now, e, None))
+        # the team on the ground (issue 38): a vehicle landed and disarmed on a pack at most
+        # TEAM_SWAP_BELOW charged gets a fresh one fleet.battery_swap_s later, while it has spares
+        self.team_swaps = team_swaps
+        self.spare_packs = [f.batteries - 1] * len(self.vehicles)
+        self._down_since_s: list[float | None] = [None] * len(self.vehicles)
         self.loop: asyncio.AbstractEventLoop | None = None
         self._task: asyncio.Task | None = None
         self._thread: threading.Thread | None = None
@@ -406,6 +413,8 @@ class FakeFleet:
                 report_wall, report_t = wall, t
             self.slipped_s += max(asked - t, 0.0)
             t_done = t
+            if self.team_swaps:
+                self._team(t)
             for ep in self._endpoints:
                 try:
                     out = ep.vehicle.advance(t) + ep.vehicle.tick_protocols(wall)
@@ -418,6 +427,22 @@ class FakeFleet:
                 for a in stale:
                     del ep.peers[a]
             await asyncio.sleep(TICK_WALL_S)
+
+    def _team(self, t_s: float) -> None:
+        """The team's swaps (``team_swaps``), on the fleet's clock."""
+        for k, ep in enumerate(self._endpoints):
+            v = ep.vehicle
+            used = v.landed and not v.armed and v.battery.charge <= TEAM_SWAP_BELOW and t_s >= ep.offline_until_s
+            if not used or self.spare_packs[k] <= 0:
+                self._down_since_s[k] = None
+                continue
+            if self._down_since_s[k] is None:
+                self._down_since_s[k] = t_s
+            elif t_s - self._down_since_s[k] >= self.scenario.fleet.battery_swap_s:
+                self.spare_packs[k] -= 1
+                self._down_since_s[k] = None
+                v.swap_pack()
+                self._reboot_now(ep, None)
 
     def start_in_thread(self, timeout_s: float = 5.0) -> "FakeFleet":
         """Run the fleet on its own event loop in a daemon thread (for synchronous callers)."""

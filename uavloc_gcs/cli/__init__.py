@@ -29,6 +29,7 @@ COMMANDS = [
     "upload",
     "download",
     "daemon",
+    "pack-fresh",
     "experiment",
     "sense",
     "bench",
@@ -67,7 +68,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"uavloc {_version()}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name in COMMANDS:
-        modname = f"{__name__}.{name}"
+        modname = f"{__name__}.{name.replace('-', '_')}"
         if importlib.util.find_spec(modname) is None:
             continue
         importlib.import_module(modname).register(sub)

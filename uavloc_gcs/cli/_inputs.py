@@ -148,16 +148,6 @@ def require_fleet(sc) -> None:
                           f"({_default_fleet(sc)}); add a [fleet] section", source=sc.source, key="fleet")
 
 
-def require_one_pack(sc, command: str) -> None:
-    """Refuse ``fleet.batteries`` > 1 where vehicles are flown: the daemon does not fly sorties yet
-    (issue 38 item 2). Without this it would upload each vehicle's scan of several packs as one
-    mission, which no pack can fly. ``uavloc plan`` plans the sorties."""
-    if sc.fleet.batteries > 1:
-        raise ConfigError(f"is {sc.fleet.batteries}, but `uavloc {command}` flies one pack per vehicle for now (sorties "
-                          "with battery swaps are planned by `uavloc plan`, not yet flown); set fleet.batteries = 1",
-                          source=sc.source, key="fleet.batteries")
-
-
 def existing_files(out) -> set:
     """The files in directory ``out`` now (to tell later which ones a failed run created)."""
     from pathlib import Path

@@ -119,7 +119,7 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.out) if args.out else Path(f"uavloc-{scenario.name}")
     if out.exists() and not out.is_dir():
         raise ConfigError(f"output path {out} exists and is not a directory")
-    from ._inputs import discard_empty_leftovers, existing_files, require_fleet, require_one_pack
+    from ._inputs import discard_empty_leftovers, existing_files, require_fleet
 
     require_fleet(scenario)
     if scenario.link.tlog_path:  # before any vehicle is reached: a log directory that cannot be written
@@ -130,7 +130,6 @@ def run(args: argparse.Namespace) -> int:
             check_output_dir(scenario.link.tlog_path, "")
         except OutputError as err:
             raise ConfigError(str(err).strip(), source=scenario.source, key="link.tlog_path") from None
-    require_one_pack(scenario, "daemon")
     with store_lock(out, "daemon"):
         if args.fresh:
             for f in [out / "search.sqlite", out / "search.sqlite-wal", out / "search.sqlite-shm",

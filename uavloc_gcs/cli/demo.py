@@ -18,7 +18,7 @@ import signal
 import sys
 from pathlib import Path
 
-from ._inputs import number, override, require_one_pack
+from ._inputs import number, override
 from .daemon import add_web_options, print_web_url, reporter, web_options_from
 
 MAX_PEOPLE = 1000  # simulated people: beyond this the fake fleet's world does not start in time
@@ -53,7 +53,6 @@ def run(args: argparse.Namespace) -> int:
     from ..service.lock import store_lock
 
     sc = load_scenario(scenario_path(args.scenario or "field"))
-    require_one_pack(sc, "demo")
     sim = {}
     if args.speedup is not None:
         sim["speedup"] = args.speedup
@@ -121,7 +120,8 @@ def _run(args, sc, key, out: Path, web) -> int:
              else "RSSI through the Wi-Fi sensor's parser (radiotap probe requests)"))
     fleet = start_fleet_process(sc, speedup=sc.simulation.speedup, seed=sc.simulation.seed,
                                 base_port=args.base_port, faults=faults, signing_key=key,
-                                vehicle_options=None if args.direct_rssi else {"via_sense": True})
+                                vehicle_options=None if args.direct_rssi else {"via_sense": True},
+                                team_swaps=sc.fleet.batteries > 1)  # the team swaps the packs of landed vehicles
     try:
         world = World(sc, seed=sc.simulation.seed)  # the fleet's world, rebuilt from the same seed
 

@@ -39,6 +39,7 @@ from .options import DaemonOptions
 from .outcome import SearchOutcome, estimate_row, final_results, statement_for
 from .preparing import FleetPreparation
 from .store import Store, StoreReader, TelemetryRow
+from .swaps import PackSwaps
 from .vehiclelife import VehicleLife as _Vehicle
 from .vehiclelife import read_facts as read_life_facts
 
@@ -61,7 +62,7 @@ def _idle(vehicles) -> bool:
     return all(v.home and v.job is None for v in vehicles)
 
 
-class Daemon(FleetPreparation, VehicleCommands):
+class Daemon(FleetPreparation, VehicleCommands, PackSwaps):
     """One search. ``connections``: [(vehicle system id, connection string)]."""
 
     def __init__(self, scenario: Scenario, connections: Sequence[tuple[int, str]], options: DaemonOptions,
@@ -292,6 +293,7 @@ class Daemon(FleetPreparation, VehicleCommands):
             return
         for kind, text in v.observe(read_life_facts(v.agent), self.wall(), self.opt.lost_timeout_s, self._home_by):
             self._event(kind, text, v.id)
+        self._pack_step(v)  # sorties: home at its reserve, it waits for a fresh pack (service/swaps.py)
 
     def _home_by(self, v: _Vehicle) -> float:
         """Mission time by which ``v``, flying home from where it is now, should have landed."""
@@ -304,7 +306,8 @@ class Daemon(FleetPreparation, VehicleCommands):
 
     def snapshot(self) -> StatusSnapshot:
         t = self.now_s()
-        vs = [VehicleStatus(v.id, v.phase, v.agent.tel.mode if v.agent else "?",
+        vs = [VehicleStatus(v.id, f"waiting for {v.waiting}" if v.waiting else v.phase,
+                            v.agent.tel.mode if v.agent else "?",
                             v.agent.tel.battery_pct if v.agent else None,
                             v.agent.tel.mission_seq if v.agent else None, v.end_seq or None, v.lost)
               for v in self.vehicles.values()]
@@ -394,8 +397,10 @@ class Daemon(FleetPreparation, VehicleCommands):
             return True
         starting = [v for v in active if v.job is not None and v.phase in ("starting", "uploading scan")]
         active = [v for v in active if v not in starting]  # planned for once started (replan then)
-        if not active:
-            return False
+        waiting = [v for v in active if v.waiting]  # on the ground for a fresh pack: planned for once ready
+        active = [v for v in active if not v.waiting]
+        if not active:  # (all waiting for packs: the search ends only when it is done)
+            return bool(waiting) and self.policy.done(t) and await self._finish()
         if not all(v.scan_done or v.home for v in active):
             return False
         if self.policy.done(t):
@@ -414,7 +419,8 @@ class Daemon(FleetPreparation, VehicleCommands):
             self._replan_due = False
             await self._replan(t, usable)
         if _idle(active):  # (again: the replan may have sent vehicles out)
-            if self._idle_since is not None and t - self._idle_since > IDLE_END_S and not self._replan_due:
+            if self._idle_since is not None and t - self._idle_since > IDLE_END_S and not self._replan_due \
+                    and not waiting:
                 pending = [str(p.emitter_id) for p in self.policy.people(t) if not p.located]
                 self._event("end", "every vehicle is home and no look could be planned for person(s) "
                             f"{', '.join(pending) or '-'}: stopping the search")
@@ -513,6 +519,8 @@ class Daemon(FleetPreparation, VehicleCommands):
         unflown = [v for v in self.vehicles.values() if v.start_failed and not v.scan_done]
         for v in unflown:  # a refused start is no scan flown: say so, whatever else is said
             text += f" Vehicle {v.id} did not fly its scan ({v.start_failed}); its part of the area was not searched."
+        if self.sc.fleet.batteries > 1:
+            text += " " + self._packs_text()
         if partial:
             text = f"{partial} {text}"
         self._event("end", text)

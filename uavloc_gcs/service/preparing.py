@@ -49,6 +49,9 @@ class FleetPreparation:
             if meta.get("finished"):
                 raise ConfigError(f"{self.opt.store_path} holds a search that already finished; "
                                   "start a new one with --fresh or another --out")
+            if self.sc.fleet.batteries > 1:
+                raise ConfigError(f"{self.opt.store_path} holds a search flown in sorties, which a restarted daemon "
+                                  "does not resume yet; start a new one with --fresh or another --out")
             if meta.get("scenario") != self.sc.name:
                 raise UavlocError(f"the store {self.opt.store_path} holds the search '{meta.get('scenario')}', "
                                   f"not '{self.sc.name}'; use another --store or --fresh")
@@ -251,10 +254,17 @@ class FleetPreparation:
         hold_s = max(self.opt.scan_hold_s, HOLD_WALL_S * self._rate.rate)
         from ..terrain_missions import terrain_safe  # noqa: PLC0415 -- over the ground of terrain.dem (none: as is)
 
-        scans = [terrain_safe(with_hold_before_rtl(m, longest - p.duration_s + hold_s), self.sc, name=f"uav{p.index + 1}")
-                 for m, p in zip(scan_missions(self.sc, plan), plan.vehicles)]
-        ap = self.sc.fleet.autopilot
-        wires = {vid: to_wire(m, ap) for vid, m in zip(sorted(self.vehicles), scans)}
+        if self.sc.fleet.batteries <= 1:
+            scans = [terrain_safe(with_hold_before_rtl(m, longest - p.duration_s + hold_s), self.sc,
+                                  name=f"uav{p.index + 1}")
+                     for m, p in zip(scan_missions(self.sc, plan), plan.vehicles)]
+            wires = {vid: to_wire(m, self.sc.fleet.autopilot) for vid, m in zip(sorted(self.vehicles), scans)}
+        else:  # flown in sorties, a swap between two (service/swaps.py)
+            sorties = self._sortie_wires(plan, hold_s)
+            wires = {vid: per[0] for vid, per in sorties.items()}
+            for v in self.vehicles.values():
+                v.sorties, v.sortie = list(sorties.get(v.id, [None])[1:]), 1
+                v.packs_left = self.sc.fleet.batteries - 1
         to_start = []
 
         async def prepare(v: _Vehicle) -> None:

@@ -280,8 +280,9 @@ def _kml_value(v) -> str:
 
 def results_table(people: Sequence[PersonResult], required_accuracy_m: float,
                   truth_xy_m: Mapping[int, Sequence[float]] | None = None, *,
-                  epoch_unix_s: float | None = None, coverage=None) -> str:
-    """A plain-text table for the terminal, with the error to the truth when simulated."""
+                  epoch_unix_s: float | None = None, coverage=None, notes: Sequence[str] = ()) -> str:
+    """A plain-text table for the terminal, with the error to the truth when simulated; ``notes``:
+    sentences after it (the sorties flown and packs left, issue 38)."""
     width = max([13, *(len(p.name) for p in people)])
     head = f"{'person':<{width}}  {'lat':>11}  {'lon':>11}  {'95% r':>7}  {'at (UTC)':>10}  {'status':<10}"
     if truth_xy_m:
@@ -302,6 +303,7 @@ def results_table(people: Sequence[PersonResult], required_accuracy_m: float,
     lines.append(f"{n_ok} of {len(people)} people located within {required_accuracy_m:g} m (95 %).")
     if coverage is not None:
         lines.append(coverage.sentence())
+    lines.extend(notes)
     return "\n".join(lines) + "\n"
 
 
@@ -309,7 +311,7 @@ def write_results(out_dir: str | Path, people: Sequence[PersonResult], *, frame:
                   area_latlon_deg: np.ndarray, tracks_latlon_deg: Mapping[int, np.ndarray],
                   required_accuracy_m: float, truth_xy_m: Mapping[int, Sequence[float]] | None = None,
                   name: str = "uavloc", epoch_unix_s: float | None = None, coverage=None,
-                  terrain=None, fence_latlon_deg=None) -> list[Path]:
+                  terrain=None, fence_latlon_deg=None, notes: Sequence[str] = ()) -> list[Path]:
     """Write people.csv, people.geojson, people.kml, result.png and results.txt into ``out_dir``.
     ``epoch_unix_s``: UNIX time of mission time 0 (the UTC times in the files; omitted when None).
     ``coverage`` (search.coverage.CoverageSummary): what was searched, in every file (the POD
@@ -329,7 +331,7 @@ def write_results(out_dir: str | Path, people: Sequence[PersonResult], *, frame:
                                          coverage=coverage),
         "people.kml": people_kml(people, frame, name, epoch_unix_s=epoch_unix_s, coverage=coverage),
         "results.txt": results_table(people, required_accuracy_m, truth_xy_m, epoch_unix_s=epoch_unix_s,
-                                     coverage=coverage),
+                                     coverage=coverage, notes=notes),
     }
     written = []
     for fname, text in files.items():

@@ -173,6 +173,9 @@ def _results(outcome: SearchOutcome, daemon: Daemon, scenario: Scenario, connect
                               outcome.vehicles_returning, coverage=summary)
     for vid, why in not_started:  # a refused start is no scan flown: say so, whatever else is said
         statement += f" Vehicle {vid} did not fly its scan ({why}); its part of the area was not searched."
+    sorties = daemon._packs_text() if scenario.fleet.batteries > 1 and hasattr(daemon, "_packs_text") else ""
+    if sorties:  # sorties flown and packs left per vehicle (issue 38)
+        statement += " " + sorties
     searched, left = coverage_statement(summary, outcome.vehicles_lost, [vid for vid, _ in not_started],
                                         stopped=bool(getattr(outcome, "partial", "")))
     outcome = dataclasses.replace(outcome, people=tuple(heard), statement=" ".join(filter(None, [outcome.partial, statement, searched])),
@@ -186,11 +189,12 @@ def _results(outcome: SearchOutcome, daemon: Daemon, scenario: Scenario, connect
     files = write_results(out_dir, people, frame=frame, area_latlon_deg=np.array(scenario.polygon_latlon_deg),
                           tracks_latlon_deg=tracks, required_accuracy_m=scenario.people.required_accuracy_m,
                           truth_xy_m=truth_xy, name=scenario.name + (TITLE_MARK if outcome.partial else ""), epoch_unix_s=epoch, coverage=summary,
-                          terrain=scenario.dem, fence_latlon_deg=scenario.geofence_latlon_deg or None)
+                          terrain=scenario.dem, fence_latlon_deg=scenario.geofence_latlon_deg or None,
+                          notes=(sorties,) if sorties else ())
     if outcome.partial:
         mark_partial(files, outcome.partial)
     table = results_table(people, scenario.people.required_accuracy_m, truth_xy, epoch_unix_s=epoch,
-                          coverage=summary)
+                          coverage=summary, notes=(sorties,) if sorties else ())
     return RunResult(outcome, tuple(people), table, tuple(files))
 
 

@@ -289,6 +289,23 @@ def _migrate_slots(conn: sqlite3.Connection) -> None:
 # Reading (resume after a restart, results)
 
 
+PACK_FRESH_REQUEST = "pack fresh request"  # an operator's word from another process (uavloc pack-fresh)
+
+
+def request_pack_fresh(path: str | Path, vehicle: int) -> None:
+    """Record, in the running search's store, that the operator says ``vehicle`` has a fresh pack
+    (the daemon reads it while the vehicle waits: service/swaps.py). Another process writes it:
+    the store is in WAL mode, so this waits briefly for the daemon's writer, never for its lock."""
+    path = Path(path)
+    if not path.exists():
+        raise ConfigError(f"no store at {path}: give the --out directory of the running daemon")
+    with sqlite3.connect(path, timeout=10.0) as conn:
+        conn.execute("INSERT INTO events (t_s, wall_s, vehicle, kind, text) VALUES (NULL, ?, ?, ?, ?)",
+                     (time.time(), int(vehicle), PACK_FRESH_REQUEST,
+                      f"the operator says vehicle {vehicle} has a fresh pack"))
+    conn.close()
+
+
 class StoreReader:
     """Read-only view of a store file (what was committed)."""
 

@@ -95,6 +95,8 @@ class VehicleAgent:
         self._time_anchor: tuple[float, int] | None = None  # (unix s, time_boot_ms) of the first SYSTEM_TIME
         self.texts: deque[tuple[float, str]] = deque(maxlen=20)  # (daemon wall s, STATUSTEXT), newest last
         self.airborne_wall_s = -math.inf  # when it was last seen armed and off the ground (daemon wall s)
+        # after a swap (sorties): not ready to arm while it reports less remaining than a fresh pack
+        self.pack_floor_pct: float | None = None
         self._sub = link.subscribe(None, source_system=vehicle, callback=self._on_message)
         self._rssi_subs: list = []
 
@@ -253,6 +255,9 @@ class VehicleAgent:
             why.append("its estimator has no absolute position yet")
         if t.gps_fix_type is not None and t.gps_fix_type < 3 and not t.using_gps_said:
             why.append(f"no 3D GPS fix (GPS_RAW_INT fix type {t.gps_fix_type})")
+        if self.pack_floor_pct is not None and t.battery_pct is not None and t.battery_pct < self.pack_floor_pct:
+            why.append(f"its pack is not fresh ({t.battery_pct:.0f} % remaining; a fresh one reports "
+                       f"{self.pack_floor_pct:g} % or more)")
         return "; ".join(why) or None
 
     # -- actions (the link layer's exchanges) -------------------------------------------------------

@@ -9,10 +9,11 @@ The states (``VehicleLife.phase``) and the only moves between them (:data:`NEXT`
     uploading scan -> starting | waiting for operator | scanning
     waiting for operator -> scanning                    (armed in a mission mode by the operator)
     starting -> scanning                                (left the ground: takeoff seen)
-    scanning -> hovering (scan done) | returning | localizing | scanning
+    scanning -> hovering (scan done) | returning | localizing | scanning | landed (a sortie's end)
     hovering (scan done) | idle | landed -> localizing | returning | landed
     localizing -> localizing | returning | landed
     returning -> landed | localizing | returning
+    landed -> waiting for pack -> uploading scan | landed  (sorties: the team's swap, then its next sortie or looks)
     any -> unusable      (it talks but cannot be commanded, or its start failed: never "scan done")
 
 Lost/found is orthogonal (``VehicleLife.lost``): a silent vehicle keeps its phase and is left out
@@ -58,12 +59,14 @@ NEXT: dict[str, frozenset[str]] = {
     "uploading scan": frozenset({"starting", "waiting for operator", "scanning"}),
     "waiting for operator": frozenset({"scanning"}),
     "starting": frozenset({"scanning"}),
-    "scanning": frozenset({"hovering (scan done)", "returning", "scanning", "localizing"}),
+    "scanning": frozenset({"hovering (scan done)", "returning", "scanning", "localizing", "landed"}),
     "hovering (scan done)": frozenset({"localizing", "returning", "landed"}),
     "idle": frozenset({"localizing", "returning", "landed"}),
     "localizing": frozenset({"localizing", "returning", "landed"}),
     "returning": frozenset({"landed", "localizing", "returning"}),
-    "landed": frozenset({"localizing", "returning", "landed", "starting"}),
+    "landed": frozenset({"localizing", "returning", "landed", "starting", "waiting for pack"}),
+    # sorties (issue 38): home at its reserve, it waits for the team's swap, then is started again
+    "waiting for pack": frozenset({"uploading scan", "landed"}),
     "unusable": frozenset(),
 }
 ANY_TO = frozenset({"unusable"})
@@ -138,6 +141,16 @@ class VehicleLife:
     start_failed: str = ""  # why its scan could not be started ("": it was, or was never tried)
     scan_reached_seq: int = 0  # the furthest scan item seen current while it flew its scan
     landed_mid_scan: bool = False  # it landed by itself before its scan's hold: the rest is unflown
+    # sorties (issue 38; service/swaps.py)
+    sorties: list = field(default_factory=list)  # the scan's sortie missions still to fly after the current one
+    sortie: int = 1  # the sortie it flies (or last flew)
+    packs_left: int = 0  # fresh packs on the ground for it
+    pack_flown: bool = False  # seen airborne on the pack it has now
+    waiting: str = ""  # what it waits for on the ground ("" = nothing)
+    operator_fresh: bool = False  # the operator said its pack is fresh
+    unflown_sorties: int = 0  # sorties of its scan left unflown when its packs were spent
+    packs_flown: int = 0  # packs it has flown on (a sortie each)
+    pack_counted: bool = False  # the pack it has now is counted in packs_flown
 
     @property
     def phase(self) -> str:
@@ -165,6 +178,8 @@ class VehicleLife:
         (kind, text). ``home_by(v)``: the mission time by which ``v`` flying home should have landed."""
         events: list[tuple[str, str]] = []
         silent = f.silent_s > lost_timeout_s
+        if self.phase == "waiting for pack" and not self.lost:
+            return events  # on the ground for its swap, which powers it off: silence is not a loss
         if silent and not self.lost:
             self.lost = True
             events.append(("lost", f"vehicle {self.id} silent for {lost_timeout_s:g} s: marked lost; "
@@ -182,6 +197,17 @@ class VehicleLife:
             events.append(("start", f"vehicle {self.id} started by the operator"))
         elif self.phase == "starting" and f.armed and f.in_mission_mode and not f.on_ground:
             self.phase = "scanning"  # flying its scan, while the start exchange may still be judged
+        if self.purpose == "scan" and self.sorties and self.phase == "scanning":
+            # A sortie with more to come ends in RTL, not a hold: landing is its end, not a scan
+            # cut short (a failsafe landing mid-sortie is taken as its end too; the next sortie
+            # goes on from where this one was planned to end).
+            if not f.on_ground and f.armed:
+                self.flew = True
+            elif self.flew and f.on_ground and not f.armed:
+                self.home, self.flew = True, False
+                self.phase = "landed"
+                events.append(("landed", f"vehicle {self.id} landed after sortie {self.sortie} of its scan"))
+            return events
         fresh = wall_s >= self.ignore_seq_until_wall and f.mission_ours
         if self.phase == "scanning" and fresh and seq is not None and self.flew:
             self.scan_reached_seq = max(self.scan_reached_seq, seq)

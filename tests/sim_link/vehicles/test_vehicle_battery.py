@@ -230,3 +230,32 @@ def test_the_link_tells_a_fresh_pack_from_a_used_one_over_mavlink(autopilot, tmp
     assert fresh.fresh and "BATTERY_STATUS" in fresh.reading.source, fresh.reason
     assert not used.fresh and used.reading.remaining_pct == pytest.approx(50, abs=1), used.reason
     assert swapped.fresh, swapped.reason
+
+
+def test_the_fake_team_swaps_a_landed_used_pack_after_the_swap_time_while_it_has_spares():
+    """FakeFleet(team_swaps=True), what `uavloc demo` runs with several packs: a vehicle landed and
+    disarmed on a pack at most half charged gets a fresh one battery_swap_s later (with the swap's
+    reboot), as many times as it has spares."""
+    from pathlib import Path
+
+    from sim_link.vehicles.fleet import FakeFleet
+    from uavloc_gcs.scenario import load_scenario
+
+    sc = load_scenario(Path(__file__).resolve().parents[3] / "examples" / "small.toml").replace(
+        fleet={"vehicles": 1, "batteries": 2, "battery_swap_s": 60.0}, simulation={"people": 0})
+    fleet = FakeFleet(sc, speedup=1, seed=1, base_port=0, team_swaps=True)
+    v = fleet.vehicle(1)
+    assert v.landed and not v.armed
+    fleet._team(10.0)
+    fleet._team(100.0)
+    assert v.battery.charge == 1.0 and fleet.spare_packs == [1]  # a fresh pack is left in
+    v.battery.used_j = 0.6 * v.battery.capacity_j
+    fleet._team(100.0)
+    fleet._team(159.0)
+    assert v.battery.charge == pytest.approx(0.4) and fleet.spare_packs == [1]  # not before the swap time
+    fleet._team(160.0)
+    assert v.battery.charge == 1.0 and fleet.spare_packs == [0]
+    v.battery.used_j = 0.9 * v.battery.capacity_j
+    for t in (200.0, 300.0, 400.0):
+        fleet._team(t)
+    assert v.battery.charge == pytest.approx(0.1), "no spare left: the pack stays"

@@ -67,6 +67,14 @@ def test_write_results_makes_every_file(tmp_path):
     assert sorted(p.name for p in files) == ["people.csv", "people.geojson", "people.kml", "result.png",
                                              "results.txt"]
     assert (tmp_path / "result.png").read_bytes()[:4] == b"\x89PNG"
+    assert "Sorties" not in (tmp_path / "results.txt").read_text()
+
+
+def test_results_txt_ends_with_the_sorties_flown_when_given(tmp_path):
+    note = "Sorties flown (packs left): vehicle 1 2 (1 left)."
+    write_results(tmp_path, PEOPLE, frame=FRAME, area_latlon_deg=FRAME.to_wgs84_latlon(np.array(
+        [[0, 0], [500, 0], [500, 300]], float)), tracks_latlon_deg={}, required_accuracy_m=15.0, name="t", notes=(note,))
+    assert (tmp_path / "results.txt").read_text().rstrip().splitlines()[-1] == note
 
 
 SNAP = StatusSnapshot(12.5, [VehicleStatus(1, "scanning", "AUTO", 88.0, 4, 20), VehicleStatus(2, "lost", lost=True)],

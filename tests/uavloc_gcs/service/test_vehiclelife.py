@@ -68,3 +68,22 @@ def test_silence_marks_lost_and_freezes_the_phase():
     events = v.observe(_facts(silent_s=0.1), 0.0, 5.0, _home_by)
     assert not v.lost and events[0][0] == "found"
     assert math.isinf(VehicleLife(2, "c").home_by_s)
+
+
+def test_a_sortie_ends_at_its_landing_and_a_vehicle_silent_for_its_swap_is_not_lost():
+    """Issue 38: a sortie with more to come ends in RTL; its landing is its end (not a scan cut
+    short), and a vehicle waiting for its pack, powered off by the swap, is not marked lost."""
+    v = _scanning()
+    v.sorties = [["sortie 2"]]
+    air = dict(armed=True, on_ground=False, mode="AUTO", in_mission_mode=True, rel_alt_m=60.0)
+    v.observe(_facts(mission_seq=4, **air), 0.0, 5.0, _home_by)
+    v.observe(_facts(mission_seq=11, mission_state=5, **air), 0.0, 5.0, _home_by)  # its RTL: not "scan done"
+    assert v.phase == "scanning" and not v.scan_done
+    events = v.observe(_facts(mission_seq=11, mode="AUTO.RTL"), 0.0, 5.0, _home_by)
+    assert ("landed", "vehicle 1 landed after sortie 1 of its scan") in events
+    assert v.phase == "landed" and v.home and not v.scan_done and not v.landed_mid_scan
+    v.phase = "waiting for pack"
+    assert v.observe(_facts(silent_s=60.0), 0.0, 5.0, _home_by) == [] and not v.lost
+    assert v.odd_moves == []
+    v.phase = "landed"
+    assert v.observe(_facts(silent_s=60.0), 0.0, 5.0, _home_by)[0][0] == "lost"  # landed, not waiting: lost
