@@ -184,6 +184,12 @@ class SearchSpec:
     one; None (the default): no such cap, a heard person is looked at again until no vehicle has
     the energy (search/orbit.py ``judge_orbit``)."""
 
+    # The lowest a look flies [m above the ground plus terrain.obstacle_height_m] (issue 41;
+    # uavloc_gcs/heights.py): 30 m clears a residential building of five storeys (23 m by the CTBUH
+    # height calculator: 3.1 m per residential floor, 1.5 floors for the ground floor, 2 for the roof
+    # and parapet) with 7 m to spare for the altitude held, and is the lowest altitude of issue 41's
+    # table. Looks at the survey altitude (the default) never come near it.
+    look_min_height_m: float = 30.0
     pod_target: float | None = None
     max_orbit_looks: int | None = None
 
@@ -514,6 +520,7 @@ def _resolve(sc: Scenario, base_dir: Path | None = None) -> Scenario:
     if sc.search.max_orbit_looks is not None:
         _check(sc.search.max_orbit_looks >= 1, f"must be 1 or more orbit looks per person, got "
                f"{sc.search.max_orbit_looks}", sc, "search.max_orbit_looks")
+    _check_look_floor(sc)
     _check(pl.particles >= 2, "must be at least 2", sc, "planner.particles")
     _check(pl.iterations >= 1, "must be at least 1", sc, "planner.iterations")
     _check(pl.time_limit_s > 0, "must be positive", sc, "planner.time_limit_s")
@@ -591,6 +598,20 @@ def _resolve_terrain(sc: Scenario, area_xy: np.ndarray, base_dir: Path | None) -
     sc = dataclasses.replace(sc, terrain=dataclasses.replace(sc.terrain, dem=path))
     check_covers(sc.dem, np.vstack([area_xy, np.zeros((1, 2))]), "the area or the launch point", source=sc.source)
     return sc
+
+
+def _check_look_floor(sc: Scenario) -> None:
+    """[search] look_min_height_m and [terrain] obstacle_height_m (uavloc_gcs/heights.py), each
+    refused in one sentence naming its key."""
+    low, obst = sc.search.look_min_height_m, sc.terrain.obstacle_height_m
+    _check(math.isfinite(low) and low > 0.0, f"must be a positive height in metres, got {low}", sc,
+           "search.look_min_height_m")
+    _check(math.isfinite(obst) and obst >= 0.0, f"must be a height in metres, 0 or more, got {obst}", sc,
+           "terrain.obstacle_height_m")
+    _check(low + obst < sc.fleet.comm_range_m,
+           f"a look floor of {low:g} m + terrain.obstacle_height_m = {obst:g} m is beyond the communication range "
+           f"fleet.comm_range_m = {sc.fleet.comm_range_m:g} m, so no look could hear a phone", sc,
+           "search.look_min_height_m")
 
 
 def _check_channels(sc: Scenario) -> None:

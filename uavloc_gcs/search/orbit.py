@@ -30,15 +30,11 @@ heard (p_burst_heard), so :func:`orbit_radius_m` maximises E[p_heard(d) rho^2 / 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import InfeasibleError
-from ..mission import (FRAME_GLOBAL_RELATIVE_ALT, MissionItem, MissionPlan, change_speed, pass_through_waypoint,
-                       return_to_launch, takeoff)
-
-NAV_LOITER_TURNS = 18
+from .look_mission import NAV_LOITER_TURNS  # noqa: F401 (its home before issue 41)
 
 # How each autopilot flies an orbit (measured, docs/readme/orbits.md). A ring of waypoints is what
 # both fly (PX4 refuses NAV_LOITER_TURNS), so it is the shipped form for both; ArduCopter flies
@@ -62,13 +58,16 @@ MIN_RADIUS_M = 20.0
 
 @dataclass(frozen=True)
 class OrbitLook:
-    """One orbit: centre and entry point [m, local frame], radius [m], dwell [s], speed [m/s]."""
+    """One orbit: centre and entry point [m, local frame], radius [m], dwell [s], speed [m/s], and
+    the height it is flown at [m above the ground]; None: the survey altitude (uavloc_gcs/heights.py:
+    the vehicle goes down to it at the entry and back up after the whole turns)."""
 
     centre_xy_m: tuple[float, float]
     radius_m: float
     dwell_s: float
     speed_m_s: float
     form: str = "ring"
+    alt_m: float | None = None
 
     @property
     def turns(self) -> int:
@@ -275,122 +274,9 @@ def plan_orbit(sc, centre_xy_m, spread_m: float, autopilot: str | None = None,
     return OrbitLook((float(centre_xy_m[0]), float(centre_xy_m[1])), r, dwell, v, form)
 
 
-# -- missions -----------------------------------------------------------------------------------
+# -- missions (search/look_mission.py since issue 41; re-exported for the callers of before) ---------
 
-@dataclass(frozen=True)
-class LookMission:
-    """A look mission and, per look, the point [m] where it counts as flown (a fly-by's waypoint,
-    an orbit's entry on the circle) and the index in ``plan.items`` of the item that reaches it
-    (the waypoint, the ring's first waypoint, or the NAV_LOITER_TURNS item): a look is reported
-    when its orbit begins, and judged after the orbit's dwell (search/policy.py)."""
-
-    plan: MissionPlan
-    look_xy_m: np.ndarray  # (k, 2)
-    look_items: tuple[int, ...]
-
-    def look_seqs(self, home_at_seq0: bool) -> tuple[int, ...]:
-        """The wire seq of each look's item (ArduPilot's home is seq 0)."""
-        return tuple(i + (1 if home_at_seq0 else 0) for i in self.look_items)
-
-
-def look_mission(frame, points_xy_m, targets, orbits, *, alt_m: float, speed_m_s: float, autopilot: str,
-                 home_latlon_deg, start_xy_m=None, include_takeoff: bool = True, fence=None,
-                 home_xy_m=(0.0, 0.0)) -> LookMission:
-    """The mission for looks at ``points_xy_m`` (access points, local metres of ``frame``; points
-    after the looks, e.g. coverage passes' lanes, are flown through) with ``orbits`` (None or an
-    OrbitLook per look): takeoff (``include_takeoff``), speed, per look a
-    pass-through waypoint or the orbit in the autopilot's form, RTL. ``start_xy_m``: where the
-    vehicle is (an orbit's entry is the circle point nearest the previous point). ``fence``: the
-    scenario's geofence (``uavloc_gcs.geofence.Geofence``) or None; with one every point is moved
-    inside it, detour waypoints go around its corners (also on the way to ``home_xy_m`` before
-    the RTL), and a mission that would still leave it raises InfeasibleError."""
-    pts = np.asarray(points_xy_m, float).reshape(-1, 2)
-    if fence is not None and len(pts):
-        pts = fence.clip(pts)
-    orbits = list(orbits) if orbits is not None else [None] * len(pts)
-    items: list[MissionItem] = []
-    if include_takeoff:
-        items.append(takeoff(alt_m, *home_latlon_deg))
-    items.append(change_speed(speed_m_s))
-    xy_out, idx_out = [], []
-    prev = np.zeros(2) if start_xy_m is None else np.asarray(start_xy_m, float)[:2]
-
-    def ll(xy):
-        lat, lon = frame.to_wgs84_latlon(np.asarray(xy, float).reshape(-1, 2))[0]
-        return float(lat), float(lon)
-
-    flown = [prev.copy()]  # every point the vehicle flies through, for the fence's final check
-    ends = (prev.copy(), np.asarray(home_xy_m, float)[:2])
-
-    def around(to_xy):  # detour corners before flying to ``to_xy`` (none without a fence)
-        if fence is None:
-            return
-        for c in fence.detour(flown[-1], to_xy, ends=ends):
-            items.append(pass_through_waypoint(*ll(c), alt_m))
-            flown.append(np.asarray(c, float))
-
-    targets = tuple(targets)
-    for k, q in enumerate(pts):  # points beyond the looks (coverage passes' lanes) are fly-throughs
-        orb = orbits[k] if k < len(orbits) else None
-        if orb is not None and fence is not None and not _circle_inside(fence, orb):
-            orb = replace(orb, form="ring")  # its ring points are moved inside below
-        if orb is None:
-            around(q)
-            idx_out.append(len(items))
-            items.append(pass_through_waypoint(*ll(q), alt_m))
-            xy_out.append(q)
-            flown.append(q)
-            prev = q
-            continue
-        entry = orb.entry_xy_m(prev)
-        if fence is not None:
-            entry = fence.clip(entry)[0]
-        xy_out.append(entry)
-        around(entry)
-        if orb.form == "loiter-turns" and autopilot == "ardupilot":
-            # NAV_LOITER_TURNS: turns, (heading-required), radius (positive: clockwise), xtrack;
-            # ArduCopter joins the circle at its point nearest to where it comes from (measured)
-            idx_out.append(len(items))
-            items.append(MissionItem(NAV_LOITER_TURNS, FRAME_GLOBAL_RELATIVE_ALT,
-                                     (float(orb.turns), 0.0, float(orb.radius_m), 0.0), *ll(orb.centre_xy_m), alt_m))
-            flown.append(entry)
-        else:
-            ring = orb.ring_xy_m(entry)
-            if fence is not None:
-                ring = fence.clip(ring)
-            items.append(pass_through_waypoint(*ll(ring[0]), alt_m))  # to the entry at cruise speed
-            idx_out.append(len(items) - 1)
-            flown.append(np.asarray(ring[0], float))
-            slow = orb.speed_m_s < speed_m_s - 0.5
-            if slow:
-                items.append(change_speed(orb.speed_m_s))
-            for r in ring[1:]:
-                around(r)
-                items.append(pass_through_waypoint(*ll(r), alt_m))
-                flown.append(np.asarray(r, float))
-            if slow:
-                items.append(change_speed(speed_m_s))
-        prev = entry
-    around(np.asarray(home_xy_m, float)[:2])  # RTL flies straight home from the last point
-    if fence is not None:
-        flown.append(np.asarray(home_xy_m, float)[:2])
-        bad = fence.outside_legs(np.asarray(flown), ends=ends)
-        if bad:
-            k = bad[0]
-            raise InfeasibleError(
-                f"the look mission would leave the geofence between ({flown[k][0]:.0f}, {flown[k][1]:.0f}) m and "
-                f"({flown[k + 1][0]:.0f}, {flown[k + 1][1]:.0f}) m (east, north of the launch point); not flown")
-    items.append(return_to_launch())
-    plan = MissionPlan(tuple(items), float(home_latlon_deg[0]), float(home_latlon_deg[1]), autopilot=autopilot,
-                       cruise_speed_m_s=speed_m_s, hover_speed_m_s=5.0)
-    return LookMission(plan, np.asarray(xy_out, float).reshape(-1, 2), tuple(idx_out))
-
-
-def _circle_inside(fence, orb) -> bool:
-    """Whether the orbit's circle lies inside the fence's margin (its centre was clipped for it)."""
-    from shapely.geometry import Point
-
-    return bool(fence.inner(0.0).buffer(0.5).covers(Point(orb.centre_xy_m).buffer(orb.radius_m, 16)))
+from .look_mission import LookMission, look_mission  # noqa: E402,F401
 
 
 def orbits_for(policy, vehicle_id, targets) -> tuple:
