@@ -11,14 +11,15 @@ terrain missions keep them above the ground under the vehicle).
   ground (``terrain.obstacle_height_m``); over a DEM at least ``terrain.min_clearance_m`` above it,
   which every leg keeps. A look asked below it is refused (:func:`check_look_alt`).
 * **Airborne** (:func:`airborne_floor_m`): half the lowest height the search flies on purpose (the
-  look floor, or the survey altitude when that is lower). Slots heard and positions flown below it
+  looks' ``search.look_height_m``, or the survey altitude when that is lower or no look height is
+  asked). Slots heard and positions flown below it
   are a vehicle taking off, landing or on the ground, and are neither estimated from nor counted as
   searched. Half, because a vehicle holding a planned height stays within a few metres of it (the
   SITL look flights of ``tests/sitl/test_orbits.py`` held the ring's height within 1-2 m), so no
-  slot of a look is lost to altitude noise, while a vehicle below half the floor is within seconds
-  of the ground (15 m at the default 30 m floor: 6 s at ArduCopter's 2.5 m/s climb). The rule it
-  replaces (half the survey altitude, ``MIN_ALTITUDE_FRACTION``) would have thrown a look at 30 m
-  away as "taking off".
+  slot of a look is lost to altitude noise, while a vehicle below half of it is within seconds
+  of the ground (15 m for looks at the 30 m floor: 6 s at ArduCopter's 2.5 m/s climb). The rule it
+  generalises (half the survey altitude, ``MIN_ALTITUDE_FRACTION``) would have thrown a look at 30 m
+  away as "taking off"; with no look height asked it is that rule.
 * **Time and energy of the altitude change** (:func:`vertical_s`, :func:`vertical_energy_j`): down
   at ``terrain.max_descent_m_s`` and up at ``terrain.max_climb_m_s`` (the rates missions are planned
   within: ArduCopter's WPNAV_SPEED_DN / _UP 1.5 / 2.5 m/s, PX4's MPC_Z_VEL_MAX_DN / _UP 1.5 / 3 m/s),
@@ -60,9 +61,17 @@ def look_floor_m(sc) -> float:
     return float(t.obstacle_height_m + max(sc.search.look_min_height_m, clearance))
 
 
+def planned_look_alt_m(sc) -> float:
+    """The height [m] the policy's looks fly at: ``search.look_height_m``, or the survey altitude."""
+    return look_alt_m(sc, sc.search.look_height_m)
+
+
 def airborne_floor_m(sc) -> float:
-    """Height [m above the ground] below which a vehicle is taking off, landing or on the ground."""
-    return AIRBORNE_SHARE * min(survey_alt_m(sc), look_floor_m(sc))
+    """Height [m above the ground] below which a vehicle is taking off, landing or on the ground:
+    half the lowest height the search flies on purpose, the survey's or its looks'
+    (``search.look_height_m``). With no look height asked this is half the survey altitude, the
+    rule of before issue 41 (``MIN_ALTITUDE_FRACTION``), so those scenarios keep every slot choice."""
+    return AIRBORNE_SHARE * min(survey_alt_m(sc), planned_look_alt_m(sc))
 
 
 def check_look_alt(sc, alt_m: float | None, what: str = "a look") -> float:

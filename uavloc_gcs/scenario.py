@@ -190,6 +190,11 @@ class SearchSpec:
     # and parapet) with 7 m to spare for the altitude held, and is the lowest altitude of issue 41's
     # table. Looks at the survey altitude (the default) never come near it.
     look_min_height_m: float = 30.0
+    # The height [m above the ground] the policy's orbit looks fly at (search/orbit.py plan_orbit):
+    # the vehicle goes down to it at the look's entry and climbs back after (heights.py). None (the
+    # default): the survey altitude fleet.altitude_m, the looks of before issue 41, so scenarios that
+    # do not ask for it (the paper's among them) plan, fly and estimate exactly as before.
+    look_height_m: float | None = None
     pod_target: float | None = None
     max_orbit_looks: int | None = None
 
@@ -612,6 +617,15 @@ def _check_look_floor(sc: Scenario) -> None:
            f"a look floor of {low:g} m + terrain.obstacle_height_m = {obst:g} m is beyond the communication range "
            f"fleet.comm_range_m = {sc.fleet.comm_range_m:g} m, so no look could hear a phone", sc,
            "search.look_min_height_m")
+    h = sc.search.look_height_m
+    if h is not None:
+        from .heights import look_floor_m  # noqa: PLC0415
+
+        floor = look_floor_m(sc)
+        _check(math.isfinite(h) and floor - 1e-9 <= h <= sc.fleet.altitude_m,
+               f"must be a height in metres between the look floor of {floor:g} m (search.look_min_height_m"
+               f" + terrain.obstacle_height_m) and the survey altitude fleet.altitude_m = {sc.fleet.altitude_m:g} m,"
+               f" got {h}", sc, "search.look_height_m")
 
 
 def _check_channels(sc: Scenario) -> None:

@@ -147,14 +147,29 @@ def test_a_look_below_the_floor_is_refused_in_one_sentence(field):
 def test_the_scenario_floor_obstacles_and_the_airborne_floor(field):
     from uavloc_gcs import heights
 
-    assert heights.look_floor_m(field) == 30.0 and heights.airborne_floor_m(field) == 15.0
+    # no look height asked: looks fly the survey altitude, and the airborne floor is half of it (the rule of before)
+    assert heights.look_floor_m(field) == 30.0 and heights.airborne_floor_m(field) == 50.0
+    assert heights.airborne_floor_m(field.replace(search={"look_height_m": 30.0})) == 15.0
     sc = field.replace(search={"look_min_height_m": 25.0}, terrain={"obstacle_height_m": 12.0})
-    assert heights.look_floor_m(sc) == 37.0 and heights.airborne_floor_m(sc) == 18.5
+    assert heights.look_floor_m(sc) == 37.0 and heights.airborne_floor_m(sc) == 50.0
+    assert heights.airborne_floor_m(sc.replace(search={"look_height_m": 37.0})) == 18.5
     with pytest.raises(InfeasibleError, match=r"below the look floor of 37 m above the ground \(search.look_min_height_m"
                                               r" = 25 m above terrain.obstacle_height_m = 12 m\); not flown"):
         heights.check_look_alt(sc, 36.0, "the look at P03")
     low = field.replace(fleet={"altitude_m": 20.0})  # a survey below the look floor is flown as it is
     assert heights.airborne_floor_m(low) == 10.0
+
+
+@pytest.mark.parametrize("value, words", [
+    (29.0, "between the look floor of 30 m"),
+    (120.0, "and the survey altitude fleet.altitude_m = 100 m, got 120"),
+    (float("nan"), "got nan"),
+])
+def test_a_look_height_off_the_floor_or_above_the_survey_is_refused_naming_the_key(field, value, words):
+    from uavloc_gcs.errors import ConfigError
+
+    with pytest.raises(ConfigError, match=f"search.look_height_m.*{words}"):
+        field.replace(search={"look_height_m": value})
 
 
 @pytest.mark.parametrize("key, value, words", [
