@@ -134,12 +134,19 @@ def elicited(sc) -> bool:
             and sc.channel.receiver_sensitivity_dbm is not None)
 
 
+def _look_h(sc) -> float:
+    """The height [m] the policy's looks fly at (``search.look_height_m``, or the survey altitude)."""
+    from ..heights import planned_look_alt_m
+
+    return planned_look_alt_m(sc)
+
+
 def _heard_key(sc) -> tuple:
-    return (repr(sc.channel), repr(sc.emission), repr(sc.simulation), sc.fleet.comm_range_m, sc.fleet.altitude_m)
+    return (repr(sc.channel), repr(sc.emission), repr(sc.simulation), sc.fleet.comm_range_m, _look_h(sc))
 
 
 def _p_heard_table(sc):
-    """At the scenario's altitude on a grid of horizontal distances (cached): p_burst_heard, or
+    """At the looks' height (``search.look_height_m``, or the survey altitude) on a grid of horizontal distances (cached): p_burst_heard, or
     under elicitation the probability that one elicited frame is heard (pod.elicited_rate_hz over
     the rate: the phone answers within the access point's range, each frame heard above the
     sensitivity)."""
@@ -148,7 +155,7 @@ def _p_heard_table(sc):
     key = _heard_key(sc)
     if key not in _HEARD_CACHE:
         grid = np.linspace(0.0, 4.0 * max(float(sc.horizontal_range_m), 50.0) + 200.0, 241)
-        h = float(sc.fleet.altitude_m)
+        h = _look_h(sc)
         if elicited(sc):
             table = elicited_rate_hz(sc, np.hypot(grid, h)) / sc.emission.elicitation_rate_hz
         else:
@@ -174,14 +181,14 @@ _RADIUS_CACHE: dict = {}
 
 def orbit_radius_m(sc, spread_m: float, *, draws: int = 300, seed: int = 0) -> float:
     """The orbit radius [m] of most expected information per burst for a person whose position is
-    known to ``spread_m`` (1-sigma per axis, the estimate's), at the scenario's altitude and
-    receiver. For a person at offset delta from the centre the Fisher information of the heard
+    known to ``spread_m`` (1-sigma per axis, the estimate's), at the looks' height and the
+    scenario's receiver. For a person at offset delta from the centre the Fisher information of the heard
     bursts about their horizontal position, averaged over the circle, is
     J(delta) = mean_theta p_heard(rho) (rho^2 / d^4) u u^T (u the unit vector from person to
     vehicle; one RSS range informs only along it); the radius maximises E_delta sqrt(det J), the
     D-optimal design (a circle the person is outside of sees them from a narrow fan of bearings
     and scores low). Deterministic; cached per 5 m of spread."""
-    h = float(sc.fleet.altitude_m)
+    h = _look_h(sc)
     spread = 5.0 * round(max(float(spread_m), 0.0) / 5.0)
     key = (_heard_key(sc), spread)  # not id(sc): a new scenario may get a collected one's id
     if key in _RADIUS_CACHE:
@@ -244,7 +251,7 @@ def elicited_dwell_s(sc, radius_m: float, spread_m: float, *, draws: int = 300, 
     from ..estimation.model import ChannelModel
 
     rel, rho, ph = _circle_geometry(sc, radius_m, spread_m, draws, seed)
-    h = float(sc.fleet.altitude_m)
+    h = _look_h(sc)
     d2 = rho * rho + h * h
     s_ln = ChannelModel.from_scenario(sc).log_range_sigma
     w = ph / (d2 * d2) / (s_ln * s_ln)
@@ -262,7 +269,8 @@ def plan_orbit(sc, centre_xy_m, spread_m: float, autopilot: str | None = None,
                k: int = ORBIT_BURSTS, p: float = ORBIT_P) -> OrbitLook:
     """The orbit look at ``centre_xy_m`` for a person known to ``spread_m`` (1-sigma) [m]: long
     enough to catch ``k`` bursts with probability ``p``, or under elicitation the frames the
-    required accuracy needs (:func:`elicited_dwell_s`)."""
+    required accuracy needs (:func:`elicited_dwell_s`); at ``search.look_height_m`` (the radius and
+    dwell are those of that height; None, the default: the survey altitude)."""
     form = ORBIT_FORM.get(autopilot or sc.fleet.autopilot, "ring")
     spread = float(min(max(spread_m, 0.0), sc.horizontal_range_m)) if math.isfinite(spread_m) else sc.horizontal_range_m
     r = orbit_radius_m(sc, spread)
@@ -271,7 +279,11 @@ def plan_orbit(sc, centre_xy_m, spread_m: float, autopilot: str | None = None,
     else:
         dwell = dwell_s(sc, mean_p_heard(sc, r, spread), k, p)
     v = orbit_speed_m_s(form, r, sc.fleet.speed_m_s)
-    return OrbitLook((float(centre_xy_m[0]), float(centre_xy_m[1])), r, dwell, v, form)
+    alt = sc.search.look_height_m  # None: the survey altitude, no descent (heights.changes_height)
+    from ..heights import changes_height
+
+    return OrbitLook((float(centre_xy_m[0]), float(centre_xy_m[1])), r, dwell, v, form,
+                     float(alt) if changes_height(sc, alt) else None)
 
 
 # -- missions (search/look_mission.py since issue 41; re-exported for the callers of before) ---------
@@ -339,6 +351,8 @@ def orbit_targets(policy, t_s: float, targets: list) -> list:
     policy (``policy._orbits``: person -> OrbitLook centred at ``t_s``, ``policy._orbit_vel``)."""
     from dataclasses import replace as _replace
 
+    from ..heights import vertical_energy_j, vertical_s
+
     if not _uses_orbits(policy):
         return targets
     sc = policy.scenario
@@ -367,9 +381,14 @@ def orbit_targets(policy, t_s: float, targets: list) -> list:
             orb = _replace(orb, centre_xy_m=(float(c[0]), float(c[1])))
             orbits[eid] = orb
             svc = orb.flown_s
+        # a look below the survey altitude: its descent and climb back in time and energy (both 0
+        # at the survey altitude, so the looks of before are served as before)
+        v_s, v_j = vertical_s(sc, orb.alt_m), vertical_energy_j(sc, orb.alt_m)
         planned[eid], vels[eid] = orb, tuple(t.velocity_m_s)
         out.append(_replace(t, xy_m=np.asarray(orb.centre_xy_m, float), radius_m=orb.radius_m,
-                            service_s=svc, service_energy_j=float(pw.power_w(orb.speed_m_s)) * svc))
+                            service_s=svc + v_s if v_s else svc,
+                            service_energy_j=float(pw.power_w(orb.speed_m_s)) * svc + v_j if v_j
+                            else float(pw.power_w(orb.speed_m_s)) * svc))
     return out
 
 

@@ -172,6 +172,36 @@ def test_a_look_height_off_the_floor_or_above_the_survey_is_refused_naming_the_k
         field.replace(search={"look_height_m": value})
 
 
+def test_the_policys_orbits_are_planned_at_the_look_height_and_pay_its_descent_and_climb(field):
+    """search.look_height_m: plan_orbit's look carries the height, its radius is that height's
+    D-optimal one (a circle nearer the person), and orbit_targets add the descent and climb to the
+    look's service time and energy; with no height asked the look is the survey altitude's."""
+    from uavloc_gcs import heights
+    from uavloc_gcs.planning.problem import Target
+    from uavloc_gcs.search import SearchPolicy
+    from uavloc_gcs.search.orbit import orbit_targets, plan_orbit
+
+    high = plan_orbit(field, (300.0, 200.0), 40.0)
+    low_sc = field.replace(search={"look_height_m": 30.0})
+    low = plan_orbit(low_sc, (300.0, 200.0), 40.0)
+    assert high.alt_m is None and low.alt_m == 30.0
+    assert low.radius_m < high.radius_m
+    assert plan_orbit(field.replace(search={"look_height_m": 100.0}), (300.0, 200.0), 40.0) == high
+
+    def served(sc):
+        pol = SearchPolicy(sc)
+        (t,) = orbit_targets(pol, 0.0, [Target("7", (300.0, 200.0))])
+        return t, pol._orbit_plan[7]
+
+    (t_hi, o_hi), (t_lo, o_lo) = served(field), served(low_sc)
+    assert o_hi.alt_m is None and t_hi.service_s == o_hi.flown_s  # as before: the turns alone
+    assert o_lo.alt_m == 30.0
+    down_up = 70 / 1.5 + 70 / 2.5
+    assert t_lo.service_s == pytest.approx(o_lo.flown_s + down_up)
+    assert t_lo.service_energy_j == pytest.approx(
+        low_sc.power_model.power_w(o_lo.speed_m_s) * o_lo.flown_s + heights.vertical_energy_j(low_sc, 30.0))
+
+
 @pytest.mark.parametrize("key, value, words", [
     ("search", {"look_min_height_m": 0.0}, "search.look_min_height_m.*must be a positive height"),
     ("terrain", {"obstacle_height_m": -1.0}, "terrain.obstacle_height_m.*0 or more"),
