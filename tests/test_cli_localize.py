@@ -101,9 +101,10 @@ def test_csv_and_tlog_in_estimates_out(tmp_path, flight):
     assert str(world.emitter_ids[0]) in b.stdout
 
 
-def test_slots_heard_below_half_the_survey_altitude_are_left_out_and_counted(tmp_path, flight):
+def test_slots_heard_below_the_airborne_floor_are_left_out_and_counted(tmp_path, flight):
     """As in the daemon: a vehicle climbing out or landing hears phones too, but those slots are
-    not estimated from (estimation.model.survey_slots); the table's title says how many."""
+    not estimated from (estimation.airborne_slots below heights.airborne_floor_m: half the survey
+    altitude, 50 m, when the scenario asks no lower look height); the table's title says how many."""
     sc, world, slots = flight
     low = slots.take(np.arange(0, len(slots), 7))
     low = SlotBatch.from_columns(low.t_s + 1000.0, low.vehicle, low.xyz_m * [1.0, 1.0, 0.2], low.emitter_id,
@@ -321,7 +322,8 @@ def test_slots_all_heard_on_the_ground_are_refused(tmp_path, capsys, flight):
     (tmp_path / "low.csv").write_text(dumps_slots_csv(low, sc.frame))
     code, out, err = _localize_inproc(capsys, tmp_path / "low.csv", "--scenario", SMALL, "--out", tmp_path / "o")
     assert code == 2
-    assert f"all {len(slots)} slots were heard below 50 m" in err and "nothing to localize" in err, err
+    assert f"all {len(slots)} slots were heard below 50 m above the ground (taking off, landing or on the ground; " \
+           "the scenario's scan flies at 100 m): nothing to localize" in err, err
     assert not (tmp_path / "o").exists()
 
 

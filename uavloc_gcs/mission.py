@@ -345,6 +345,48 @@ def return_to_launch() -> MissionItem:
     return MissionItem(NAV_RETURN_TO_LAUNCH, FRAME_MISSION)
 
 
+def at_look_height(lat_deg: float, lon_deg: float, look_alt_m: float | None, transit_alt_m: float) -> list[MissionItem]:
+    """The items that fly one point at its own height: the point at the transit altitude, then straight
+    down (or up) to ``look_alt_m`` there; a single pass-through waypoint when the look flies at the
+    transit altitude (None, or within half a metre). The climb back is :func:`climb_back`."""
+    if look_alt_m is None or abs(float(look_alt_m) - transit_alt_m) <= 0.5:
+        return [pass_through_waypoint(lat_deg, lon_deg, transit_alt_m)]
+    return [pass_through_waypoint(lat_deg, lon_deg, transit_alt_m),
+            pass_through_waypoint(lat_deg, lon_deg, float(look_alt_m))]
+
+
+def climb_back(lat_deg: float, lon_deg: float, look_alt_m: float | None, transit_alt_m: float) -> list[MissionItem]:
+    """Straight back up (or down) to the transit altitude where a look at ``look_alt_m`` ended
+    (nothing when it flew at the transit altitude)."""
+    if look_alt_m is None or abs(float(look_alt_m) - transit_alt_m) <= 0.5:
+        return []
+    return [pass_through_waypoint(lat_deg, lon_deg, transit_alt_m)]
+
+
+def check_point_alts(point_alts_m, n_points: int, transit_alt_m: float, floor_m: float | None) -> list:
+    """``point_alts_m`` as a list of n_points heights (None where a point flies at the transit
+    altitude), refused (MissionEncodingError, one sentence) where one is not a number, the count
+    differs, or one is below ``floor_m`` -- or, with no floor given, below the transit altitude
+    (a caller that sends a vehicle lower must say how low it may go)."""
+    if point_alts_m is None:
+        return [None] * n_points
+    alts = list(point_alts_m)
+    if len(alts) != n_points:
+        raise MissionEncodingError(f"{len(alts)} look heights for {n_points} points; give one per point (None: the "
+                                   "transit altitude)")
+    for k, a in enumerate(alts):
+        if a is None:
+            continue
+        if not math.isfinite(float(a)):
+            raise MissionEncodingError(f"point {k + 1}: look height {a} is not a number of metres")
+        lowest = transit_alt_m - 0.5 if floor_m is None else floor_m
+        if float(a) < lowest - 1e-9:
+            why = (f"the look floor of {floor_m:g} m" if floor_m is not None
+                   else f"the transit altitude {transit_alt_m:g} m and no look floor was given")
+            raise MissionEncodingError(f"point {k + 1}: a look at {float(a):g} m is below {why}; not flown")
+    return alts
+
+
 def flight_mission(
     waypoints_latlon_deg: Iterable[Sequence[float]],
     *,
@@ -356,15 +398,24 @@ def flight_mission(
     include_takeoff: bool = True,
     return_home: bool = True,
     cruise_speed_m_s: float | None = None,
+    point_alts_m: Sequence[float | None] | None = None,
+    floor_m: float | None = None,
 ) -> MissionPlan:
-    """Takeoff (when on the ground), speed change to ``speed_m_s``, pass-through waypoints, RTL."""
+    """Takeoff (when on the ground), speed change to ``speed_m_s``, pass-through waypoints, RTL.
+
+    ``alt_m`` is the transit altitude. ``point_alts_m`` (one per waypoint, None = ``alt_m``) flies a
+    point at its own height: the vehicle arrives at the transit altitude, goes straight down to the
+    point's height, and straight back up before the next point (:func:`at_look_height`,
+    :func:`climb_back`); below ``floor_m`` [m] is refused (without a floor, below ``alt_m``)."""
+    pts = [(float(lat), float(lon)) for lat, lon in waypoints_latlon_deg]
+    alts = check_point_alts(point_alts_m, len(pts), alt_m, floor_m)
     items: list[MissionItem] = []
     if include_takeoff:
         lat, lon = (home_latlon_deg if home_latlon_deg is not None else (0.0, 0.0))
         items.append(takeoff(alt_m, lat, lon))
     items.append(change_speed(speed_m_s))
-    for lat, lon in waypoints_latlon_deg:
-        items.append(pass_through_waypoint(float(lat), float(lon), alt_m))
+    for (lat, lon), a in zip(pts, alts):
+        items += at_look_height(lat, lon, a, alt_m) + climb_back(lat, lon, a, alt_m)
     if return_home:
         items.append(return_to_launch())
     hl = home_latlon_deg if home_latlon_deg is not None else (math.nan, math.nan)

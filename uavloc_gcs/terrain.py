@@ -151,6 +151,11 @@ class TerrainSpec:
 
     dem: str | None = None
     min_clearance_m: float = 30.0
+    # Trees and buildings standing above the DEM's ground [m] (issue 41): every leg keeps
+    # min_clearance_m above ground + obstacles, and a look's floor (search.look_min_height_m) is above
+    # them too. 0 by default: SRTM-like DEMs partly include roofs and canopy, and without a DEM
+    # search.look_min_height_m is chosen to clear a town's buildings by itself.
+    obstacle_height_m: float = 0.0
     max_climb_m_s: float = 2.5
     max_descent_m_s: float = 1.5
     max_height_above_launch_m: float | None = None
@@ -172,6 +177,9 @@ def check_spec(sc, base_dir: Path | None) -> str:
         need(t.min_clearance_m <= sc.fleet.altitude_m,
              f"{t.min_clearance_m} m is more than the scan height fleet.altitude_m = {sc.fleet.altitude_m} m",
              "min_clearance_m")
+        need(t.min_clearance_m + t.obstacle_height_m <= sc.fleet.altitude_m,
+             f"{t.obstacle_height_m:g} m of obstacles plus terrain.min_clearance_m = {t.min_clearance_m:g} m is more "
+             f"than the scan height fleet.altitude_m = {sc.fleet.altitude_m:g} m", "obstacle_height_m")
     need(t.max_climb_m_s > 0, f"must be positive, got {t.max_climb_m_s} m/s", "max_climb_m_s")
     need(t.max_descent_m_s > 0, f"must be positive, got {t.max_descent_m_s} m/s", "max_descent_m_s")
     if t.max_height_above_launch_m is not None and t.dem is not None:

@@ -7,12 +7,18 @@ and returns the plan flown over the real ground:
 
 * The whole route -- launch, every waypoint and the way back home -- is sampled at half the DEM's
   cell size (so every cell a leg crosses is seen, not only the waypoints).
-* Along it the vehicle aims at ``fleet.altitude_m`` above the ground (the height the hearing
-  geometry is planned for), never less than ``terrain.min_clearance_m``, and never above
+* Along it the vehicle aims at each route item's own height above the ground (a look's, issue 41:
+  uavloc_gcs/heights.py; the builders write it as the item's altitude over flat ground, which is
+  ``fleet.altitude_m`` for a scan and a transit), never less than ``terrain.min_clearance_m`` above
+  the ground plus ``terrain.obstacle_height_m`` (trees, buildings), and never above
   ``terrain.max_height_above_launch_m`` over the launch point when that is set.
 * The profile is the lowest one above that aim whose slope stays within ``terrain.max_climb_m_s``
   and ``terrain.max_descent_m_s`` at the planned ground speed: it starts climbing before a rise and
-  comes down after it (an upper envelope, two passes).
+  comes down after it (an upper envelope, two passes). A look's descent and climb are vertical legs
+  (two items at one place): the vehicle changes height there, at the vertical rates, on the spot;
+  their clearance is that of their lower end.
+* A vehicle given a mission in the air at another height than the profile starts at
+  (``start_alt_m``, e.g. low in a look) first goes straight up or down to it where it is.
 * The profile is then cut into straight 3D legs -- the autopilots fly a straight line between two
   waypoints -- with a waypoint added wherever the straight leg would come nearer the ground than
   the clearance, or more than ``TRACK_TOLERANCE_M`` off the profile.
@@ -82,22 +88,34 @@ def _leg_name(k: int, n_points: int, returns_home: bool, starts_home: bool) -> s
 
 
 def route_profile(scenario, route_xy: np.ndarray, *, speed_m_s: float, name: str = "vehicle",
-                  starts_home: bool = True, returns_home: bool = True) -> Profile:
+                  starts_home: bool = True, returns_home: bool = True, heights_m=None) -> Profile:
     """The terrain-following altitude profile along ``route_xy`` (local metres, launch first when
-    ``starts_home``). Raises :class:`TerrainRefused` when the clearance cannot be kept."""
+    ``starts_home``), aiming at ``heights_m`` above the ground at each route point (None:
+    ``fleet.altitude_m`` everywhere; between two points the aim goes linearly from one to the
+    other). Raises :class:`TerrainRefused` when the clearance cannot be kept."""
     dem = scenario.dem
     t = scenario.terrain
     alt = scenario.fleet.altitude_m
     step = max(1.0, 0.5 * dem.resolution_m)
+    hv = None if heights_m is None else np.asarray(heights_m, dtype=float)
     pts = [route_xy[0]]
     vertex = [0]
-    for a, b in zip(route_xy[:-1], route_xy[1:]):
+    aim_h = [alt if hv is None else hv[0]]
+    vertical = [False]  # the leg arriving at this sample is a change of height on the spot
+    for k, (a, b) in enumerate(zip(route_xy[:-1], route_xy[1:])):
         n = max(1, int(math.ceil(np.linalg.norm(b - a) / step)))
         f = np.arange(1, n + 1)[:, None] / n
         pts.extend(a + f * (b - a))
         vertex.append(len(pts) - 1)
+        if hv is None:
+            aim_h.extend([alt] * n)
+            vertical.extend([False] * n)
+        else:
+            aim_h.extend(hv[k] + f[:, 0] * (hv[k + 1] - hv[k]))
+            vertical.extend([bool(np.linalg.norm(b - a) < 1e-6 and abs(hv[k + 1] - hv[k]) > 0.5)] * n)
     xy = np.asarray(pts, dtype=float)
     vertex = np.asarray(vertex)
+    vertical = np.asarray(vertical)
     ds = np.linalg.norm(np.diff(xy, axis=0), axis=1)
     s = np.concatenate([[0.0], np.cumsum(ds)])
     g = dem.height_xy(xy)
@@ -113,18 +131,25 @@ def route_profile(scenario, route_xy: np.ndarray, *, speed_m_s: float, name: str
             f"{Path(dem.source).name} at {lat:.5f}, {lon:.5f} ({dem.coverage_text()}), so its clearance "
             "cannot be checked; give a DEM that covers every leg")
     home_g = dem.height_at(0.0, 0.0)
-    aim = g + alt
-    floor = g + t.min_clearance_m
+    aim = g + np.asarray(aim_h, dtype=float)
+    floor = g + t.obstacle_height_m + t.min_clearance_m
+    aim = np.maximum(aim, floor)  # (the same aim whenever a height keeps the clearance, as every uavloc one does)
     if t.max_height_above_launch_m is not None:
         ceiling = home_g + t.max_height_above_launch_m
         aim = np.maximum(floor, np.minimum(aim, ceiling))
     z = aim.copy()
-    up = t.max_climb_m_s / speed_m_s
-    down = t.max_descent_m_s / speed_m_s
-    for i in range(1, len(z)):  # descending no faster than allowed
-        z[i] = max(z[i], z[i - 1] - down * ds[i - 1])
+    if np.ndim(speed_m_s) == 0:
+        up = np.full(len(z), t.max_climb_m_s / speed_m_s)
+        down = np.full(len(z), t.max_descent_m_s / speed_m_s)
+    else:  # one speed per leg (an orbit's ring is flown slower): the gradient of the leg arriving at each sample
+        v = np.asarray(speed_m_s, dtype=float)[np.clip(leg_of, 0, len(route_xy) - 2)]
+        up, down = t.max_climb_m_s / v, t.max_descent_m_s / v
+    for i in range(1, len(z)):  # descending no faster than allowed (a look's descent is on the spot)
+        if not vertical[i]:
+            z[i] = max(z[i], z[i - 1] - down[i] * ds[i - 1])
     for i in range(len(z) - 2, -1, -1):  # climbing no faster than allowed, starting early enough
-        z[i] = max(z[i], z[i + 1] - up * ds[i])
+        if not vertical[i + 1]:
+            z[i] = max(z[i], z[i + 1] - up[i + 1] * ds[i])
     if t.max_height_above_launch_m is not None:
         over = np.flatnonzero(z > ceiling + 1e-6)
         if over.size:
@@ -167,12 +192,15 @@ def _breakpoints(p: Profile, clearance: float, tol: float) -> list[int]:
 
 
 def terrain_safe(plan: MissionPlan, scenario, *, name: str = "vehicle",
-                 start_xy_m: np.ndarray | None = None) -> MissionPlan:
+                 start_xy_m: np.ndarray | None = None, start_alt_m: float | None = None) -> MissionPlan:
     """``plan`` flown over the scenario's terrain (see the module's doc); unchanged without a DEM.
 
     The route starts at the launch point when the plan takes off (or at ``start_xy_m``, where an
-    airborne vehicle is, for a mission without a take-off) and ends at the launch point when it
-    closes with an RTL. ``name`` is the vehicle, for messages.
+    airborne vehicle is, for a mission without a take-off; ``start_alt_m``: its height above the
+    launch point there, as telemetry gives it) and ends at the launch point when it closes with an
+    RTL. Each route item aims at its own altitude above the ground (relative-frame items, as
+    uavloc's builders write them; ``fleet.altitude_m`` for the others). ``name`` is the vehicle,
+    for messages.
     """
     dem = scenario.dem
     if dem is None:
@@ -195,10 +223,13 @@ def terrain_safe(plan: MissionPlan, scenario, *, name: str = "vehicle",
     start = np.zeros((1, 2)) if starts_home else np.asarray(start_xy_m, dtype=float).reshape(1, 2)
     pts = [start, route_xy] + ([np.zeros((1, 2))] if returns_home else [])
     full = np.vstack(pts)
-    speed = _speed(plan, scenario)
+    speed = _leg_speeds(plan, scenario, route_idx, returns_home)
+    survey = scenario.fleet.altitude_m
+    route_h = [items[k].alt_m if items[k].frame == FRAME_GLOBAL_RELATIVE_ALT else survey for k in route_idx]
+    heights = None if all(h == survey for h in route_h) else np.array([survey, *route_h] + [survey] * returns_home)
     prof = route_profile(scenario, full, speed_m_s=speed, name=name, starts_home=starts_home,
-                         returns_home=returns_home)
-    cuts = _breakpoints(prof, t.min_clearance_m, TRACK_TOLERANCE_M)
+                         returns_home=returns_home, heights_m=heights)
+    cuts = _breakpoints(prof, t.min_clearance_m + t.obstacle_height_m, TRACK_TOLERANCE_M)
     home_g = dem.height_at(0.0, 0.0)
     relative = t.altitude_frame == "relative"
     fr = FRAME_GLOBAL_RELATIVE_ALT if relative else FRAME_GLOBAL
@@ -216,7 +247,12 @@ def terrain_safe(plan: MissionPlan, scenario, *, name: str = "vehicle",
     out: list[MissionItem] = []
     ground: list[float] = []
     route_pos = {k: j + 1 for j, k in enumerate(route_idx)}  # item index -> route point index in ``full``
+    first_route = route_idx[0]
     for k, it in enumerate(items):
+        if k == first_route and not starts_home and start_alt_m is not None and math.isfinite(start_alt_m) \
+                and abs(home_g + float(start_alt_m) - prof.z[0]) > TRACK_TOLERANCE_M:
+            out.append(wp_at(0))  # straight up (or down) where the vehicle is, to where its profile starts
+            ground.append(float(prof.ground[0]))
         if it.command in TAKEOFF_COMMANDS:
             out.append(dataclasses.replace(it, alt_m=round(float(prof.z[0] - home_g), 2)))
             ground.append(float(prof.ground[0]))
@@ -242,6 +278,23 @@ def terrain_safe(plan: MissionPlan, scenario, *, name: str = "vehicle",
         ground.append(math.nan)
     return dataclasses.replace(plan, items=tuple(out), home_alt_m=round(float(home_g), 2),
                                terrain_alt_m=tuple(round(g, 2) if math.isfinite(g) else math.nan for g in ground))
+
+
+def _leg_speeds(plan: MissionPlan, scenario, route_idx: list, returns_home: bool):
+    """The ground speed [m/s] of each leg of the route (to each route item, then home): the last
+    DO_CHANGE_SPEED before the item (an orbit's ring is asked slower), else :func:`_speed`; one
+    number when every leg has the same."""
+    v = _speed(plan, scenario)
+    out, at = [], 0
+    for k in route_idx:
+        for it in plan.items[at:k]:
+            if it.command == DO_CHANGE_SPEED and it.params[1] > 0:
+                v = float(it.params[1])
+        at = k
+        out.append(v)
+    if returns_home:
+        out.append(out[-1] if out else v)
+    return out[0] if len(set(out)) <= 1 else np.asarray(out, dtype=float)
 
 
 def _speed(plan: MissionPlan, scenario) -> float:

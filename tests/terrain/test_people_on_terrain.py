@@ -7,7 +7,7 @@ import pytest
 
 from sim_link.world import World
 from uavloc_gcs.estimation import estimate_emitter
-from uavloc_gcs.estimation.model import ChannelModel, survey_slots
+from uavloc_gcs.estimation.model import ChannelModel, airborne_slots
 from uavloc_gcs.estimation.terrain_fit import estimate_on_terrain
 from uavloc_gcs.observations import SlotBatch
 from uavloc_gcs.scenario import load_scenario
@@ -81,8 +81,8 @@ def test_slots_low_over_the_launch_point_but_high_over_the_ground_below_are_kept
     g = sc.dem.height_at(*xy[0]) - sc.dem.height_at(0, 0)
     assert g < -200.0
     slots = SlotBatch.from_columns([0.0], [1], [[xy[0, 0], xy[0, 1], g + 100.0]], [7], [-70.0], [10])
-    assert len(survey_slots(slots, 100.0, sc.dem)) == 1
-    assert len(survey_slots(slots, 100.0)) == 0  # the flat rule would drop it as a vehicle on the ground
+    assert len(airborne_slots(slots, 15.0, sc.dem)) == 1
+    assert len(airborne_slots(slots, 15.0)) == 0  # the flat rule would drop it as a vehicle on the ground
 
 
 @pytest.mark.slow  # about 10 s: twelve estimates over terrain

@@ -109,8 +109,8 @@ def _km(m: float) -> str:
 def run(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from ..estimation import ChannelModel, estimate_all, survey_slots
-    from ..estimation.model import MIN_ALTITUDE_FRACTION
+    from ..estimation import ChannelModel, airborne_slots, estimate_all
+    from ..heights import airborne_floor_m, planned_look_alt_m
     from ..estimation.export import estimates_csv, estimates_geojson, heard_tracks
     from ..estimation.identity import UNKNOWN_TX_MARGIN_DB, format_address, link
     from ..geo import polygon_area_m2
@@ -126,13 +126,17 @@ def run(args: argparse.Namespace) -> int:
     sc = load_scenario(args.scenario)
     source = shipped_path(args.input, ".csv")  # a file, or a shipped one by name (slots_small.csv)
     heard = load_slots(source, sc)
-    # as the daemon does: slots heard taking off, landing or on the ground are not estimated from
-    slots = survey_slots(heard, sc.fleet.altitude_m)
+    # as the daemon does: slots heard taking off, landing or on the ground are not estimated from,
+    # each judged by its own height (a look flies lower than the scan: uavloc_gcs/heights.py)
+    floor = airborne_floor_m(sc)
+    slots = airborne_slots(heard, floor, sc.dem)
     low = len(heard) - len(slots)
     if not len(slots):
-        raise FileFormatError(f"all {len(heard)} slots were heard below {MIN_ALTITUDE_FRACTION * sc.fleet.altitude_m:g} m "
-                              f"(taking off, landing or on the ground; the scenario flies at {sc.fleet.altitude_m:g} m): "
-                              "nothing to localize", path=str(source))
+        look = planned_look_alt_m(sc)
+        raise FileFormatError(f"all {len(heard)} slots were heard below {floor:g} m above the ground (taking off, "
+                              f"landing or on the ground; the scenario's scan flies at {sc.fleet.altitude_m:g} m"
+                              + (f", its looks at {look:g} m" if look < sc.fleet.altitude_m else "")
+                              + "): nothing to localize", path=str(source))
     if warning := far_from_area_warning(slots, sc, source.name):
         print(warning, file=sys.stderr)
     if args.t_ref is not None and len(slots.t_s):
@@ -171,8 +175,8 @@ def run(args: argparse.Namespace) -> int:
     print(format_table(["map", "emitter", "status", "lat", "lon", "speed m/s", "r95 m", "annulus m", "mirror?", "slots",
                         "addresses", "link"],
                        rows, title=f"{len(slots)} slots, {len(estimates)} emitter(s)" + (
-                           f" ({low} slots heard below {MIN_ALTITUDE_FRACTION * sc.fleet.altitude_m:g} m, taking off "
-                           "or landing, not used)" if low else "")))
+                           f" ({low} slots heard below {floor:g} m, taking off or landing, not used)" if low
+                           else "")))
     n_addr = len(np.unique(slots.address))
     unsure = [p for p in linking.people() if linking.uncertain(p)]
     print(f"{n_addr} address(es) heard, linked into {len(linking.people())} people"

@@ -8,10 +8,10 @@
 """
 
 from .estimate import Candidate, Estimate, estimate_all, estimate_emitter
-from .model import ChannelModel, radius_of_probability, survey_slots
+from .model import ChannelModel, airborne_slots, radius_of_probability
 
 __all__ = ["ChannelModel", "Candidate", "Estimate", "estimate_emitter", "estimate_all", "radius_of_probability",
-           "survey_slots"]
+           "airborne_slots"]
 
 from .access import access_radius_m  # noqa: E402  (needs Estimate)
 from .crb import data_information, position_rmse_bound_m, prior_information  # noqa: E402

@@ -74,27 +74,26 @@ class ChannelModel:
             np.asarray(d_m) / self.reference_distance_m)
 
 
-# Slots heard below this fraction of the survey altitude (a vehicle taking off, landing or standing
-# at home) are not estimated from. The channel model is the survey altitude's (a line of sight from
-# above, not a receiver among the rubble), and the newest data of a vehicle back home would be
-# rings of range about one point: the estimate anchored there spans the whole ring. Measured on the
-# fake fleet (tests/test_e2e_vehicle_faults.py, a person 135 m from home at 60 m altitude, heard on
-# the ground): radii of 30-290 m after each look, 30 looks flown, never located.
-MIN_ALTITUDE_FRACTION = 0.5
+# Slots heard below the airborne floor (uavloc_gcs/heights.py: half the lowest height the search
+# flies on purpose, the survey's or its looks' [search] look_height_m; 50 m at the default 100 m)
+# are a vehicle taking off, landing or standing at home, and are not estimated from: the newest
+# data of a vehicle back home would be rings of range about one point, and the estimate anchored
+# there spans the whole ring. Measured on the fake fleet
+# (tests/test_e2e_vehicle_faults.py, a person 135 m from home at 60 m altitude, heard on the
+# ground): radii of 30-290 m after each look, 30 looks flown, never located. Until issue 41 the
+# floor was half the survey altitude whatever the looks flew, which would have thrown away every
+# slot of a look at 30 m.
 
 
-def survey_slots(slots, altitude_m: float, dem=None):
-    """The slots heard at or above ``MIN_ALTITUDE_FRACTION`` of the survey altitude ``altitude_m``
-    (height above the people, the slots' z). Over terrain (``dem``, a uavloc_gcs.terrain.Terrain)
-    the height is above the ground under the vehicle, z being above the launch point."""
+def airborne_slots(slots, floor_m: float, dem=None):
+    """The slots heard at or above ``floor_m`` [m] over the ground under the vehicle (their z is
+    above the launch point; over a DEM, a uavloc_gcs.terrain.Terrain, the ground's rise from the
+    launch point is taken off): each slot judged by its own height (heights.airborne)."""
+    from ..heights import airborne
+
     if len(slots) == 0:
         return slots
-    xyz = np.asarray(slots.xyz_m)
-    if dem is None:
-        keep = xyz[:, 2] >= MIN_ALTITUDE_FRACTION * altitude_m
-    else:
-        ground = dem.height_xy(xyz[:, :2], clamp=True) - dem.height_at(0.0, 0.0, clamp=True)
-        keep = xyz[:, 2] - ground >= MIN_ALTITUDE_FRACTION * altitude_m
+    keep = airborne(slots.xyz_m, floor_m, dem)
     return slots if bool(np.all(keep)) else slots.take(keep)
 
 

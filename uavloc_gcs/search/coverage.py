@@ -3,9 +3,10 @@ from where the vehicles flew (telemetry), not from where they were told to fly (
 issue 26 item 3).
 
 :class:`Coverage` is fed every flown position of every vehicle (``add_position``, ``add_track``).
-Only positions at survey altitude count (``estimation.model.MIN_ALTITUDE_FRACTION`` of the fleet
-altitude, the rule ``survey_slots`` applies to the RSSI slots): a vehicle taking off, landing or on
-the ground hears nothing the estimator uses. Between two consecutive positions of one vehicle the
+Every position counts at its own height (a look may fly lower than the scan: ``[search]
+look_height_m``) except those below ``heights.airborne_floor_m`` above the ground under the vehicle
+(the rule ``airborne_slots`` applies to the RSSI slots): a vehicle taking off, landing or on the
+ground hears nothing the estimator uses. Between two consecutive positions of one vehicle the
 flight is taken as straight; a gap longer than :data:`MAX_GAP_S` (a lost link) counts as not flown,
 since the ground does not know where the vehicle was.
 
@@ -162,7 +163,7 @@ class Coverage:
     """The incremental achieved-POD accumulator (see module docstring)."""
 
     def __init__(self, sc, grid: Grid | None = None):
-        from ..estimation.model import MIN_ALTITUDE_FRACTION  # noqa: PLC0415
+        from ..heights import airborne_floor_m  # noqa: PLC0415
 
         self.sc = sc
         self.grid = grid if grid is not None else grid_for(sc)
@@ -175,14 +176,14 @@ class Coverage:
         self._home_m = 0.0 if self._dem is None else self._dem.height_at(0.0, 0.0, clamp=True)
         self._cell_ground_m = (None if self._dem is None
                                else self._dem.height_xy(self.grid.xy_m, clamp=True) - self._home_m)
-        self.min_alt_m = MIN_ALTITUDE_FRACTION * sc.fleet.altitude_m
+        self.min_alt_m = airborne_floor_m(sc)  # below it: taking off or landing
         n = len(self.grid.xy_m)
         self._win = _Windows(sc)
         self._p0 = np.ones((n, self._win.classes))  # P(no emission heard) over closed windows, per phone class
         self._p1 = np.zeros((n, self._win.classes))  # P(exactly one)
         self._open: dict[int, np.ndarray] = {}  # vehicle -> open window [s] per cell
         self._last: dict[int, tuple[float, np.ndarray]] = {}  # vehicle -> (t, xy) of its last survey position
-        self._tracks: list[tuple[int, list, list]] = []  # flown pieces at survey altitude: (vehicle, t, xyz)
+        self._tracks: list[tuple[int, list, list]] = []  # flown pieces above the airborne floor: (vehicle, t, xyz)
         self._piece: dict[int, int] = {}  # vehicle -> index of its current piece
         self.flown_s = 0.0  # vehicle-seconds at survey altitude counted
         self.pass_rounds = 0  # replans that added passes (add_passes)

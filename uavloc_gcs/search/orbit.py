@@ -30,15 +30,11 @@ heard (p_burst_heard), so :func:`orbit_radius_m` maximises E[p_heard(d) rho^2 / 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import InfeasibleError
-from ..mission import (FRAME_GLOBAL_RELATIVE_ALT, MissionItem, MissionPlan, change_speed, pass_through_waypoint,
-                       return_to_launch, takeoff)
-
-NAV_LOITER_TURNS = 18
+from .look_mission import NAV_LOITER_TURNS  # noqa: F401 (its home before issue 41)
 
 # How each autopilot flies an orbit (measured, docs/readme/orbits.md). A ring of waypoints is what
 # both fly (PX4 refuses NAV_LOITER_TURNS), so it is the shipped form for both; ArduCopter flies
@@ -62,13 +58,16 @@ MIN_RADIUS_M = 20.0
 
 @dataclass(frozen=True)
 class OrbitLook:
-    """One orbit: centre and entry point [m, local frame], radius [m], dwell [s], speed [m/s]."""
+    """One orbit: centre and entry point [m, local frame], radius [m], dwell [s], speed [m/s], and
+    the height it is flown at [m above the ground]; None: the survey altitude (uavloc_gcs/heights.py:
+    the vehicle goes down to it at the entry and back up after the whole turns)."""
 
     centre_xy_m: tuple[float, float]
     radius_m: float
     dwell_s: float
     speed_m_s: float
     form: str = "ring"
+    alt_m: float | None = None
 
     @property
     def turns(self) -> int:
@@ -135,12 +134,19 @@ def elicited(sc) -> bool:
             and sc.channel.receiver_sensitivity_dbm is not None)
 
 
+def _look_h(sc) -> float:
+    """The height [m] the policy's looks fly at (``search.look_height_m``, or the survey altitude)."""
+    from ..heights import planned_look_alt_m
+
+    return planned_look_alt_m(sc)
+
+
 def _heard_key(sc) -> tuple:
-    return (repr(sc.channel), repr(sc.emission), repr(sc.simulation), sc.fleet.comm_range_m, sc.fleet.altitude_m)
+    return (repr(sc.channel), repr(sc.emission), repr(sc.simulation), sc.fleet.comm_range_m, _look_h(sc))
 
 
 def _p_heard_table(sc):
-    """At the scenario's altitude on a grid of horizontal distances (cached): p_burst_heard, or
+    """At the looks' height (``search.look_height_m``, or the survey altitude) on a grid of horizontal distances (cached): p_burst_heard, or
     under elicitation the probability that one elicited frame is heard (pod.elicited_rate_hz over
     the rate: the phone answers within the access point's range, each frame heard above the
     sensitivity)."""
@@ -149,7 +155,7 @@ def _p_heard_table(sc):
     key = _heard_key(sc)
     if key not in _HEARD_CACHE:
         grid = np.linspace(0.0, 4.0 * max(float(sc.horizontal_range_m), 50.0) + 200.0, 241)
-        h = float(sc.fleet.altitude_m)
+        h = _look_h(sc)
         if elicited(sc):
             table = elicited_rate_hz(sc, np.hypot(grid, h), height_m=h) / sc.emission.elicitation_rate_hz
         else:
@@ -175,14 +181,14 @@ _RADIUS_CACHE: dict = {}
 
 def orbit_radius_m(sc, spread_m: float, *, draws: int = 300, seed: int = 0) -> float:
     """The orbit radius [m] of most expected information per burst for a person whose position is
-    known to ``spread_m`` (1-sigma per axis, the estimate's), at the scenario's altitude and
-    receiver. For a person at offset delta from the centre the Fisher information of the heard
+    known to ``spread_m`` (1-sigma per axis, the estimate's), at the looks' height and the
+    scenario's receiver. For a person at offset delta from the centre the Fisher information of the heard
     bursts about their horizontal position, averaged over the circle, is
     J(delta) = mean_theta p_heard(rho) (rho^2 / d^4) u u^T (u the unit vector from person to
     vehicle; one RSS range informs only along it); the radius maximises E_delta sqrt(det J), the
     D-optimal design (a circle the person is outside of sees them from a narrow fan of bearings
     and scores low). Deterministic; cached per 5 m of spread."""
-    h = float(sc.fleet.altitude_m)
+    h = _look_h(sc)
     spread = 5.0 * round(max(float(spread_m), 0.0) / 5.0)
     key = (_heard_key(sc), spread)  # not id(sc): a new scenario may get a collected one's id
     if key in _RADIUS_CACHE:
@@ -245,7 +251,7 @@ def elicited_dwell_s(sc, radius_m: float, spread_m: float, *, draws: int = 300, 
     from ..estimation.model import ChannelModel
 
     rel, rho, ph = _circle_geometry(sc, radius_m, spread_m, draws, seed)
-    h = float(sc.fleet.altitude_m)
+    h = _look_h(sc)
     d2 = rho * rho + h * h
     s_ln = ChannelModel.from_scenario(sc).log_range_sigma
     w = ph / (d2 * d2) / (s_ln * s_ln)
@@ -263,7 +269,8 @@ def plan_orbit(sc, centre_xy_m, spread_m: float, autopilot: str | None = None,
                k: int = ORBIT_BURSTS, p: float = ORBIT_P) -> OrbitLook:
     """The orbit look at ``centre_xy_m`` for a person known to ``spread_m`` (1-sigma) [m]: long
     enough to catch ``k`` bursts with probability ``p``, or under elicitation the frames the
-    required accuracy needs (:func:`elicited_dwell_s`)."""
+    required accuracy needs (:func:`elicited_dwell_s`); at ``search.look_height_m`` (the radius and
+    dwell are those of that height; None, the default: the survey altitude)."""
     form = ORBIT_FORM.get(autopilot or sc.fleet.autopilot, "ring")
     spread = float(min(max(spread_m, 0.0), sc.horizontal_range_m)) if math.isfinite(spread_m) else sc.horizontal_range_m
     r = orbit_radius_m(sc, spread)
@@ -272,125 +279,16 @@ def plan_orbit(sc, centre_xy_m, spread_m: float, autopilot: str | None = None,
     else:
         dwell = dwell_s(sc, mean_p_heard(sc, r, spread), k, p)
     v = orbit_speed_m_s(form, r, sc.fleet.speed_m_s)
-    return OrbitLook((float(centre_xy_m[0]), float(centre_xy_m[1])), r, dwell, v, form)
+    alt = sc.search.look_height_m  # None: the survey altitude, no descent (heights.changes_height)
+    from ..heights import changes_height
+
+    return OrbitLook((float(centre_xy_m[0]), float(centre_xy_m[1])), r, dwell, v, form,
+                     float(alt) if changes_height(sc, alt) else None)
 
 
-# -- missions -----------------------------------------------------------------------------------
+# -- missions (search/look_mission.py since issue 41; re-exported for the callers of before) ---------
 
-@dataclass(frozen=True)
-class LookMission:
-    """A look mission and, per look, the point [m] where it counts as flown (a fly-by's waypoint,
-    an orbit's entry on the circle) and the index in ``plan.items`` of the item that reaches it
-    (the waypoint, the ring's first waypoint, or the NAV_LOITER_TURNS item): a look is reported
-    when its orbit begins, and judged after the orbit's dwell (search/policy.py)."""
-
-    plan: MissionPlan
-    look_xy_m: np.ndarray  # (k, 2)
-    look_items: tuple[int, ...]
-
-    def look_seqs(self, home_at_seq0: bool) -> tuple[int, ...]:
-        """The wire seq of each look's item (ArduPilot's home is seq 0)."""
-        return tuple(i + (1 if home_at_seq0 else 0) for i in self.look_items)
-
-
-def look_mission(frame, points_xy_m, targets, orbits, *, alt_m: float, speed_m_s: float, autopilot: str,
-                 home_latlon_deg, start_xy_m=None, include_takeoff: bool = True, fence=None,
-                 home_xy_m=(0.0, 0.0)) -> LookMission:
-    """The mission for looks at ``points_xy_m`` (access points, local metres of ``frame``; points
-    after the looks, e.g. coverage passes' lanes, are flown through) with ``orbits`` (None or an
-    OrbitLook per look): takeoff (``include_takeoff``), speed, per look a
-    pass-through waypoint or the orbit in the autopilot's form, RTL. ``start_xy_m``: where the
-    vehicle is (an orbit's entry is the circle point nearest the previous point). ``fence``: the
-    scenario's geofence (``uavloc_gcs.geofence.Geofence``) or None; with one every point is moved
-    inside it, detour waypoints go around its corners (also on the way to ``home_xy_m`` before
-    the RTL), and a mission that would still leave it raises InfeasibleError."""
-    pts = np.asarray(points_xy_m, float).reshape(-1, 2)
-    if fence is not None and len(pts):
-        pts = fence.clip(pts)
-    orbits = list(orbits) if orbits is not None else [None] * len(pts)
-    items: list[MissionItem] = []
-    if include_takeoff:
-        items.append(takeoff(alt_m, *home_latlon_deg))
-    items.append(change_speed(speed_m_s))
-    xy_out, idx_out = [], []
-    prev = np.zeros(2) if start_xy_m is None else np.asarray(start_xy_m, float)[:2]
-
-    def ll(xy):
-        lat, lon = frame.to_wgs84_latlon(np.asarray(xy, float).reshape(-1, 2))[0]
-        return float(lat), float(lon)
-
-    flown = [prev.copy()]  # every point the vehicle flies through, for the fence's final check
-    ends = (prev.copy(), np.asarray(home_xy_m, float)[:2])
-
-    def around(to_xy):  # detour corners before flying to ``to_xy`` (none without a fence)
-        if fence is None:
-            return
-        for c in fence.detour(flown[-1], to_xy, ends=ends):
-            items.append(pass_through_waypoint(*ll(c), alt_m))
-            flown.append(np.asarray(c, float))
-
-    targets = tuple(targets)
-    for k, q in enumerate(pts):  # points beyond the looks (coverage passes' lanes) are fly-throughs
-        orb = orbits[k] if k < len(orbits) else None
-        if orb is not None and fence is not None and not _circle_inside(fence, orb):
-            orb = replace(orb, form="ring")  # its ring points are moved inside below
-        if orb is None:
-            around(q)
-            idx_out.append(len(items))
-            items.append(pass_through_waypoint(*ll(q), alt_m))
-            xy_out.append(q)
-            flown.append(q)
-            prev = q
-            continue
-        entry = orb.entry_xy_m(prev)
-        if fence is not None:
-            entry = fence.clip(entry)[0]
-        xy_out.append(entry)
-        around(entry)
-        if orb.form == "loiter-turns" and autopilot == "ardupilot":
-            # NAV_LOITER_TURNS: turns, (heading-required), radius (positive: clockwise), xtrack;
-            # ArduCopter joins the circle at its point nearest to where it comes from (measured)
-            idx_out.append(len(items))
-            items.append(MissionItem(NAV_LOITER_TURNS, FRAME_GLOBAL_RELATIVE_ALT,
-                                     (float(orb.turns), 0.0, float(orb.radius_m), 0.0), *ll(orb.centre_xy_m), alt_m))
-            flown.append(entry)
-        else:
-            ring = orb.ring_xy_m(entry)
-            if fence is not None:
-                ring = fence.clip(ring)
-            items.append(pass_through_waypoint(*ll(ring[0]), alt_m))  # to the entry at cruise speed
-            idx_out.append(len(items) - 1)
-            flown.append(np.asarray(ring[0], float))
-            slow = orb.speed_m_s < speed_m_s - 0.5
-            if slow:
-                items.append(change_speed(orb.speed_m_s))
-            for r in ring[1:]:
-                around(r)
-                items.append(pass_through_waypoint(*ll(r), alt_m))
-                flown.append(np.asarray(r, float))
-            if slow:
-                items.append(change_speed(speed_m_s))
-        prev = entry
-    around(np.asarray(home_xy_m, float)[:2])  # RTL flies straight home from the last point
-    if fence is not None:
-        flown.append(np.asarray(home_xy_m, float)[:2])
-        bad = fence.outside_legs(np.asarray(flown), ends=ends)
-        if bad:
-            k = bad[0]
-            raise InfeasibleError(
-                f"the look mission would leave the geofence between ({flown[k][0]:.0f}, {flown[k][1]:.0f}) m and "
-                f"({flown[k + 1][0]:.0f}, {flown[k + 1][1]:.0f}) m (east, north of the launch point); not flown")
-    items.append(return_to_launch())
-    plan = MissionPlan(tuple(items), float(home_latlon_deg[0]), float(home_latlon_deg[1]), autopilot=autopilot,
-                       cruise_speed_m_s=speed_m_s, hover_speed_m_s=5.0)
-    return LookMission(plan, np.asarray(xy_out, float).reshape(-1, 2), tuple(idx_out))
-
-
-def _circle_inside(fence, orb) -> bool:
-    """Whether the orbit's circle lies inside the fence's margin (its centre was clipped for it)."""
-    from shapely.geometry import Point
-
-    return bool(fence.inner(0.0).buffer(0.5).covers(Point(orb.centre_xy_m).buffer(orb.radius_m, 16)))
+from .look_mission import LookMission, look_mission  # noqa: E402,F401
 
 
 def orbits_for(policy, vehicle_id, targets) -> tuple:
@@ -463,6 +361,8 @@ def orbit_targets(policy, t_s: float, targets: list) -> list:
     policy (``policy._orbits``: person -> OrbitLook centred at ``t_s``, ``policy._orbit_vel``)."""
     from dataclasses import replace as _replace
 
+    from ..heights import vertical_energy_j, vertical_s
+
     if not _uses_orbits(policy):
         return targets
     sc = policy.scenario
@@ -498,9 +398,14 @@ def orbit_targets(policy, t_s: float, targets: list) -> list:
             orb = _replace(orb, centre_xy_m=(float(c[0]), float(c[1])))
             orbits[eid] = orb
             svc = orb.flown_s
+        # a look below the survey altitude: its descent and climb back in time and energy (both 0
+        # at the survey altitude, so the looks of before are served as before)
+        v_s, v_j = vertical_s(sc, orb.alt_m), vertical_energy_j(sc, orb.alt_m)
         planned[eid], vels[eid] = orb, tuple(t.velocity_m_s)
         out.append(_replace(t, xy_m=np.asarray(orb.centre_xy_m, float), radius_m=orb.radius_m,
-                            service_s=svc, service_energy_j=float(pw.power_w(orb.speed_m_s)) * svc))
+                            service_s=svc + v_s if v_s else svc,
+                            service_energy_j=float(pw.power_w(orb.speed_m_s)) * svc + v_j if v_j
+                            else float(pw.power_w(orb.speed_m_s)) * svc))
     return out
 
 

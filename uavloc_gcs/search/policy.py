@@ -303,10 +303,11 @@ class SearchPolicy:
     # -- data in ---------------------------------------------------------------------------
     def ingest(self, slots: SlotBatch) -> None:
         """Store new slots (any vehicles, any emitters); those heard low (taking off, landing, on
-        the ground) are left out (``estimation.model.survey_slots``)."""
-        from ..estimation import survey_slots
+        the ground: below heights.airborne_floor_m, each slot by its own height) are left out."""
+        from ..estimation import airborne_slots
+        from ..heights import airborne_floor_m
 
-        slots = survey_slots(slots, self.scenario.fleet.altitude_m, self.scenario.dem)
+        slots = airborne_slots(slots, airborne_floor_m(self.scenario), self.scenario.dem)
         if len(slots) == 0:
             return
         if self._raw or np.any(slots.fingerprint != 0):
@@ -372,18 +373,18 @@ class SearchPolicy:
 
     def ingest_track(self, vehicle: int, t_s, xyz_m) -> None:
         """Record where ``vehicle`` listened: slot times (N,) [s] and positions (N, 3) [m, z = height
-        above the people]; kept every TRACK_STEP_SLOTS-th slot. A phone not heard there is evidence
+        above the people]; kept every TRACK_STEP_SLOTS-th slot, each at its own height (those below
+        heights.airborne_floor_m, as in ingest, are not). A phone not heard there is evidence
         that it was out of range (estimate_emitter's ``silence``)."""
-        from ..estimation.model import MIN_ALTITUDE_FRACTION
+        from ..heights import airborne, airborne_floor_m
 
         t = np.asarray(t_s, float).reshape(-1)
         if len(t) == 0:
             return
         xyz = np.asarray(xyz_m, float).reshape(-1, 3)
-        dem = self.scenario.dem  # over terrain: the height above the ground under the vehicle
-        agl = xyz[:, 2] if dem is None else xyz[:, 2] - dem.height_xy(xyz[:, :2], clamp=True) + dem.height_at(0, 0)
-        k = (np.round(t / self.scenario.channel.slot_s).astype(np.int64) % TRACK_STEP_SLOTS == 0) & (
-            agl >= MIN_ALTITUDE_FRACTION * self.scenario.fleet.altitude_m)  # as in ingest
+        # over terrain: the height above the ground under the vehicle
+        k = (np.round(t / self.scenario.channel.slot_s).astype(np.int64) % TRACK_STEP_SLOTS == 0) & airborne(
+            xyz, airborne_floor_m(self.scenario), self.scenario.dem)
         xyz = xyz[k]
         if not len(xyz):
             return
@@ -405,11 +406,12 @@ class SearchPolicy:
         """Record one telemetry position of ``vehicle`` [s; m, z = height above the people], where it
         listened: under a receiver threshold, the censored silences of the bursts it did not hear
         (``_censored``) need where every vehicle was when a burst was heard, which the slots heard
-        (sparse: a few bursts a minute) do not say. Kept as they come, none dropped."""
-        from ..estimation.model import MIN_ALTITUDE_FRACTION
+        (sparse: a few bursts a minute) do not say. Kept as they come, at their height, none dropped
+        but those below heights.airborne_floor_m (over a DEM, above the ground under the vehicle)."""
+        from ..heights import airborne, airborne_floor_m
 
         xyz = np.asarray(xyz_m, float).reshape(1, 3)
-        if xyz[0, 2] < MIN_ALTITUDE_FRACTION * self.scenario.fleet.altitude_m:
+        if not airborne(xyz, airborne_floor_m(self.scenario), self.scenario.dem)[0]:
             return
         self._tracks.setdefault(int(vehicle), []).append((np.array([float(t_s)]), xyz))
 

@@ -19,6 +19,7 @@ import numpy as np
 from .. import geofence
 from ..errors import InfeasibleError, LinkError
 from ..estimation.identity import person_name
+from ..heights import look_floor_m
 from ..mission import NAV_WAYPOINT, flight_mission, to_wire
 from ..search.orbit import look_mission, orbits_for
 from ..terrain_missions import point_seqs, terrain_safe
@@ -337,7 +338,13 @@ class VehicleCommands:
                     looks = look_mission(self.frame, pts, targets, orbits or None, alt_m=f.altitude_m,
                                          speed_m_s=f.speed_m_s, autopilot=f.autopilot,
                                          home_latlon_deg=self.sc.launch_latlon_deg,
-                                         start_xy_m=v.agent.position_xy_m(), include_takeoff=on_ground, fence=fence)
+                                         start_xy_m=v.agent.position_xy_m(), include_takeoff=on_ground, fence=fence,
+                                         floor_m=look_floor_m(self.sc),
+                                         # a vehicle low in a look at its own height goes on with it
+                                         # (look_mission's CONTINUE_*); with no look height asked,
+                                         # the missions of before
+                                         start_alt_m=None if self.sc.search.look_height_m is None
+                                         else v.agent.tel.rel_alt_m)
                 except InfeasibleError as exc:
                     self._event("hold", f"vehicle {v.id}: look not flown: {exc}", v.id)
                     return

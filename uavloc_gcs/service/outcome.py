@@ -85,7 +85,8 @@ def final_results(statuses, slots, scenario, frame: LocalFrame, linking=None, *,
     the people are the linked addresses, so their slots are the linked ones, and each result names
     the addresses it was heard under and why their link is uncertain. ``refit=False`` reports the
     policy's beliefs as they are (a stopped search: its results must not wait for fits)."""
-    from ..estimation import ChannelModel, survey_slots  # noqa: PLC0415
+    from ..estimation import ChannelModel, airborne_slots  # noqa: PLC0415
+    from ..heights import airborne_floor_m  # noqa: PLC0415
 
     channel = ChannelModel.from_scenario(scenario)
     if linking is not None:
@@ -93,7 +94,7 @@ def final_results(statuses, slots, scenario, frame: LocalFrame, linking=None, *,
         out = final_results(statuses, slots, scenario, frame, refit=refit)
         return [dataclasses.replace(r, addresses=tuple(linking.addresses(r.emitter_id)),
                                     link_reason=linking.uncertain(r.emitter_id) or "") for r in out]
-    slots = survey_slots(slots, scenario.fleet.altitude_m, scenario.dem)  # what the policy estimated from
+    slots = airborne_slots(slots, airborne_floor_m(scenario), scenario.dem)  # what the policy estimated from
     required = scenario.people.required_accuracy_m
     vmax = scenario.people.max_speed_m_s
     out = []

@@ -127,6 +127,45 @@ def test_an_orbit_is_flown_at_its_speed_and_charged_at_its_power(small):
     assert math.hypot(mid[0], mid[1] - 300.0) == pytest.approx(100.0, rel=0.01)
 
 
+def test_a_look_at_its_own_height_is_flown_there_with_its_descent_and_climb_charged(small):
+    """An orbit with alt_m (issue 41 item 2): the vehicle goes down at the entry, flies the circle at
+    that height (the slots it hears are placed there), climbs back; the vertical legs take their
+    time at the terrain's rates and the climb costs W dh on top of hovering."""
+    from types import SimpleNamespace
+
+    from sim_link.experiments.missionsim import _orbit_path
+    from uavloc_gcs.search.orbit import OrbitLook
+
+    cruise, survey = small.fleet.speed_m_s, small.fleet.altitude_m
+    low = 30.0
+    orb = OrbitLook((0.0, 300.0), 100.0, 120.0, 8.0, alt_m=low)
+    flat = OrbitLook((0.0, 300.0), 100.0, 120.0, 8.0)
+    task = SimpleNamespace(waypoints_xy_m=np.array([[0.0, 200.0], [0.0, 0.0]]), orbits=(orb,))
+    path, speeds, heights = _orbit_path(task, np.zeros(2), cruise, survey)
+    assert heights[0] == survey and heights[-1] == survey and np.min(heights) == low
+    v, w = Vehicle(1, small), Vehicle(2, small)
+    v.fly(path, 0.0, speeds, heights)
+    p2, s2, _ = _orbit_path(SimpleNamespace(waypoints_xy_m=task.waypoints_xy_m, orbits=(flat,)), np.zeros(2), cruise, survey)
+    w.fly(p2, 0.0, s2)
+    dh = survey - low
+    vert = dh / small.terrain.max_descent_m_s + dh / small.terrain.max_climb_m_s
+    assert v.flight.end_t_s == pytest.approx(w.flight.end_t_s + vert, rel=1e-9)
+    mid = 200.0 / cruise + dh / small.terrain.max_descent_m_s + 0.5 * orb.flown_s
+    assert float(v.flight.height(mid, survey)) == pytest.approx(low)
+    assert float(v.flight.height(1.0, survey)) == pytest.approx(survey)
+    t_end = v.flight.end_t_s
+    v.account(t_end)
+    w.account(w.flight.end_t_s)
+    pw = small.power_model
+    assert v.energy_j == pytest.approx(w.energy_j + pw.hover_power_w() * vert + pw.weight_n * dh, rel=1e-6)
+    # replanned in the middle of the low circle onto a path of its own: it climbs back first
+    v2 = Vehicle(3, small)
+    v2.fly(path, 0.0, speeds, heights)
+    v2.fly(np.vstack([v2.flight.position(mid).reshape(1, 2), np.zeros((1, 2))]), mid)
+    assert float(v2.flight.height(mid + 1.0, survey)) < survey
+    assert float(v2.flight.height(mid + dh / small.terrain.max_climb_m_s + 1.0, survey)) == pytest.approx(survey)
+
+
 def test_a_scan_alone_flies_home_after_it_and_plans_no_look(small):
     """adaptive=False (the conventional search of `uavloc bench field`): no replans, every vehicle
     home after its scan, the people what the scan's data gives; the adaptive mission on the same
