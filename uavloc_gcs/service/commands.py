@@ -84,8 +84,8 @@ class VehicleCommands:
         if v.unusable:
             return
         v.unusable = str(err)
-        if v.agent is not None and v.agent.on_ground() and not v.agent.tel.armed:
-            v.home = True  # it never left, or is back: reported as home
+        if v.agent is not None and v.agent.landed():
+            v.home = True  # it never left, or is back (on the ground and disarmed): reported as home
         v.phase = "unusable"
         where = "it flies its current mission, which ends in RTL" if v.airborne else "it stays where it is"
         self._event("unusable", f"vehicle {v.id} cannot be commanded ({err}); {where}; its people go to the others",
@@ -377,7 +377,7 @@ class VehicleCommands:
         # Read now, not assumed: a start whose ACKs were lost lasts as long as a short look, and the
         # vehicle may have flown it and landed meanwhile (tests/test_e2e_vehicle_faults.py's store:
         # vehicle 1 on the ground, disarmed, "not home", and the search waited for a replan).
-        if a.on_ground() and not a.tel.armed:
+        if a.landed():
             v.home, v.phase = True, "landed"
         else:
             v.home = False
@@ -386,9 +386,14 @@ class VehicleCommands:
         self._report_vehicle_looks(v, self.now_s())  # its passed looks, before they are forgotten
         v.purpose, v.targets, v.look_xy_m = "home", (), None
         a = v.agent
-        if a.on_ground():
+        if a.landed():
             v.home, v.phase = True, "landed"
             return
-        await self._persist(v, "return home", a.return_home, lambda: a.tel.mode in HOMING_MODES or a.on_ground())
+        if a.on_ground():
+            # armed, low and slow: landing, or down and not yet disarmed -- it disarms by itself, and
+            # an RTL sent now could make it climb again; "home" once it reports itself disarmed
+            self._returning(v)
+            return
+        await self._persist(v, "return home", a.return_home, lambda: a.tel.mode in HOMING_MODES or a.landed())
         self._returning(v)
         self._event("home", f"vehicle {v.id} has nothing left to look at: returning home", v.id)

@@ -266,13 +266,13 @@ class FleetPreparation:
                 purpose, items = previous
                 if same_stored_mission(on_board, items, v.agent.flavour):
                     f = read_life_facts(v.agent)  # read now, after the download's awaits
-                    if purpose == "scan" and not f.armed and f.on_ground:
+                    if purpose == "scan" and f.landed:
                         if await self._resume_landed_scan(v, items, f):
                             to_start.append(v)
                         return
                     self._adopt(v, purpose, items)
                     v.scan_done = purpose != "scan"
-                    if not f.armed and f.on_ground:
+                    if f.landed:
                         v.home, v.phase = True, "landed"
                         self._event("resume", f"vehicle {v.id} is on the ground, disarmed, with its {purpose} "
                                     f"mission on board (item {f.mission_seq}): home", v.id)

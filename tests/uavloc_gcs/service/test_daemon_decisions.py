@@ -26,6 +26,9 @@ class _Agent:
     def on_ground(self):
         return False
 
+    def landed(self):  # on the ground and disarmed, by the vehicle's own word (VehicleAgent.landed)
+        return self.on_ground() and not self.tel.armed
+
     async def upload(self, items):
         self.uploads.append(items)
 
@@ -272,11 +275,12 @@ class _LandingAgent(_Agent):
         return self.tel.mode == "AUTO"
 
 
-def test_a_vehicle_judged_landed_that_climbs_again_in_rtl_is_returning_not_home(tmp_path):
+def test_a_vehicle_low_and_armed_that_climbs_again_in_rtl_is_returning_not_home(tmp_path):
     """Under 20 % loss a retried RTL reached a fake vehicle 1.2 m above home, still armed: the
     daemon took it for landed, the vehicle climbed back, and the search ended with it "not
-    confirmed returning home" after waiting the whole landing allowance. Airborne again in a
-    homing mode, it is returning."""
+    confirmed returning home" after waiting the whole landing allowance. Since issue 42 a vehicle
+    low, slow and armed is not landed at all (only its own "disarmed" is): it stays returning
+    while it climbs again, and is home once it says it is down and disarmed."""
     d, _policy = _daemon(tmp_path)
     try:
         v = d.vehicles[1]
@@ -285,16 +289,17 @@ def test_a_vehicle_judged_landed_that_climbs_again_in_rtl_is_returning_not_home(
         d._returning(v)
         v.agent.ground = True  # 1.2 m, armed, slow
         d._update_phase(v)
-        assert v.home and v.phase == "landed"
+        assert not v.home and v.phase == "returning"
         v.agent.ground = False  # climbing again in RTL
         d._update_phase(v)
         assert not v.home and v.phase == "returning"
-        d.store.flush()
-        with StoreReader(tmp_path / "s.sqlite") as rd:
-            assert [e.text for e in rd.events("home")] == ["vehicle 1 is airborne again in RTL: returning home"]
         v.agent.tel.armed, v.agent.ground = False, True  # down and disarmed
         d._update_phase(v)
         assert v.home and v.phase == "landed"
+        d.store.flush()
+        with StoreReader(tmp_path / "s.sqlite") as rd:
+            assert [e.text for e in rd.events("landed")] == ["vehicle 1 landed (on the ground and disarmed)"]
+            assert rd.events("home") == []
     finally:
         d.store.close()
 
