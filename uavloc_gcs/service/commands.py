@@ -49,13 +49,21 @@ class VehicleCommands:
             a = v.agent
             if a is None or not math.isfinite(a.tel.rel_alt_m):
                 return f"vehicle {v.id}: never heard; nothing sent"
-            if a.on_ground():
-                return f"vehicle {v.id}: on the ground"
             mission = (f"its {v.purpose or 'current'} mission (item {a.tel.mission_seq} of {len(v.mission)}), "
                        "which ends in RTL")
             if v.lost:
-                return f"vehicle {v.id}: airborne, out of contact; it flies {mission}, or its link-loss failsafe acts"
+                lh = v.last_heard or self._last_heard(v)
+                if not lh.airborne:
+                    return f"vehicle {v.id}: out of contact, last heard on the ground and disarmed at {lh.when()}"
+                return (f"vehicle {v.id}: LOST IN THE AIR, last heard at {lh.when()}, {lh.where()}; it flies {mission}, "
+                        "or its link-loss failsafe acts")
+            if a.landed():
+                return f"vehicle {v.id}: on the ground, disarmed"
+            if a.on_ground():  # armed, low and slow: landing, or down and not yet disarmed
+                return (f"vehicle {v.id}: armed {a.tel.rel_alt_m:.1f} m above home in {a.tel.mode}, not yet on the "
+                        "ground and disarmed; nothing sent (it disarms by itself once down)")
             if a.tel.mode in HOMING_MODES:
+                self._returning(v)
                 return f"vehicle {v.id}: airborne, already returning home ({a.tel.mode})"
             if not rtl:
                 return f"vehicle {v.id}: airborne, continues {mission} (on_stop = \"continue\")"
@@ -65,15 +73,18 @@ class VehicleCommands:
                                     heard_since=lambda t: a.tel.wall_s > t)
             except LinkError as exc:
                 return f"vehicle {v.id}: airborne; RTL not confirmed ({exc}); it flies {mission}"
+            self._returning(v)  # what the outcome says of it, too
             seen = "acknowledged" if how == "acked" else "not acknowledged but seen in RTL"
             return f"vehicle {v.id}: airborne, returning home (RTL {seen})"
 
+        async def bounded(v: _Vehicle) -> str:  # one vehicle's silence does not take the others' lines
+            try:
+                return await asyncio.wait_for(one(v), STOP_WAIT_S)
+            except TimeoutError:
+                return f"vehicle {v.id}: no answer within {STOP_WAIT_S:g} s; it flies its mission, which ends in RTL"
+
         vehicles = list(self.vehicles.values())
-        try:
-            lines = list(await asyncio.wait_for(asyncio.gather(*(one(v) for v in vehicles)), STOP_WAIT_S))
-        except TimeoutError:
-            lines = [f"vehicle {v.id}: no answer within {STOP_WAIT_S:g} s; it flies its mission, which ends in RTL"
-                     for v in vehicles]
+        lines = list(await asyncio.gather(*(bounded(v) for v in vehicles)))
         for v, line in zip(vehicles, lines):
             self._event("stop", line, v.id)
         self.store.set_meta("stopped", True)

@@ -53,6 +53,7 @@ class FleetPreparation:
                 raise UavlocError(f"the store {self.opt.store_path} holds the search '{meta.get('scenario')}', "
                                   f"not '{self.sc.name}'; use another --store or --fresh")
             self.epoch_unix_s = float(meta["epoch_unix_s"])
+            self._clock_anchors = [tuple(a) for a in meta.get("clock_anchors") or []]  # the clock map so far
             slots = rd.slots()
             missions = rd.latest_missions()
             self._seq_before_crash = rd.last_mission_seq()

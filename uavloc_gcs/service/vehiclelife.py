@@ -143,6 +143,7 @@ class VehicleLife:
     start_failed: str = ""  # why its scan could not be started ("": it was, or was never tried)
     scan_reached_seq: int = 0  # the furthest scan item seen current while it flew its scan
     landed_mid_scan: bool = False  # it landed by itself before its scan's hold: the rest is unflown
+    last_heard: object = None  # service.lost.LastHeard: what it said last, while it is lost
 
     @property
     def phase(self) -> str:
