@@ -342,7 +342,9 @@ class VehicleCommands:
             plan = flight_mission(latlon.tolist(), alt_m=f.altitude_m, speed_m_s=f.speed_m_s, autopilot=f.autopilot,
                                   home_latlon_deg=self.sc.launch_latlon_deg, include_takeoff=on_ground)
             orbits = orbits_for(self.policy, v.id, targets) if self.sc.dem is None else ()
-            fence = geofence.for_scenario(self.sc)
+            # the scenario's fence, else the area plus area.default_geofence_m (issue 42: without a
+            # fence, looks left the area by up to 111 m)
+            fence = geofence.flight_fence(self.sc)
             if any(o is not None for o in orbits) or fence is not None:  # orbits (search/orbit.py), a fence
                 try:
                     looks = look_mission(self.frame, pts, targets, orbits or None, alt_m=f.altitude_m,

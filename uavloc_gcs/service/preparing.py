@@ -247,6 +247,9 @@ class FleetPreparation:
             self._event("plan", f"scan planned for POD {pp.target:g}: {c.spacing_m:.0f} m lanes at {c.speed_m_s:g} m/s, "
                         f"{c.passes} pass{'es' if c.passes > 1 else ''}, POD {pp.grid.overall(1):.2f} for one heard burst "
                         f"and {pp.grid.overall(2):.2f} for two" + ("" if pp.met else " (best the energy allows)"))
+        from .. import geofence  # noqa: PLC0415
+
+        self._event("plan", geofence.describe(self.sc, plan))  # the fence the looks and passes stay inside
         longest = max((p.duration_s for p in plan.vehicles), default=0.0)
         # at least HOLD_WALL_S of the daemon's own time, whatever the clock rate (a simulator speed-up)
         hold_s = max(self.opt.scan_hold_s, HOLD_WALL_S * self._rate.rate)

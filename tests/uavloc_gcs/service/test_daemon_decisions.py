@@ -496,3 +496,29 @@ def test_a_new_mission_item_is_stored_at_once_whatever_the_position_rate(tmp_pat
         assert seqs == [5, 6]  # the position row, then the item as it changed; the next position waits
     finally:
         d.store.close()
+
+
+def test_without_a_geofence_looks_stay_inside_the_area_plus_the_stated_margin(tmp_path):
+    """Issue 42 item 5: with no geofence in the scenario, looks left the field world's area by up to
+    111 m (the policy keeps look points within the area grown by the hearing range). The area plus
+    area.default_geofence_m is the fence now: a look planned 100 m north of the area is flown at
+    most default_geofence_m - geofence_margin_m beyond it, and the daemon's log says which fence."""
+    from shapely.geometry import Point, Polygon
+
+    from uavloc_gcs import geofence
+
+    d, _policy = _daemon(tmp_path)
+    sc = d.sc
+    area = Polygon(sc.area_xy_m())
+    north = float(np.max(sc.area_xy_m()[:, 1]))
+    try:
+        v = d.vehicles[1]
+        asyncio.run(d._upload_look(v, np.array([[200.0, north + 100.0]]), (7,)))
+        items = v.agent.uploads[-1]
+        pts = [d.frame.to_local(it.x / 1e7, it.y / 1e7) for it in items if it.command == 16 and it.x]
+        beyond = max(area.distance(Point(float(e), float(n))) for e, n in pts)
+        allowed = sc.area.default_geofence_m - sc.area.geofence_margin_m
+        assert 0.0 < beyond <= allowed + 0.5, (beyond, pts)
+        assert "No geofence given: the search area plus 50 m" in geofence.describe(sc)
+    finally:
+        d.store.close()
