@@ -133,3 +133,58 @@ def test_px4_flies_as_the_system_id_asked_for_whatever_its_instance(sitl):
     hb, ack = harness.run(ask(), 90)
     assert hb.autopilot == mavlink.MAV_AUTOPILOT_PX4
     assert ack is not None and ack.result == mavlink.MAV_RESULT_ACCEPTED, ack
+
+
+def test_keep_flying_keeps_the_other_vehicle_when_one_autopilot_dies(tmp_path):
+    """Issue 42 item 6: ``uavloc sitl`` stopped every vehicle when one SITL process died, so losing
+    one could not be rehearsed. With --keep-flying it says so in one sentence and the other flies on.
+    (No flight here: the daemon's side of a vehicle lost in the air is tests/test_e2e_coverage.py's.)"""
+    require("ardupilot")
+    scenario = _scenario(tmp_path, "ardupilot", 2, "paper")
+    mission = tmp_path / "mission.toml"
+    env = {**os.environ, "PYTHONPATH": str(dr.ROOT) + os.pathsep + os.environ.get("PYTHONPATH", "")}
+    log = open(tmp_path / "uavloc-sitl.txt", "w")
+    proc = subprocess.Popen([sys.executable, "-m", "uavloc_gcs", "sitl", str(scenario), "-n", "2", "--autopilot",
+                             "ardupilot", "--sitl-dir", str(harness.arducopter_binary()), "--speedup",
+                             str(harness.ARDUPILOT_SPEEDUP), "--home-alt", str(harness.HOME[2]), "--out", str(mission),
+                             "--keep-flying", "--no-companion"],
+                            cwd=dr.ROOT, env=env, stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
+    out = lambda: (tmp_path / "uavloc-sitl.txt").read_text()  # noqa: E731
+    try:
+        end = time.monotonic() + READY_WALL_S
+        while not mission.exists() and proc.poll() is None and time.monotonic() < end:
+            time.sleep(1.0)
+        assert mission.exists(), f"uavloc sitl wrote no mission file (exit {proc.poll()}):\n{out()}"
+        workdirs = re.findall(r"work dir (\S+)", out())
+        assert len(workdirs) == 2, out()
+        victims = _processes_in([workdirs[1]])
+        assert victims, out()
+        for pid in victims:  # vehicle 2's autopilot dies
+            os.kill(pid, signal.SIGKILL)
+        end = time.monotonic() + 30.0
+        while "keep flying" not in out() and proc.poll() is None and time.monotonic() < end:
+            time.sleep(0.5)
+        said = [line for line in out().splitlines() if "keep flying" in line]
+        assert len(said) == 1 and said[0].startswith("uavloc sitl: vehicle 2 (ardupilot instance ") and \
+            "vehicle(s) 1 keep flying (--keep-flying)" in said[0], out()
+        time.sleep(3.0)
+        assert proc.poll() is None, f"uavloc sitl ended when one vehicle died:\n{out()}"
+        assert _processes_in([workdirs[0]]), "vehicle 1's autopilot was stopped too"
+        sc = load_scenario(mission)
+        from uavloc_gcs.link import open_link
+
+        async def heartbeat():
+            async with await open_link(sc.link.connections[0], source_system=245) as link:
+                return await link.wait_heartbeat(1, timeout_s=30)
+        assert harness.run(heartbeat(), 60) is not None  # vehicle 1 still talks
+    finally:
+        if proc.poll() is None:
+            proc.send_signal(signal.SIGTERM)
+        try:
+            code = proc.wait(30)
+        except subprocess.TimeoutExpired:
+            os.killpg(proc.pid, signal.SIGKILL)
+            code = proc.wait(10)
+        log.close()
+    assert code == 0 and "stopped 2 vehicle(s)" in out(), out()
+    assert _processes_in(workdirs) == [], "an autopilot outlived uavloc sitl"
