@@ -162,8 +162,8 @@ def run_daemon(config: Path, out: Path, timeout_s: float = 900.0, extra: tuple =
     wall = time.monotonic() - t0
     people = []
     if (out / "people.csv").exists():
-        with open(out / "people.csv", newline="") as f:
-            people = list(csv.DictReader(f))
+        with open(out / "people.csv", newline="") as f:  # after its '#' lines: a vehicle lost in the air
+            people = list(csv.DictReader(line for line in f if not line.startswith("#")))
     return SearchRun(proc.returncode, proc.stdout + proc.stderr, wall, people, out)
 
 
