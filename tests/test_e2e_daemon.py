@@ -2,14 +2,19 @@
 flavours), and with signing on ignores an intruder's unsigned RSSI and mission messages."""
 
 import asyncio
+import csv
 import socket
+import time
+from datetime import datetime, timezone
 
 import numpy as np
 import pytest
 
+from tests.claims import false_claims
 from tests.e2e_helpers import small_scenario, truth_errors_m, world_ids
 from uavloc_gcs.cli._fleet import start_fleet_process
 from uavloc_gcs.dialect import mavlink
+from uavloc_gcs.service.commands import LOOK_UPLOAD_TRIES
 from uavloc_gcs.service.daemon import DaemonOptions
 from uavloc_gcs.service.run import run_search
 from uavloc_gcs.service.store import StoreReader
@@ -68,16 +73,34 @@ def check_everyone_found(sc, result):
 
 @pytest.mark.parametrize("autopilot", ["ardupilot", "px4"])
 def test_search_finds_everyone_and_brings_the_fleet_home(tmp_path, autopilot):
+    started = time.time()
     sc, result = run_e2e(tmp_path, autopilot)
+    # "landed" and "All vehicles are home" only of vehicles that said they were down and disarmed
+    assert false_claims(tmp_path) == []
     check_everyone_found(sc, result)
+    # times in UTC are when it happened (issue 42 item 7): the fakes' clock runs 25x, and read as UTC
+    # the positions came out minutes after the file that holds them was written
+    written = (tmp_path / "people.csv").stat().st_mtime
+    for row in csv.DictReader((tmp_path / "people.csv").open()):
+        if row["time_utc"]:
+            when = datetime.strptime(row["time_utc"], "%Y-%m-%dT%H:%M:%S.%fZ").replace(tzinfo=timezone.utc).timestamp()
+            assert started - 1.0 <= when <= written + 1.0, (row["label"], row["time_utc"], started, written)
+    assert "Times: UTC by this computer's clock" in (tmp_path / "results.txt").read_text()
     names = sorted(p.name for p in tmp_path.iterdir())
     for f in ("people.csv", "people.geojson", "people.kml", "result.png", "search.sqlite", "uav1.tlog", "uav2.tlog"):
         assert f in names
     with StoreReader(tmp_path / "search.sqlite") as rd:
         counts = rd.counts()
         looks = [e for e in rd.events("upload") if "look mission" in e.text]
+        per_vehicle = {vid: plans for vid, plans, _up, _sk in rd.meta()["uploads"]}
     assert counts["telemetry"] > 50 and counts["slots"] > 500
-    assert len(looks) <= 2 * counts["plans"], "every look mission comes from a plan"
+    # every look mission comes from a plan for that vehicle: one upload, and a second with a take-off
+    # when the vehicle landed meanwhile (commands.LOOK_UPLOAD_TRIES). (The bound was 2 x all plans
+    # for both vehicles together, which a search with both vehicles landing during uploads exceeded.)
+    for vid, plans in per_vehicle.items():
+        mine = [e for e in looks if e.vehicle == vid]
+        assert len(mine) <= LOOK_UPLOAD_TRIES * plans, f"vehicle {vid}: {len(mine)} look missions for {plans} plans"
+    assert "All vehicles are home" in result.outcome.statement or result.outcome.vehicles_returning
 
 
 BOGUS_EMITTER = 4_000_000_001

@@ -2,8 +2,12 @@
 
 A scenario may give an inclusion polygon (``area.geofence_deg`` or ``area.geofence_file``: a
 GeoJSON polygon or the inclusion polygon of a QGroundControl ``.plan``), for instance the airspace
-a team was cleared to fly in. Without one, looks stay within the search area grown by the stated
-hearing-range margin (``search.policy.LOOK_AREA_MARGIN``); with one, also inside the fence.
+a team was cleared to fly in. Without one, the search area grown by ``area.default_geofence_m``
+(50 m unless the scenario says otherwise; with the way to it from a launch point beside it) is the
+fence the daemon's looks and passes stay inside (:func:`flight_fence`; issue 42: with no fence, looks
+left the field world's area by up to 111 m), and ``uavloc plan``, its preview and the daemon's log
+say so (:func:`describe`). The policy itself keeps its look points within the area grown by the
+hearing-range margin (``search.policy.LOOK_AREA_MARGIN``), the scan inside the area.
 
 What "inside" means here:
 
@@ -31,7 +35,7 @@ import numpy as np
 
 from .errors import InfeasibleError
 
-__all__ = ["Geofence", "for_scenario"]
+__all__ = ["Geofence", "default_for", "describe", "flight_fence", "for_scenario", "scan_beyond_m"]
 
 _TOL_M = 0.5  # numerical room when testing a leg against a polygon
 
@@ -278,3 +282,77 @@ def for_scenario(sc) -> Geofence | None:
             xy = xy[::-1].copy()
         g = _FENCES[key] = Geofence(xy, float(sc.area.geofence_margin_m))
     return g
+
+
+def default_for(sc) -> Geofence:
+    """The fence of a scenario that gives none: its search area grown by ``area.default_geofence_m``,
+    joined (when the launch point lies beyond that) by the way from the launch point to the area,
+    as wide; the scenario's ``area.geofence_margin_m`` is kept inside it like any fence's."""
+    from shapely.geometry import LineString, Point, Polygon
+    from shapely.ops import nearest_points
+
+    grow, margin = float(sc.area.default_geofence_m), float(sc.area.geofence_margin_m)
+    key = ("default", tuple(map(tuple, np.round(sc.area_xy_m(), 3))), tuple(sc.launch_latlon_deg), grow, margin)
+    g = _FENCES.get(key)
+    if g is None:
+        area = Polygon(sc.area_xy_m())
+        # round corners: the points kept ``margin`` inside are then at most grow - margin from the
+        # area at its corners too (a mitred corner put a look 28 m beyond a 20 m promise)
+        poly = area.buffer(grow, quad_segs=4)
+        launch = Point(0.0, 0.0)
+        if not poly.buffer(-margin).covers(launch):  # a launch beside the area: the way there is in it
+            near = nearest_points(area, launch)[0]
+            poly = poly.union(LineString([(0.0, 0.0), (near.x, near.y)]).buffer(grow, quad_segs=4))
+        poly = poly.simplify(0.5)
+        xy = np.asarray(poly.exterior.coords, float)[:-1]
+        x, y = xy[:, 0], xy[:, 1]
+        if np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y) < 0:
+            xy = xy[::-1].copy()
+        g = _FENCES[key] = Geofence(xy, margin)
+    return g
+
+
+def flight_fence(sc) -> Geofence:
+    """The fence the daemon's flights stay inside: the scenario's geofence, else :func:`default_for`."""
+    return for_scenario(sc) or default_for(sc)
+
+
+def describe(sc, scan=None) -> str:
+    """One sentence for the operator: which fence the flights stay inside. ``scan``: the planned
+    scan (scan.ScanPlan); without a geofence its lane ends and turns, planned to cover the area's
+    edges, are not clipped to the default fence, and a second sentence says how far they reach."""
+    margin = float(sc.area.geofence_margin_m)
+    if for_scenario(sc) is not None:
+        return f"Every flight stays inside the scenario's geofence (points {margin:g} m inside it)."
+    grow = float(sc.area.default_geofence_m)
+    from shapely.geometry import Point, Polygon
+
+    way = Polygon(sc.area_xy_m()).distance(Point(0.0, 0.0))
+    via = (f" with the way from the launch point ({way:.0f} m from the area), as wide," if way > grow - margin
+           else "")
+    text = (f"No geofence given: the search area plus {grow:g} m (area.default_geofence_m){via} is the fence; every "
+            f"look and pass stays inside it (points {margin:g} m inside, so at most {grow - margin:g} m beyond the "
+            f"area{' or that way' if via else ''}).")
+    beyond = scan_beyond_m(sc, scan) if scan is not None else 0.0
+    if beyond > grow - margin + _TOL_M:
+        text += (f" The scan's lane ends and turns, planned to cover the area's edges, reach up to {beyond:.0f} m "
+                 "beyond the area (give area.geofence_deg to keep the scan inside a fence too).")
+    return text
+
+
+def scan_beyond_m(sc, scan) -> float:
+    """How far [m] the planned ``scan``'s routes (from and back to the launch point excluded: that
+    way is in :func:`default_for`'s fence) reach beyond the search area."""
+    import shapely
+    from shapely.geometry import LineString, Polygon
+
+    area = Polygon(sc.area_xy_m())
+    worst = 0.0
+    for v in scan.vehicles:
+        wps = np.asarray(v.waypoints_xy_m, float).reshape(-1, 2)
+        if len(wps) < 2:
+            continue
+        line = LineString(wps)
+        pts = shapely.line_interpolate_point(line, np.append(np.arange(0.0, line.length, 2.0), line.length))
+        worst = max(worst, float(np.max(shapely.distance(area, pts))))
+    return worst

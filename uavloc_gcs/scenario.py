@@ -68,6 +68,10 @@ class AreaSpec:
     geofence_deg: list | None = None
     geofence_file: str | None = None
     geofence_margin_m: float = 30.0
+    # Without geofence_deg / geofence_file the search area grown by this much (and the way to it from
+    # a launch point beside it) is the fence every look and pass the daemon flies stays inside
+    # (uavloc_gcs/geofence.py, default_for; issue 42: looks left the area by up to 111 m)
+    default_geofence_m: float = 50.0
 
 
 @dataclass(frozen=True)
@@ -579,6 +583,9 @@ def _resolve_geofence(sc: Scenario, area_xy: np.ndarray, base_dir: Path | None) 
     a = sc.area
     _check(math.isfinite(a.geofence_margin_m) and 0.0 <= a.geofence_margin_m <= 1000.0,
            f"must be 0-1000 m, got {a.geofence_margin_m}", sc, "area.geofence_margin_m")
+    _check(math.isfinite(a.default_geofence_m) and a.geofence_margin_m < a.default_geofence_m <= 5000.0,
+           f"must be more than area.geofence_margin_m ({a.geofence_margin_m:g} m) and at most 5000 m, got "
+           f"{a.default_geofence_m}", sc, "area.default_geofence_m")
     if a.geofence_deg is None and a.geofence_file is None:
         return dataclasses.replace(sc, geofence_latlon_deg=()) if sc.geofence_latlon_deg else sc
     _check(a.geofence_deg is None or a.geofence_file is None, "give geofence_deg or geofence_file, not both",

@@ -97,6 +97,13 @@ class Flavour:
     # ids its dialect does not know (UAVLOC_RSSI_BATCH); ArduPilot forwards them when MAVn_OPTIONS
     # bit 3 is set on the companion's port, which the fake assumes.
     forwards_unknown_ids: bool = True
+    # Landing, measured on SITL (``python -m tests.sitl.landing_measure``, issue 42): after touching
+    # down the vehicle is still armed in LANDING until its land detector says ON_GROUND
+    # (land_detect_s), then armed on the ground for disarm_after_landed_s before it disarms by
+    # itself. A ground station that says "landed" before the disarm says it of a vehicle whose
+    # motors still turn (and, on PX4, whose height wanders by +-1 m meanwhile).
+    land_detect_s: float = 0.0
+    disarm_after_landed_s: float = 0.0
 
     def custom_mode(self, mode: str) -> int:
         return self.modes[mode]
@@ -132,6 +139,9 @@ ARDUPILOT = Flavour(
     upload_restarts_leg=True, arm_refused_after_boot_s=3.0, auto_needs_takeoff_on_ground=True,
     arm_refusal=(mav.MAV_RESULT_FAILED, "Arm: Accels inconsistent"),
     default_streams=(mav.MAVLINK_MSG_ID_HEARTBEAT,),  # + HOME_POSITION, STATUSTEXT, TIMESYNC unasked
+    # ArduCopter SITL: ON_GROUND 1.7 s after touchdown (its land detector wants a steady climb rate
+    # for LAND_DETECTOR_TRIGGER_SEC = 1 s), disarmed 0.7 s later
+    land_detect_s=1.7, disarm_after_landed_s=0.7,
 )
 
 PX4 = Flavour(
@@ -148,6 +158,9 @@ PX4 = Flavour(
                      mav.MAVLINK_MSG_ID_EXTENDED_SYS_STATE),  # no SYSTEM_TIME unless asked
     keeps_mission_complete=True, hold_after_mission=True, rtl_item_leaves_mission=True,
     mission_done_text="Mission finished, loitering", forwards_unknown_ids=False,
+    # PX4 SIH: ON_GROUND 7 s after touchdown (its land detector's stages), disarmed 2.2-2.7 s later
+    # (COM_DISARM_LAND, 2 s by default, seen through 1 Hz heartbeats)
+    land_detect_s=7.0, disarm_after_landed_s=2.5,
 )
 
 FLAVOURS = {"ardupilot": ARDUPILOT, "px4": PX4}

@@ -115,6 +115,8 @@ class FakeVehicle(TelemetryMixin):
         self.mission_changed_t_s = -math.inf  # the last upload's time (PX4 checks it a while: commands.py)
         self.armed = False
         self.landed = True
+        self.touchdown_t_s: float | None = None  # touched down, its land detector not yet sure (_land)
+        self.disarm_at_t_s: float | None = None  # landed: disarms by itself then (flavour.disarm_after_landed_s)
         self.mode = "STABILIZE" if self.flavour.name == "ardupilot" else "LOITER"
         self.speed_m_s = self.cfg.cruise_speed_m_s
         self.home_xyz_m = np.array([self.kin.pos[0], self.kin.pos[1], 0.0])
@@ -232,6 +234,7 @@ class FakeVehicle(TelemetryMixin):
             self.say_later(self.flavour.refusal_text_delay_s, mav.MAV_SEVERITY_CRITICAL, refusal[1])
             return False
         self.armed = True
+        self.disarm_at_t_s = None
         self.home_xyz_m = np.array([self.kin.pos[0], self.kin.pos[1], 0.0])
         self.hold_xyz_m = self.kin.pos.copy()
         self._out.append(self.text(mav.MAV_SEVERITY_INFO, "Arming motors"))
@@ -243,6 +246,7 @@ class FakeVehicle(TelemetryMixin):
         if not self.landed and not force:
             return False
         self.armed = False
+        self.disarm_at_t_s = None
         if not self.landed:  # forced disarm in the air: it falls
             self.kin.pos[2] = 0.0
             self.kin.stop()
@@ -410,6 +414,9 @@ class FakeVehicle(TelemetryMixin):
     def _physics(self, dt: float) -> None:
         if self.landed:
             self.kin.stop()
+            if self.armed and self.disarm_at_t_s is not None and self.t_s >= self.disarm_at_t_s - 1e-9:
+                self.disarm()  # landed and left armed for the flavour's delay: it disarms by itself
+                return
             if self.armed and self.mode == "AUTO" and self.executor.started:
                 self._auto(dt)
             return
@@ -443,15 +450,29 @@ class FakeVehicle(TelemetryMixin):
             self.battery.burn(float(self.cfg.power.power_w(self.kin.ground_speed_m_s)), dt)
 
     def _land(self, dt: float) -> bool:
-        # ArduPilot: LAND_SPEED_HIGH down to 10 m, then LAND_SPEED (0.5 m/s) to touchdown
-        rate = self.cfg.descent_rate_m_s if self.kin.pos[2] > LAND_FINAL_ALT_M else LAND_FINAL_SPEED_M_S
-        self.kin.descend(dt, rate)
-        if self.kin.pos[2] <= 0.0:
-            self.landed = True
-            self._out.append(self.text(mav.MAV_SEVERITY_INFO, "Landed"))
+        """Descend and touch down; True once the land detector says so (landed state ON_GROUND),
+        ``flavour.land_detect_s`` after touchdown. The vehicle then disarms by itself
+        ``flavour.disarm_after_landed_s`` later (:meth:`_physics`), as both autopilots do."""
+        if self.kin.pos[2] > 0.0:
+            self.touchdown_t_s = None
+            # ArduPilot: LAND_SPEED_HIGH down to 10 m, then LAND_SPEED (0.5 m/s) to touchdown
+            rate = self.cfg.descent_rate_m_s if self.kin.pos[2] > LAND_FINAL_ALT_M else LAND_FINAL_SPEED_M_S
+            self.kin.descend(dt, rate)
+            if self.kin.pos[2] > 0.0:
+                return False
+            self.touchdown_t_s = self.t_s + dt
+        self.kin.stop()
+        if self.touchdown_t_s is None:
+            self.touchdown_t_s = self.t_s
+        if self.t_s + dt - self.touchdown_t_s < self.flavour.land_detect_s - 1e-9:
+            return False  # down, armed, landed state still LANDING
+        self.landed = True
+        self.touchdown_t_s = None
+        self._out.append(self.text(mav.MAV_SEVERITY_INFO, "Landed"))
+        self.disarm_at_t_s = self.t_s + dt + self.flavour.disarm_after_landed_s
+        if self.flavour.disarm_after_landed_s <= 0.0:
             self.disarm()
-            return True
-        return False
+        return True
 
     def _rtl(self, dt: float) -> bool:
         """Climb to max(current, RTL_ALT), fly home, then report True (caller lands)."""

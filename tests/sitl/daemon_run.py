@@ -162,8 +162,8 @@ def run_daemon(config: Path, out: Path, timeout_s: float = 900.0, extra: tuple =
     wall = time.monotonic() - t0
     people = []
     if (out / "people.csv").exists():
-        with open(out / "people.csv", newline="") as f:
-            people = list(csv.DictReader(f))
+        with open(out / "people.csv", newline="") as f:  # after its '#' lines: a vehicle lost in the air
+            people = list(csv.DictReader(line for line in f if not line.startswith("#")))
     return SearchRun(proc.returncode, proc.stdout + proc.stderr, wall, people, out)
 
 
@@ -243,13 +243,15 @@ FIELD_RESULTS: list[str] = []  # one line per search field_check saw in the run,
 _MAC = re.compile(r"[0-9a-fA-F]{2}(?::[0-9a-fA-F]{2}){5}")
 
 
-def field_check(run: SearchRun, scenario, vehicles: list, label: str) -> dict:
+def field_check(run: SearchRun, scenario, vehicles: list, label: str, lost: tuple = ()) -> dict:
     """Assert what a field-world search may honestly claim, whatever it manages to locate: it ended
     (exit 0 when everyone reported is located, else 1), every vehicle is home and disarmed, every
     address heard is a simulated phone's, every reported person was heard under the addresses it
     names, no one is located without bursts heard nor farther from the truth than TRUTH_MARGIN x
     the accuracy asked for, and "no phone heard" only when nothing was heard after every scan was
-    flown. Returns the figures (also printed and kept for the run's summary)."""
+    flown. ``lost``: vehicles killed in the air on purpose: the search then exits 5 (a vehicle lost
+    in the air) and they are not asked to be home. Returns the figures (also printed and kept for the
+    run's summary)."""
     import numpy as np
     from sim_link.world import World
 
@@ -257,7 +259,7 @@ def field_check(run: SearchRun, scenario, vehicles: list, label: str) -> dict:
 
     (run.out / "daemon-output.txt").write_text(run.output)
     why = run.output[-3000:]
-    assert run.code in (0, 1), f"the search did not end normally (exit {run.code}):\n{why}"
+    assert run.code in ((5,) if lost else (0, 1)), f"the search did not end normally (exit {run.code}):\n{why}"
     with StoreReader(run.out / "search.sqlite") as rd:
         slots = rd.slots()
     world = World(scenario, seed=scenario.simulation.seed)
@@ -283,12 +285,13 @@ def field_check(run: SearchRun, scenario, vehicles: list, label: str) -> dict:
             f"{r['label']} located {err:.1f} m from the truth (radius {r['radius95_m']} m)\n{why}"
     if "No phone was heard" in run.output:
         assert not heard_addr, "says no phone was heard but the store holds bursts"
-        assert run.output.count("finished its scan") >= len(vehicles), "no phone heard before the scans were flown"
+        assert run.output.count("finished its scan") >= len(vehicles) - len(lost), \
+            "no phone heard before the scans were flown"
     else:
         assert heard_addr, f"nothing heard, yet the search does not say so:\n{why}"
-    assert (run.code == 0) == (len(located) == len(reported)), f"exit {run.code} for {len(located)} of " \
+    assert lost or (run.code == 0) == (len(located) == len(reported)), f"exit {run.code} for {len(located)} of " \
         f"{len(reported)} located"
-    for v in vehicles:
+    for v in (v for v in vehicles if v.sitl.sysid not in lost):
         ok, state = landed_and_disarmed(v)
         assert ok, f"vehicle {v.sitl.sysid}: {state}"
     figures = dict(people=len(truth), heard=len(truly_heard), reported=len(reported), located=len(located),

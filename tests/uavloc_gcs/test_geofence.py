@@ -154,3 +154,38 @@ def test_a_fence_that_is_the_area_moves_the_outer_lanes_in_and_keeps_the_scan_wh
         legs = np.diff(v.waypoints_xy_m, axis=0)
         lanes = legs[np.abs(legs[:, 0]) > 500.0]  # the lanes run east-west, up to 1,060 m long
         assert len(lanes) >= 1 and np.all(np.abs(lanes[:, 1]) < 1.0), lanes  # and stay so
+
+
+@pytest.mark.parametrize("value", [20.0, 30.0, float("nan"), 6000.0])
+def test_a_default_fence_not_wider_than_the_margin_kept_inside_it_is_refused_in_one_sentence(value):
+    sc = load_scenario(scenario_path("field"))
+    with pytest.raises(ConfigError) as exc:
+        sc.replace(area={"default_geofence_m": value})
+    text = str(exc.value)
+    assert "area.default_geofence_m" in text and "must be more than area.geofence_margin_m (30 m)" in text, text
+
+
+def test_without_a_geofence_a_look_mission_stays_within_the_area_plus_the_default_margin():
+    """Issue 42 item 5: looks left the field world's area by up to 111 m with no fence set."""
+    sc = load_scenario(scenario_path("field"))
+    assert geofence.for_scenario(sc) is None
+    fence = geofence.flight_fence(sc)
+    area = Polygon(sc.area_xy_m())
+    far = np.array([[500.0, 900.0], [1400.0, 300.0], [-300.0, -300.0]])  # north, east, south-west of the area
+    m = look_mission(sc.frame, far, (1, 2, 3), None, alt_m=40.0, speed_m_s=10.0, autopilot="ardupilot",
+                     home_latlon_deg=sc.launch_latlon_deg, start_xy_m=(100.0, 100.0), fence=fence)
+    beyond = [area.distance(Point(*p)) for p in m.look_xy_m]
+    allowed = sc.area.default_geofence_m - sc.area.geofence_margin_m
+    assert max(beyond) <= allowed + 0.5 and min(beyond) > allowed - 5.0, beyond  # moved in, not further
+    assert _legs_inside(fence.polygon_xy_m, np.vstack([[100.0, 100.0], m.look_xy_m, [0.0, 0.0]]))
+    assert "No geofence given: the search area plus 50 m" in geofence.describe(sc)
+
+
+def test_the_preview_sentence_says_how_far_the_scan_reaches_beyond_the_default_fence():
+    sc = load_scenario(scenario_path("mountains"))
+    plan = scan.plan_scan(sc)
+    reach = geofence.scan_beyond_m(sc, plan)
+    assert reach > 30.0  # its lanes are lengthened past the area's edges to cover them
+    assert f"reach up to {reach:.0f} m beyond the area" in geofence.describe(sc, plan)
+    field = load_scenario(scenario_path("field"))
+    assert "reach up to" not in geofence.describe(field, scan.plan_scan(field))

@@ -6,7 +6,10 @@ writes the results. Restarted with the same ``--out`` after a crash it resumes t
 Exit code 0 when every person heard was located within the required accuracy, 1 otherwise
 (the statement says who and why), 2 for bad input, 3 for link failures, 4 when part of the area
 was not searched because a vehicle was lost (or its scan never started) and no other vehicle could
-take it over (the statement says how much and where; docs/readme/daemon.md).
+take it over (the statement says how much and where; docs/readme/daemon.md), 5 when a vehicle was
+lost in the air (silent while not on the ground and disarmed, and not heard again; the statement's
+first sentence says which, where, how high, its battery and when it was last heard). 5 takes
+precedence over 4, and 4 over 1.
 """
 
 from __future__ import annotations
@@ -144,8 +147,18 @@ def run(args: argparse.Namespace) -> int:
         except BaseException:
             discard_empty_leftovers(out, before)  # a failure before anything was heard leaves nothing
             raise
+    return exit_code(result.outcome)
+
+
+def exit_code(outcome) -> int:
+    """The exit code of a search that ran to its end (``service.outcome.SearchOutcome``): 5 a
+    vehicle lost in the air, else 4 part of the area left unsearched by a lost vehicle, else 1
+    someone heard not located, else 0."""
+    from ..service.lost import EXIT_VEHICLE_LOST
     from ..service.outcome import EXIT_UNSEARCHED
 
-    if result.outcome.unsearched_after_loss:
+    if outcome.lost_in_air:
+        return EXIT_VEHICLE_LOST  # a vehicle lost in the air: before anything else (the statement's first sentence)
+    if outcome.unsearched_after_loss:
         return EXIT_UNSEARCHED  # part of the area was not searched: a lost vehicle's, nobody took it over
-    return 0 if result.outcome.all_located else 1
+    return 0 if outcome.all_located else 1

@@ -118,6 +118,9 @@ def run(args: argparse.Namespace) -> int:
         print(note)
     for note in capacity_notes:
         print(note)
+    from .. import geofence  # noqa: PLC0415
+
+    print(geofence.describe(sc, plan))  # which fence the daemon's looks and passes stay inside
     print(f"\nWrote {len(written)} files to {Path(args.out)}/: {', '.join(written)}")
     stale = sorted(p.name for p in Path(args.out).glob("uav*.*")
                    if p.suffix in (".plan", ".waypoints") and p.name not in written)

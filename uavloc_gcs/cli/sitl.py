@@ -10,7 +10,9 @@ and one simulated companion computer per vehicle that sends the RSSI of the scen
 people (one world, one world clock for all of them). When every vehicle is ready it writes the
 mission file (the scenario with [fleet] and [link] set for these vehicles) and prints its [link]
 block; then it stays alive as the autopilots' parent (ArduCopter SITL exits when its parent does)
-until Ctrl-C or SIGTERM, which stops them all.
+until Ctrl-C or SIGTERM, which stops them all. An autopilot that exits by itself stops them all too,
+unless ``--keep-flying``: then that is said in one sentence and the others fly on (a fault drill:
+losing one vehicle in the air, which the daemon reports first, issue 42 items 2 and 6).
 """
 
 from __future__ import annotations
@@ -48,6 +50,9 @@ def register(sub) -> None:
     p.add_argument("--no-companion", action="store_true", help="no simulated companions (no RSSI)")
     p.add_argument("--ready-timeout", type=float, default=None, metavar="S",
                    help="wall seconds each vehicle has to become ready to fly (default 120)")
+    p.add_argument("--keep-flying", action="store_true",
+                   help="when one autopilot exits, say so and keep the other vehicles flying (a fault drill: "
+                        "losing one vehicle); without it, one exit stops them all")
     p.set_defaults(func=run)
 
 
@@ -150,6 +155,7 @@ async def _serve(args, scenario, vehicles) -> None:
               "everything", flush=True)
     else:
         print("no companions; Ctrl-C to stop everything", flush=True)
+    gone: set[int] = set()  # vehicles whose autopilot exited (--keep-flying)
     try:
         while not stop.is_set():
             try:
@@ -159,12 +165,20 @@ async def _serve(args, scenario, vehicles) -> None:
             for t in tasks:
                 if t.done() and t.exception() is not None:
                     raise t.exception()
-            dead = [v for v in vehicles if not v.sitl.alive()]
-            if dead:
-                v = dead[0]
-                raise UavlocError(f"vehicle {v.sysid} ({v.sitl.kind} instance {v.sitl.instance}) exited with code "
-                                  f"{v.sitl.proc.returncode if v.sitl.proc else None}; its output ends:\n"
-                                  f"{v.sitl.log_tail(15)}")
+            dead = [v for v in vehicles if not v.sitl.alive() and v.sysid not in gone]
+            if not dead:
+                continue
+            v = dead[0]
+            what = (f"vehicle {v.sysid} ({v.sitl.kind} instance {v.sitl.instance}) exited with code "
+                    f"{v.sitl.proc.returncode if v.sitl.proc else None}")
+            gone.update(d.sysid for d in dead)
+            if not args.keep_flying or len(gone) == len(vehicles):
+                raise UavlocError(f"{what}; its output ends:\n{v.sitl.log_tail(15)}")
+            for d in dead:  # a fault drill: the others fly on
+                print(f"uavloc sitl: vehicle {d.sysid} ({d.sitl.kind} instance {d.sitl.instance}) exited with code "
+                      f"{d.sitl.proc.returncode if d.sitl.proc else None}; vehicle(s) "
+                      f"{', '.join(str(o.sysid) for o in vehicles if o.sysid not in gone)} keep flying "
+                      "(--keep-flying); its output ends:\n" + d.sitl.log_tail(5), flush=True)
     finally:
         stop.set()
         if tasks:

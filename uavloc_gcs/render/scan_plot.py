@@ -21,16 +21,19 @@ def scan_figure(scenario, plan, *, title: str | None = None) -> Figure:
            f"{scenario.fleet.speed_m_s:g} m/s\n{maps.origin_caption(lat0, lon0)}")
     from .. import geofence
 
-    fence = geofence.for_scenario(scenario)
-    fence_xy = [] if fence is None else [np.asarray(fence.polygon_xy_m, float)]
+    given = geofence.for_scenario(scenario)
+    fence = geofence.flight_fence(scenario)  # the scenario's, else the area plus area.default_geofence_m
+    fence_xy = [np.asarray(fence.polygon_xy_m, float)]
+    sub += "\n" + geofence.describe(scenario, plan)
     everything = np.vstack([scenario.area_xy_m(), np.zeros((1, 2))] + fence_xy + [v.route_xy_m() for v in plan.vehicles])
     fig, ax = maps.new_map(head, subtitle=sub, extent_m=tuple(np.ptp(everything, axis=0)))
     if scenario.dem is not None:  # hillshade and contours of terrain.dem underneath
         from .terrain import draw_terrain
         draw_terrain(ax, scenario.dem, everything)
     maps.draw_area(ax, scenario.area_xy_m(), label="search area")
-    for ring in fence_xy:  # the scenario's geofence: every planned flight stays inside it
-        maps.draw_fence(ax, ring, label=f"geofence ({fence.margin_m:g} m margin kept)")
+    for ring in fence_xy:  # the geofence every planned flight stays inside
+        maps.draw_fence(ax, ring, label=f"geofence ({fence.margin_m:g} m margin kept)" if given is not None else
+                        f"fence: area + {scenario.area.default_geofence_m:g} m (no geofence given)")
     for v, col in zip(plan.vehicles, colors):
         maps.draw_polygons(ax, list(v.subarea_parts_xy_m), colors=[col] * len(v.subarea_parts_xy_m))
     for v, col in zip(plan.vehicles, colors):

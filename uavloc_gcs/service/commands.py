@@ -50,13 +50,21 @@ class VehicleCommands:
             a = v.agent
             if a is None or not math.isfinite(a.tel.rel_alt_m):
                 return f"vehicle {v.id}: never heard; nothing sent"
-            if a.on_ground():
-                return f"vehicle {v.id}: on the ground"
             mission = (f"its {v.purpose or 'current'} mission (item {a.tel.mission_seq} of {len(v.mission)}), "
                        "which ends in RTL")
             if v.lost:
-                return f"vehicle {v.id}: airborne, out of contact; it flies {mission}, or its link-loss failsafe acts"
+                lh = v.last_heard or self._last_heard(v)
+                if not lh.airborne:
+                    return f"vehicle {v.id}: out of contact, last heard on the ground and disarmed at {lh.when()}"
+                return (f"vehicle {v.id}: LOST IN THE AIR, last heard at {lh.when()}, {lh.where()}; it flies {mission}, "
+                        "or its link-loss failsafe acts")
+            if a.landed():
+                return f"vehicle {v.id}: on the ground, disarmed"
+            if a.on_ground():  # armed, low and slow: landing, or down and not yet disarmed
+                return (f"vehicle {v.id}: armed {a.tel.rel_alt_m:.1f} m above home in {a.tel.mode}, not yet on the "
+                        "ground and disarmed; nothing sent (it disarms by itself once down)")
             if a.tel.mode in HOMING_MODES:
+                self._returning(v)
                 return f"vehicle {v.id}: airborne, already returning home ({a.tel.mode})"
             if not rtl:
                 return f"vehicle {v.id}: airborne, continues {mission} (on_stop = \"continue\")"
@@ -66,15 +74,18 @@ class VehicleCommands:
                                     heard_since=lambda t: a.tel.wall_s > t)
             except LinkError as exc:
                 return f"vehicle {v.id}: airborne; RTL not confirmed ({exc}); it flies {mission}"
+            self._returning(v)  # what the outcome says of it, too
             seen = "acknowledged" if how == "acked" else "not acknowledged but seen in RTL"
             return f"vehicle {v.id}: airborne, returning home (RTL {seen})"
 
+        async def bounded(v: _Vehicle) -> str:  # one vehicle's silence does not take the others' lines
+            try:
+                return await asyncio.wait_for(one(v), STOP_WAIT_S)
+            except TimeoutError:
+                return f"vehicle {v.id}: no answer within {STOP_WAIT_S:g} s; it flies its mission, which ends in RTL"
+
         vehicles = list(self.vehicles.values())
-        try:
-            lines = list(await asyncio.wait_for(asyncio.gather(*(one(v) for v in vehicles)), STOP_WAIT_S))
-        except TimeoutError:
-            lines = [f"vehicle {v.id}: no answer within {STOP_WAIT_S:g} s; it flies its mission, which ends in RTL"
-                     for v in vehicles]
+        lines = list(await asyncio.gather(*(bounded(v) for v in vehicles)))
         for v, line in zip(vehicles, lines):
             self._event("stop", line, v.id)
         self.store.set_meta("stopped", True)
@@ -85,8 +96,8 @@ class VehicleCommands:
         if v.unusable:
             return
         v.unusable = str(err)
-        if v.agent is not None and v.agent.on_ground() and not v.agent.tel.armed:
-            v.home = True  # it never left, or is back: reported as home
+        if v.agent is not None and v.agent.landed():
+            v.home = True  # it never left, or is back (on the ground and disarmed): reported as home
         v.phase = "unusable"
         where = "it flies its current mission, which ends in RTL" if v.airborne else "it stays where it is"
         self._event("unusable", f"vehicle {v.id} cannot be commanded ({err}); {where}; its people go to the others",
@@ -332,7 +343,9 @@ class VehicleCommands:
             plan = flight_mission(latlon.tolist(), alt_m=f.altitude_m, speed_m_s=f.speed_m_s, autopilot=f.autopilot,
                                   home_latlon_deg=self.sc.launch_latlon_deg, include_takeoff=on_ground)
             orbits = orbits_for(self.policy, v.id, targets) if self.sc.dem is None else ()
-            fence = geofence.for_scenario(self.sc)
+            # the scenario's fence, else the area plus area.default_geofence_m (issue 42: without a
+            # fence, looks left the area by up to 111 m)
+            fence = geofence.flight_fence(self.sc)
             if any(o is not None for o in orbits) or fence is not None:  # orbits (search/orbit.py), a fence
                 try:
                     looks = look_mission(self.frame, pts, targets, orbits or None, alt_m=f.altitude_m,
@@ -384,7 +397,7 @@ class VehicleCommands:
         # Read now, not assumed: a start whose ACKs were lost lasts as long as a short look, and the
         # vehicle may have flown it and landed meanwhile (tests/test_e2e_vehicle_faults.py's store:
         # vehicle 1 on the ground, disarmed, "not home", and the search waited for a replan).
-        if a.on_ground() and not a.tel.armed:
+        if a.landed():
             v.home, v.phase = True, "landed"
         else:
             v.home = False
@@ -393,9 +406,14 @@ class VehicleCommands:
         self._report_vehicle_looks(v, self.now_s())  # its passed looks, before they are forgotten
         v.purpose, v.targets, v.look_xy_m = "home", (), None
         a = v.agent
-        if a.on_ground():
+        if a.landed():
             v.home, v.phase = True, "landed"
             return
-        await self._persist(v, "return home", a.return_home, lambda: a.tel.mode in HOMING_MODES or a.on_ground())
+        if a.on_ground():
+            # armed, low and slow: landing, or down and not yet disarmed -- it disarms by itself, and
+            # an RTL sent now could make it climb again; "home" once it reports itself disarmed
+            self._returning(v)
+            return
+        await self._persist(v, "return home", a.return_home, lambda: a.tel.mode in HOMING_MODES or a.landed())
         self._returning(v)
         self._event("home", f"vehicle {v.id} has nothing left to look at: returning home", v.id)

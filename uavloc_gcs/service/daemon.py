@@ -32,8 +32,10 @@ import numpy as np
 from ..errors import LinkError, UavlocError
 from ..observations import SlotBatch
 from ..scenario import Scenario
+from .clock import MissionClock
 from .commands import STOP_WAIT_S, WAYPOINT_TOLERANCE_M, VehicleCommands
 from .liveview import LiveView, StatusSnapshot, VehicleStatus, person_view
+from .lost import LastHeard, last_heard
 from .missionstate import ClockRate
 from .options import DaemonOptions
 from .outcome import SearchOutcome, estimate_row, final_results, statement_for
@@ -51,6 +53,7 @@ LANDING_MARGIN_S = 30.0  # beyond the flight home and the descent at LANDING_RAT
 LANDING_RATE_M_S = 1.0
 JOB_WAIT_S = 3.0  # wall seconds the brain waits for a vehicle's exchanges before leaving them to it
 IDLE_END_S = 10.0  # mission seconds with every vehicle home and no look planned before the search ends
+CLOCK_ANCHOR_S = 2.0  # host seconds between two (mission s, UTC) anchors of the clock map (service/clock.py)
 
 
 PARTIAL_TEXT = "PARTIAL RESULTS: the search was stopped before its end."
@@ -125,6 +128,7 @@ class Daemon(FleetPreparation, VehicleCommands, PackSwaps):
         self._job_crash: BaseException | None = None  # a vehicle task's unexpected error, for the brain
         self._finish_wall = -math.inf  # wall time the fleet was sent home
         self.partial_outcome: SearchOutcome | None = None  # the results so far, once stopped before the end
+        self._clock_anchors: list[tuple[float, float]] = []  # (mission s, host UNIX s): clock()
 
     # -- clock ---------------------------------------------------------------------------------
     def now_s(self) -> float:
@@ -140,6 +144,19 @@ class Daemon(FleetPreparation, VehicleCommands, PackSwaps):
             if t is not None and t.unix_s is not None:
                 best = max(best, t.unix_s + (w - t.unix_wall_s) * self._rate.rate)
         return (best - self.epoch_unix_s) if math.isfinite(best) else 0.0
+
+    def clock(self) -> MissionClock:
+        """Mission time to UTC (service/clock.py): the vehicles' clock when it ran in real time, else
+        (a simulator's speed-up) this computer's clock at the moments the vehicles were there."""
+        return MissionClock.of(self.epoch_unix_s, self._clock_anchors)
+
+    def _anchor_clock(self) -> None:
+        if self.epoch_unix_s is None or not any(v.agent is not None and v.agent.tel.unix_s is not None
+                                                for v in self.vehicles.values()):
+            return
+        now = time.time()
+        if not self._clock_anchors or now - self._clock_anchors[-1][1] >= CLOCK_ANCHOR_S:
+            self._clock_anchors.append((self.now_s(), now))
 
     def _epoch(self) -> float | None:
         if self.epoch_unix_s is None:
@@ -281,6 +298,7 @@ class Daemon(FleetPreparation, VehicleCommands, PackSwaps):
     # -- the monitor: lost/found, phases, live view ---------------------------------------------------
     async def _monitor(self) -> None:
         while not self._stop.is_set():
+            self._anchor_clock()
             for v in self.vehicles.values():
                 self._update_phase(v)
             if self.view is not None:
@@ -292,8 +310,18 @@ class Daemon(FleetPreparation, VehicleCommands, PackSwaps):
         if v.agent is None:
             return
         for kind, text in v.observe(read_life_facts(v.agent), self.wall(), self.opt.lost_timeout_s, self._home_by):
+            if kind == "lost":  # what it said last, kept for the statement, the files and the map
+                v.last_heard = self._last_heard(v)
+                if v.last_heard.airborne:
+                    text += f"; LOST IN THE AIR: last heard at {v.last_heard.when()}, {v.last_heard.where()}"
+            elif kind == "found":
+                v.last_heard = None
             self._event(kind, text, v.id)
         self._pack_step(v)  # sorties: home at its reserve, it waits for a fresh pack (service/swaps.py)
+
+    def _last_heard(self, v: _Vehicle) -> LastHeard:
+        return last_heard(v.id, v.agent, self.frame, now_s=self.now_s(), wall_now_s=self.wall(),
+                          unix_now_s=time.time(), clock_rate=self._rate.rate)
 
     def _home_by(self, v: _Vehicle) -> float:
         """Mission time by which ``v``, flying home from where it is now, should have landed."""
@@ -309,7 +337,9 @@ class Daemon(FleetPreparation, VehicleCommands, PackSwaps):
         vs = [VehicleStatus(v.id, f"waiting for {v.waiting}" if v.waiting else v.phase,
                             v.agent.tel.mode if v.agent else "?",
                             v.agent.tel.battery_pct if v.agent else None,
-                            v.agent.tel.mission_seq if v.agent else None, v.end_seq or None, v.lost)
+                            v.agent.tel.mission_seq if v.agent else None, v.end_seq or None, v.lost,
+                            v.last_heard.sentence() if v.lost and v.last_heard is not None and v.last_heard.airborne
+                            else "")
               for v in self.vehicles.values()]
         people = [person_view(p) for p in self._people_cache]
         return StatusSnapshot(t, vs, people, self._n_slots, self.sc.people.required_accuracy_m, self._replans)
@@ -513,9 +543,12 @@ class Daemon(FleetPreparation, VehicleCommands, PackSwaps):
         people = tuple(final_results(self.policy.people(t), slots, self.sc, self.frame,
                                      linking=getattr(self.policy, "linking", None), refit=not (partial or grid)))
         lost = tuple(v.id for v in self.vehicles.values() if v.lost)
+        in_air = tuple(v.last_heard for v in self.vehicles.values()
+                       if v.lost and v.last_heard is not None and v.last_heard.airborne)
         returning = tuple(v.id for v in self.vehicles.values() if not v.home and not v.lost and v.phase == "returning")
         other = tuple(v.id for v in self.vehicles.values() if not v.home and not v.lost and v.phase != "returning")
-        text = statement_for(people, self.sc.people.required_accuracy_m, lost, other, returning)
+        text = statement_for(people, self.sc.people.required_accuracy_m, lost, other, returning, lost_in_air=in_air,
+                             fleet=not partial)  # stopped: the stop report says what each vehicle does
         unflown = [v for v in self.vehicles.values() if v.start_failed and not v.scan_done]
         for v in unflown:  # a refused start is no scan flown: say so, whatever else is said
             text += f" Vehicle {v.id} did not fly its scan ({v.start_failed}); its part of the area was not searched."
@@ -523,14 +556,16 @@ class Daemon(FleetPreparation, VehicleCommands, PackSwaps):
             text += " " + self._packs_text()
         if partial:
             text = f"{partial} {text}"
+        text = " ".join([*(x.sentence() for x in in_air), text])  # a vehicle lost in the air is said first
         self._event("end", text)
         if not partial:  # a search stopped before its end can be resumed
             self.store.set_meta("finished", True)
         self.store.flush()
         per_vehicle = tuple((v.id, v.plans, v.uploads, v.skipped) for v in self.vehicles.values())
         self.store.set_meta("uploads", [list(row) for row in per_vehicle])
+        self.store.set_meta("clock_anchors", [list(a) for a in self._clock_anchors])
         self._event("end", "replans " + str(self._replans) + "; per vehicle (plans for it, uploads incl. the scan, "
                     "plans not uploaded): " + ", ".join(f"{vid}: {pl}/{up}/{sk}" for vid, pl, up, sk in per_vehicle))
         return SearchOutcome(people, bool(people) and all(p.located for p in people), text, t, self._replans,
                              tuple(v.id for v in self.vehicles.values() if v.home), lost, returning, per_vehicle,
-                             partial=partial)
+                             partial=partial, lost_in_air=in_air)

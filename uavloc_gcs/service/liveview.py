@@ -22,6 +22,7 @@ class VehicleStatus:
     mission_seq: int | None = None
     mission_total: int | None = None
     lost: bool = False
+    note: str = ""  # lost in the air: where and when it was last heard (service/lost.py)
 
 
 @dataclass(frozen=True)
@@ -101,7 +102,7 @@ def render_lines(s: StatusSnapshot, labels=None, frame=None) -> list[str]:
     ``frame``: the scenario's ``geo.LocalFrame``, to show each located person's latitude and
     longitude (one per line; the others three to a line)."""
     located = sum(p.located for p in s.people)
-    lines = [f"uavloc  t = {s.elapsed_s:7.1f} s   slots {s.slots:>7}   replans {s.replans:>3}   "
+    lines = [f"uavloc  mission t = {s.elapsed_s:7.1f} s   slots {s.slots:>7}   replans {s.replans:>3}   "
              f"people located {located}/{len(s.people)} (within {s.required_accuracy_m:g} m)"]
     if s.note:
         lines.append(s.note)
@@ -138,7 +139,7 @@ def render_line(s: StatusSnapshot) -> str:
     """The one-line view (log mode)."""
     located = sum(p.located for p in s.people)
     vs = " | ".join(_vehicle_text(v) for v in s.vehicles)
-    return (f"t={s.elapsed_s:7.1f}s slots={s.slots} located={located}/{len(s.people)} "
+    return (f"mission_t={s.elapsed_s:7.1f}s slots={s.slots} located={located}/{len(s.people)} "
             f"replans={s.replans} | {vs}")
 
 
@@ -174,7 +175,9 @@ class LiveView:
         self.stream.flush()
 
     def event(self, text: str, elapsed_s: float | None = None) -> None:
-        stamp = "" if elapsed_s is None else f"[{elapsed_s:7.1f} s] "
+        # mission seconds: the vehicles' clock since the search began (a simulator's speed-up runs it
+        # faster than the wall clock), said as such (issue 42 item 7)
+        stamp = "" if elapsed_s is None else f"[mission {elapsed_s:7.1f} s] "
         if self.tty and self._drawn_lines:
             # print above the status block: clear it, print, and let the next update redraw it
             self.stream.write(f"\x1b[{self._drawn_lines}F\x1b[J")

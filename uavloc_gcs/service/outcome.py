@@ -219,6 +219,9 @@ class SearchOutcome:
     # part of the area went unsearched because a vehicle was lost (or its scan never started) and
     # nobody could take it over: the daemon's exit code says so (EXIT_UNSEARCHED)
     unsearched_after_loss: bool = False
+    # vehicles lost while not on the ground and disarmed, and not heard again (service.lost.LastHeard):
+    # said first everywhere, and the daemon's exit code (service.lost.EXIT_VEHICLE_LOST)
+    lost_in_air: tuple = ()
 
 
 EXIT_UNSEARCHED = 4  # `uavloc daemon`'s exit code when part of the area was left unsearched (see above)
@@ -249,10 +252,14 @@ def coverage_statement(summary, lost: Sequence[int] = (), not_started: Sequence[
 
 
 def statement_for(people: Sequence[PersonResult], required_m: float, lost: Sequence[int],
-                  not_home: Sequence[int], returning: Sequence[int] = (), coverage=None) -> str:
+                  not_home: Sequence[int], returning: Sequence[int] = (), coverage=None, *,
+                  lost_in_air: Sequence = (), fleet: bool = True) -> str:
     """One clear statement: everyone located, or who is not and why; and where the fleet is.
     ``coverage`` (search.coverage.CoverageSummary): "no phone heard" is said with the POD reached,
-    or as "nothing flew" when no vehicle flew over the area at survey altitude."""
+    or as "nothing flew" when no vehicle flew over the area at survey altitude. ``lost_in_air``
+    (service.lost.LastHeard): vehicles whose own sentences come before this statement (the caller
+    puts them first); they are not named again here. ``fleet=False``: nothing about the fleet (a
+    stopped search, whose stop report says what each vehicle does, once)."""
     missing = [p for p in sorted(people, key=lambda p: p.emitter_id) if not p.located]
     if not people and coverage is not None and coverage.nothing_flown:
         text = "No phone was heard: nothing flew over the search area at survey altitude."
@@ -267,12 +274,16 @@ def statement_for(people: Sequence[PersonResult], required_m: float, lost: Seque
         why = "; ".join(f"{p.name if p.label else f'person {p.emitter_id}'}: {p.reason or 'not located'}"
                         for p in missing)
         text = f"{len(people) - len(missing)} of {len(people)} people located within {required_m:g} m; not located: {why}."
+    if not fleet:
+        return text
+    said = {x.vehicle for x in lost_in_air}
+    lost = [v for v in lost if v not in said]
     if lost:
         text += f" Lost contact with vehicle(s) {', '.join(map(str, lost))}."
     if returning:
         text += f" Vehicle(s) {', '.join(map(str, returning))} returning home (RTL), not landed yet."
     if not_home:
         text += f" Vehicle(s) {', '.join(map(str, not_home))} not confirmed returning home."
-    if not returning and not not_home and not lost:
+    if not returning and not not_home and not lost and not said:
         text += " All vehicles are home."
     return text

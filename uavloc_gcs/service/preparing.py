@@ -56,6 +56,7 @@ class FleetPreparation:
                 raise UavlocError(f"the store {self.opt.store_path} holds the search '{meta.get('scenario')}', "
                                   f"not '{self.sc.name}'; use another --store or --fresh")
             self.epoch_unix_s = float(meta["epoch_unix_s"])
+            self._clock_anchors = [tuple(a) for a in meta.get("clock_anchors") or []]  # the clock map so far
             slots = rd.slots()
             missions = rd.latest_missions()
             self._seq_before_crash = rd.last_mission_seq()
@@ -249,6 +250,9 @@ class FleetPreparation:
             self._event("plan", f"scan planned for POD {pp.target:g}: {c.spacing_m:.0f} m lanes at {c.speed_m_s:g} m/s, "
                         f"{c.passes} pass{'es' if c.passes > 1 else ''}, POD {pp.grid.overall(1):.2f} for one heard burst "
                         f"and {pp.grid.overall(2):.2f} for two" + ("" if pp.met else " (best the energy allows)"))
+        from .. import geofence  # noqa: PLC0415
+
+        self._event("plan", geofence.describe(self.sc, plan))  # the fence the looks and passes stay inside
         longest = max((p.duration_s for p in plan.vehicles), default=0.0)
         # at least HOLD_WALL_S of the daemon's own time, whatever the clock rate (a simulator speed-up)
         hold_s = max(self.opt.scan_hold_s, HOLD_WALL_S * self._rate.rate)
@@ -276,13 +280,13 @@ class FleetPreparation:
                 purpose, items = previous
                 if same_stored_mission(on_board, items, v.agent.flavour):
                     f = read_life_facts(v.agent)  # read now, after the download's awaits
-                    if purpose == "scan" and not f.armed and f.on_ground:
+                    if purpose == "scan" and f.landed:
                         if await self._resume_landed_scan(v, items, f):
                             to_start.append(v)
                         return
                     self._adopt(v, purpose, items)
                     v.scan_done = purpose != "scan"
-                    if not f.armed and f.on_ground:
+                    if f.landed:
                         v.home, v.phase = True, "landed"
                         self._event("resume", f"vehicle {v.id} is on the ground, disarmed, with its {purpose} "
                                     f"mission on board (item {f.mission_seq}): home", v.id)

@@ -12,7 +12,6 @@ import io
 import json
 import math
 from dataclasses import dataclass
-from datetime import datetime, timezone
 from pathlib import Path
 from typing import Mapping, Sequence
 from xml.sax.saxutils import escape
@@ -21,6 +20,7 @@ import numpy as np
 
 from ..estimation.identity import format_address, format_addresses
 from ..geo import LocalFrame
+from .clock import MissionClock, clock_label, utc_text  # noqa: F401 (utc_text: re-exported)
 
 CSV_COLUMNS = (
     "label", "emitter_id", "state", "located", "time_utc", "t_ref_s", "lat_deg", "lon_deg", "east_m",
@@ -94,14 +94,6 @@ def person_state(located: bool, reason: str) -> str:
     if reason.startswith("given up"):
         return "given up"
     return "heard"
-
-
-def utc_text(epoch_unix_s: float | None, t_s: float) -> str:
-    """ISO 8601 UTC ('2026-11-23T22:10:05.3Z') of mission time ``t_s``; '' when unknown."""
-    if epoch_unix_s is None or not (math.isfinite(epoch_unix_s) and t_s is not None and math.isfinite(t_s)):
-        return ""
-    stamp = datetime.fromtimestamp(epoch_unix_s + t_s, tz=timezone.utc)
-    return stamp.strftime("%Y-%m-%dT%H:%M:%S.") + f"{stamp.microsecond // 100000}Z"
 
 
 def _speed(p: PersonResult) -> float:
@@ -187,6 +179,8 @@ def people_geojson(people: Sequence[PersonResult], truth_latlon: Mapping[int, tu
             "properties": {"kind": "truth", "emitter_id": int(eid)},
         })
     out = {"type": "FeatureCollection", "features": feats}
+    if epoch_unix_s is not None:
+        out["time_utc_clock"] = clock_label(epoch_unix_s)  # which clock the UTC times are (issue 42)
     if coverage is not None and frame is not None:
         feats[:0] = coverage.cells_geojson_features(frame)  # under the people in a GIS
         out["coverage"] = {**coverage.to_dict(), "statement": coverage.sentence()}
@@ -226,7 +220,7 @@ def people_kml(people: Sequence[PersonResult], frame: LocalFrame, name: str = "u
         stamp = f"<TimeStamp><when>{when}</when></TimeStamp>" if when else ""
         style = f"<styleUrl>#{p.state.replace(' ', '-')}</styleUrl>"
         state = "located" if p.located else f"{p.state}: {p.reason}" if p.reason else p.state
-        desc = (f"{state}; 95 % radius {_num(p.radius95_m, 1)} m; position at {when or '?'} UTC "
+        desc = (f"{state}; 95 % radius {_num(p.radius95_m, 1)} m; position at {when or '?'} {clock_label(epoch_unix_s)} "
                 f"(mission {_num(p.t_ref_s, 1)} s); velocity east {_num(p.vel_east_m_s, 2)} m/s, "
                 f"north {_num(p.vel_north_m_s, 2)} m/s; heard under {format_addresses(p.address_list, ', ')}"
                 + (f"; link uncertain: {p.link_reason}" if p.link_reason else ""))
@@ -301,6 +295,8 @@ def results_table(people: Sequence[PersonResult], required_accuracy_m: float,
         lines.append(row)
     n_ok = sum(p.located for p in people)
     lines.append(f"{n_ok} of {len(people)} people located within {required_accuracy_m:g} m (95 %).")
+    if isinstance(epoch_unix_s, MissionClock) and epoch_unix_s.simulated:
+        lines.append(f"Times: {epoch_unix_s.label}.")
     if coverage is not None:
         lines.append(coverage.sentence())
     lines.extend(notes)
@@ -313,7 +309,8 @@ def write_results(out_dir: str | Path, people: Sequence[PersonResult], *, frame:
                   name: str = "uavloc", epoch_unix_s: float | None = None, coverage=None,
                   terrain=None, fence_latlon_deg=None, notes: Sequence[str] = ()) -> list[Path]:
     """Write people.csv, people.geojson, people.kml, result.png and results.txt into ``out_dir``.
-    ``epoch_unix_s``: UNIX time of mission time 0 (the UTC times in the files; omitted when None).
+    ``epoch_unix_s``: a ``service.clock.MissionClock`` (or the UNIX time of mission time 0, the
+    vehicles' clock taken as real time): the UTC times in the files (omitted when None).
     ``coverage`` (search.coverage.CoverageSummary): what was searched, in every file (the POD
     cells in the GeoJSON, KML and picture, the statement in results.txt)."""
     from ..atomicfile import atomic_write_text
@@ -362,7 +359,7 @@ def render_result_png(path: Path, people: Sequence[PersonResult], *, frame: Loca
     times = [utc_text(epoch_unix_s, p.t_ref_s) for p in people]
     times = sorted(t for t in times if t)
     if times:
-        caption += f"\npositions at {times[0][:19].replace('T', ' ')} to {times[-1][11:19]} UTC"
+        caption += f"\npositions at {times[0][:19].replace('T', ' ')} to {times[-1][11:19]} {clock_label(epoch_unix_s)}"
     if coverage is not None:
         caption += "\n" + coverage.sentence()
     fig = result_figure(people, area_xy_m=area, tracks_xy_m=tracks, truth_xy_m=truth_xy_m, title=title,

@@ -21,6 +21,7 @@ from .daemon import Daemon, DaemonOptions
 from .labels import PersonLabels
 from .liveview import LiveView
 from .outcome import SearchOutcome, coverage_statement, statement_for
+from .lost import mark_lost, title_mark
 from .partial import TITLE_MARK, mark_partial
 from .results import PersonResult, results_table, write_results
 from .store import StoreReader
@@ -78,7 +79,7 @@ async def _run(daemon: Daemon, scenario: Scenario, options: DaemonOptions, web, 
     if web is not None:
         from .web import MapFeed, MapServer  # noqa: PLC0415 (aiohttp only when the map is wanted)
 
-        feed = MapFeed(scenario, options.store_path, snapshot=daemon.snapshot, epoch=lambda: daemon.epoch_unix_s,
+        feed = MapFeed(scenario, options.store_path, snapshot=daemon.snapshot, epoch=daemon.clock,
                        coverage=lambda: getattr(daemon, "coverage", None))
         server = await MapServer(feed, web).start()
         if on_web_url is not None:
@@ -169,8 +170,10 @@ def _results(outcome: SearchOutcome, daemon: Daemon, scenario: Scenario, connect
     others = tuple(v for v, _ in connections if v not in (*outcome.vehicles_home, *outcome.vehicles_lost,
                                                           *outcome.vehicles_returning))
     summary, not_started = _coverage(daemon)
+    in_air = tuple(getattr(outcome, "lost_in_air", ()))
     statement = statement_for(heard, scenario.people.required_accuracy_m, outcome.vehicles_lost, others,
-                              outcome.vehicles_returning, coverage=summary)
+                              outcome.vehicles_returning, coverage=summary, lost_in_air=in_air,
+                              fleet=not outcome.partial)  # stopped: the stop report says it, once
     for vid, why in not_started:  # a refused start is no scan flown: say so, whatever else is said
         statement += f" Vehicle {vid} did not fly its scan ({why}); its part of the area was not searched."
     sorties = daemon._packs_text() if scenario.fleet.batteries > 1 and hasattr(daemon, "_packs_text") else ""
@@ -178,21 +181,24 @@ def _results(outcome: SearchOutcome, daemon: Daemon, scenario: Scenario, connect
         statement += " " + sorties
     searched, left = coverage_statement(summary, outcome.vehicles_lost, [vid for vid, _ in not_started],
                                         stopped=bool(getattr(outcome, "partial", "")))
-    outcome = dataclasses.replace(outcome, people=tuple(heard), statement=" ".join(filter(None, [outcome.partial, statement, searched])),
+    first = [x.sentence() for x in in_air]  # a vehicle lost in the air is what the operator must hear first
+    outcome = dataclasses.replace(outcome, people=tuple(heard),
+                                  statement=" ".join(filter(None, [*first, outcome.partial, statement, searched])),
                                   coverage=summary, unsearched_after_loss=left)
     if summary is not None:
         people = [dataclasses.replace(p, pod_here=summary.pod_at((p.east_m, p.north_m))) for p in people]
-    epoch = daemon.epoch_unix_s
+    epoch = daemon.clock() if hasattr(daemon, "clock") else daemon.epoch_unix_s  # UTC as it really was
     with StoreReader(options.store_path) as rd:
         tracks = rd.tracks()
     frame = scenario.frame
     files = write_results(out_dir, people, frame=frame, area_latlon_deg=np.array(scenario.polygon_latlon_deg),
                           tracks_latlon_deg=tracks, required_accuracy_m=scenario.people.required_accuracy_m,
-                          truth_xy_m=truth_xy, name=scenario.name + (TITLE_MARK if outcome.partial else ""), epoch_unix_s=epoch, coverage=summary,
-                          terrain=scenario.dem, fence_latlon_deg=scenario.geofence_latlon_deg or None,
-                          notes=(sorties,) if sorties else ())
+                          truth_xy_m=truth_xy, name=scenario.name + (TITLE_MARK if outcome.partial else "") + title_mark(in_air),
+                          epoch_unix_s=epoch, coverage=summary, terrain=scenario.dem,
+                          fence_latlon_deg=scenario.geofence_latlon_deg or None, notes=(sorties,) if sorties else ())
     if outcome.partial:
         mark_partial(files, outcome.partial)
+    mark_lost(files, in_air)  # (after: the lost vehicles come first)
     table = results_table(people, scenario.people.required_accuracy_m, truth_xy, epoch_unix_s=epoch,
                           coverage=summary, notes=(sorties,) if sorties else ())
     return RunResult(outcome, tuple(people), table, tuple(files))
@@ -236,17 +242,25 @@ async def _until_stopped(daemon: Daemon, finish: Callable[[SearchOutcome], "RunR
                 raise
             task.uncancel()
             name = signal.Signals(got[0]).name
-            lines = daemon.stop_report or ["no vehicle was commanded yet"]
-            written = ""
             partial = getattr(daemon, "partial_outcome", None)
+            in_air = tuple(getattr(partial, "lost_in_air", ()) or ())
+            first = [x.sentence() for x in in_air]  # a vehicle lost in the air is said first, once
+            lines = [line for line in daemon.stop_report if not any(line.startswith(f"vehicle {x.vehicle}:")
+                                                                     for x in in_air)]
+            if not lines and not first:
+                lines = ["no vehicle was commanded yet"]
+            written = ""
             if finish is not None and partial is not None:
                 try:
                     result = await asyncio.to_thread(finish, partial)
-                    written = (f" {result.outcome.statement} Written so far: "
-                               + ", ".join(p.name for p in result.files) + ".")
+                    statement = result.outcome.statement
+                    for sentence in first:
+                        statement = statement.replace(sentence, "", 1).strip()
+                    written = f" {statement} Written so far: " + ", ".join(p.name for p in result.files) + "."
                 except Exception as exc:  # noqa: BLE001 - the stop is reported whatever happens here
                     written = f" The results so far could not be written ({exc})."
-            raise Interrupted(f"stopped by {name}: " + "; ".join(lines) + "." + written, signal=got[0]) from None
+            said = f"stopped by {name}" + (": " + "; ".join(lines) if lines else "") + "."
+            raise Interrupted(" ".join([*first, said]) + written, signal=got[0]) from None
 
 
 @contextlib.contextmanager

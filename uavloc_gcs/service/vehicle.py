@@ -27,7 +27,9 @@ from ..observations import SlotBatch
 log = logging.getLogger(__name__)
 
 MAV_MODE_FLAG_SAFETY_ARMED = 128
-LANDED_ALT_M = 1.5  # below this relative altitude (and disarmed or not moving) a vehicle is on the ground
+# below this relative altitude (and disarmed or not moving) a vehicle may be on the ground: what a
+# start decides by (a mission without a take-off is never started there), never a claim that it landed
+LANDED_ALT_M = 1.5
 MISSION_MODES = ("AUTO", "AUTO.MISSION")  # ArduPilot, PX4
 
 
@@ -50,6 +52,7 @@ class Telemetry:
     unix_wall_s: float | None = None  # daemon wall clock when unix_s arrived
     mission_ours: bool = True  # MISSION_CURRENT describes the mission we uploaded last (see VehicleAgent)
     landed_state: int | None = None  # EXTENDED_SYS_STATE's MAV_LANDED_STATE, where the autopilot sends it
+    heartbeats: int = 0  # the autopilot's own HEARTBEATs heard (armed is known only after the first)
     # Ready to arm, as each autopilot reports it (None: not reported): SYS_STATUS's pre-arm check
     # health bit (MAV_SYS_STATUS_PREARM_CHECK, ArduPilot and PX4), GPS_RAW_INT's fix type,
     # ESTIMATOR_STATUS's absolute horizontal position flag (PX4), ArduPilot's "EKF3 IMU0 is using GPS"
@@ -137,6 +140,7 @@ class VehicleAgent:
             if msg.autopilot == 8:  # MAV_AUTOPILOT_INVALID: a GCS or companion, not the autopilot
                 return
             t.autopilot = msg.autopilot
+            t.heartbeats += 1
             t.armed = bool(msg.base_mode & MAV_MODE_FLAG_SAFETY_ARMED)
             t.mode = self.flavour.mode_name(msg.custom_mode, msg.type)
         elif kind == "EXTENDED_SYS_STATE":
@@ -233,7 +237,21 @@ class VehicleAgent:
         e, n = self.frame.to_local(self.tel.lat_deg, self.tel.lon_deg)
         return float(e), float(n)
 
+    def landed(self) -> bool:
+        """On the ground and disarmed, as the vehicle says it: disarmed in its HEARTBEAT and, where
+        the autopilot sends EXTENDED_SYS_STATE, landed state ON_GROUND. The only ground for saying
+        "landed" or "home" (issue 42): never a height-and-speed guess. Measured on SITL
+        (``python -m tests.sitl.landing_measure``): ArduCopter is armed in LANDING below 1.5 m,
+        sinking at 0.5 m/s, for 5 s before it touches down and disarms; PX4 SIH's height on the
+        ground wanders by +-1 m while it is still armed, for about 10 s."""
+        t = self.tel
+        if t.heartbeats == 0 or t.armed:
+            return False
+        return t.landed_state is None or t.landed_state == mavlink.MAV_LANDED_STATE_ON_GROUND
+
     def on_ground(self) -> bool:
+        """Whether the vehicle may be on the ground: what a start decides by (a mission is started
+        there only with a take-off), never a claim that it landed (:meth:`landed`)."""
         # Disarmed and on the ground by the autopilot's own word, whatever the altitude says: PX4
         # SITL measured landed, disarmed and "on ground" at 2.2 m relative altitude (its height
         # estimate drifted in flight), which the altitude rule alone took for still airborne.

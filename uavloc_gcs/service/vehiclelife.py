@@ -20,8 +20,10 @@ Lost/found is orthogonal (``VehicleLife.lost``): a silent vehicle keeps its phas
 of planning until it is heard again.
 
 The facts every decision reads (:class:`Facts`, from :func:`read_facts`) are the vehicle's last
-report *at the moment the decision acts*: armed, on the ground (landed state or altitude), mode,
-mission on board (ours or not yet), current item, mission state. Nothing here keeps a fact across
+report *at the moment the decision acts*: armed, maybe on the ground (landed state or altitude: what
+a start decides by), landed (on the ground and disarmed by the vehicle's own report: what "landed"
+and "home" are said from, never a height-and-speed guess), mode, mission on board (ours or not
+yet), current item, mission state. Nothing here keeps a fact across
 an await: the monitor reads them each tick (:meth:`VehicleLife.observe`), and the exchanges
 (service/commands.py, service/starting.py) read them again right before each arm, MISSION_START
 and mission switch. Rules that matter (issue 26):
@@ -91,6 +93,9 @@ class Facts:
     rel_alt_m: float
     ground_speed_m_s: float
     silent_s: float  # wall seconds since it was last heard
+    # on the ground and disarmed by its own report (HEARTBEAT disarmed, EXTENDED_SYS_STATE ON_GROUND
+    # where sent): the only fact "landed" and "home" are said from (VehicleAgent.landed)
+    landed: bool = False
 
     @property
     def airborne(self) -> bool:
@@ -102,7 +107,7 @@ def read_facts(agent) -> Facts:
     t = agent.tel
     return Facts(bool(t.armed), bool(agent.on_ground()), str(t.mode), bool(agent.in_mission_mode), t.mission_seq,
                  t.mission_state, bool(t.mission_ours), float(t.rel_alt_m), float(t.ground_speed_m_s),
-                 float(agent.silent_for_s()))
+                 float(agent.silent_for_s()), landed=bool(agent.landed()))
 
 
 @dataclass
@@ -151,6 +156,7 @@ class VehicleLife:
     unflown_sorties: int = 0  # sorties of its scan left unflown when its packs were spent
     packs_flown: int = 0  # packs it has flown on (a sortie each)
     pack_counted: bool = False  # the pack it has now is counted in packs_flown
+    last_heard: object = None  # service.lost.LastHeard: what it said last, while it is lost
 
     @property
     def phase(self) -> str:
@@ -237,10 +243,11 @@ class VehicleLife:
                                        "of its scan is not flown"))
             self.scan_done = True
             self.returning(home_by(self))
-        if self.phase.startswith("returning") and f.on_ground and not self.home:
+        if self.phase.startswith("returning") and f.landed and not self.home:
+            # on the ground and disarmed by its own word: armed and low is still landing (issue 42)
             self.home, self.flew = True, False
             self.phase = "landed"
-            events.append(("landed", f"vehicle {self.id} landed"))
+            events.append(("landed", f"vehicle {self.id} landed (on the ground and disarmed)"))
         if self.home and not f.on_ground and f.armed:
             self.home = False  # sent out again
             if self.phase == "landed" and f.mode in HOMING_MODES:

@@ -86,7 +86,7 @@ def test_pymavlink_client_uploads_and_flies_a_mission(autopilot):
             if autopilot == "px4":  # PX4 ends the mission at its RTL item and returns in AUTO.RTL
                 assert v.mode == "RTL" and not v.landed
                 for _ in range(200):
-                    if v.landed:
+                    if v.landed and not v.armed:  # (PX4 disarms 2.5 s after it landed)
                         break
                     await asyncio.sleep(0.05)
                 assert v.mode == "RTL"

@@ -172,7 +172,7 @@ def test_mavsdk_arms_starts_and_follows_the_mission_to_the_end(autopilot):
                     action.destroy()
             v = fleet.vehicle(1)
             for _ in range(200):  # PX4 ends the mission at its RTL item and lands in AUTO.RTL
-                if v.landed:
+                if v.landed and not v.armed:  # (PX4 disarms 2.5 s after it landed)
                     break
                 await asyncio.sleep(0.05)
             return v

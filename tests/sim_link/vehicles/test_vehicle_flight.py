@@ -13,7 +13,7 @@ from uavloc_gcs.scan import plan_scan, scan_missions
 from uavloc_gcs.scenario import load_scenario
 from sim_link.vehicles.executor import corner
 from sim_link.vehicles.flavour import FLAVOURS
-from sim_link.vehicles.mission_server import Peer
+from sim_link.vehicles.mission_server import Peer, Reply
 from sim_link.vehicles.vehicle import PHYSICS_DT_S, FakeVehicle, VehicleConfig
 from sim_link.world import World
 
@@ -401,3 +401,38 @@ def test_a_waypoint_followed_by_a_loiter_at_the_same_point_is_arrived_at_not_flo
     samples, _msgs = _fly(v, to_wire(plan, "ardupilot"))
     assert samples[:, 1].max() < 300.0 + 3.0, samples[:, 1].max()  # no more than a few metres past it
     assert v.landed and np.linalg.norm(v.position_xyz_m[:2]) < 2.0
+
+
+@pytest.mark.parametrize("ap", ["ardupilot", "px4"])
+def test_landing_is_reported_as_each_autopilot_reports_it(ap):
+    """Issue 42 item 1: after touching down the autopilot stays armed in landed state LANDING until
+    its land detector is sure, says ON_GROUND still armed, then disarms by itself (measured on SITL,
+    ``python -m tests.sitl.landing_measure``: ArduCopter ON_GROUND 1.7 s after touchdown and
+    disarmed 0.7 s later; PX4 SIH 7 s and 2.2-2.7 s). The fake says the same in its telemetry."""
+    sc = PAPER.replace(fleet={"autopilot": ap})
+    v = _vehicle(sc)
+    _fly(v, _wps(sc, [[40, 0]], ap, rtl=False), t_end_s=60.0)
+    assert v.set_mode("RTL")
+    seen = []  # (t, altitude, armed, landed state) from the vehicle's own messages
+    state = {"armed": True, "landed": None, "alt": math.nan}
+    t = v.t_s
+    while t < 300.0 and (state["armed"] or not seen or seen[-1][0] < t - 2.0):
+        t += 0.1
+        for r in v.advance(t) + [v.heartbeat_reply(), Reply(v._extended_sys_state())]:
+            m = r.msg
+            if m.get_type() == "HEARTBEAT":
+                state["armed"] = bool(m.base_mode & mav.MAV_MODE_FLAG_SAFETY_ARMED)
+            elif m.get_type() == "EXTENDED_SYS_STATE":
+                state["landed"] = m.landed_state
+            elif m.get_type() == "GLOBAL_POSITION_INT":
+                state["alt"] = m.relative_alt / 1000.0
+        seen.append((t, v.kin.pos[2], state["armed"], state["landed"]))
+    down = next(s for s in seen if s[1] <= 0.0)
+    on_ground = next(s for s in seen if s[3] == mav.MAV_LANDED_STATE_ON_GROUND)
+    disarmed = next(s for s in seen if not s[2])
+    low = [s for s in seen if 0.0 < s[1] < 1.5 and s[0] < down[0]]
+    assert low and all(s[2] and s[3] == mav.MAV_LANDED_STATE_LANDING for s in low)  # armed, landing, low
+    assert all(s[3] == mav.MAV_LANDED_STATE_LANDING and s[2] for s in seen if down[0] <= s[0] < on_ground[0])
+    assert on_ground[0] - down[0] == pytest.approx(v.flavour.land_detect_s, abs=0.2)
+    assert disarmed[0] - on_ground[0] == pytest.approx(v.flavour.disarm_after_landed_s, abs=0.2)
+    assert v.landed and not v.armed and v.mode == "RTL"

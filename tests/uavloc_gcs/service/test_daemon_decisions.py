@@ -26,6 +26,9 @@ class _Agent:
     def on_ground(self):
         return False
 
+    def landed(self):  # on the ground and disarmed, by the vehicle's own word (VehicleAgent.landed)
+        return self.on_ground() and not self.tel.armed
+
     async def upload(self, items):
         self.uploads.append(items)
 
@@ -272,11 +275,12 @@ class _LandingAgent(_Agent):
         return self.tel.mode == "AUTO"
 
 
-def test_a_vehicle_judged_landed_that_climbs_again_in_rtl_is_returning_not_home(tmp_path):
+def test_a_vehicle_low_and_armed_that_climbs_again_in_rtl_is_returning_not_home(tmp_path):
     """Under 20 % loss a retried RTL reached a fake vehicle 1.2 m above home, still armed: the
     daemon took it for landed, the vehicle climbed back, and the search ended with it "not
-    confirmed returning home" after waiting the whole landing allowance. Airborne again in a
-    homing mode, it is returning."""
+    confirmed returning home" after waiting the whole landing allowance. Since issue 42 a vehicle
+    low, slow and armed is not landed at all (only its own "disarmed" is): it stays returning
+    while it climbs again, and is home once it says it is down and disarmed."""
     d, _policy = _daemon(tmp_path)
     try:
         v = d.vehicles[1]
@@ -285,16 +289,17 @@ def test_a_vehicle_judged_landed_that_climbs_again_in_rtl_is_returning_not_home(
         d._returning(v)
         v.agent.ground = True  # 1.2 m, armed, slow
         d._update_phase(v)
-        assert v.home and v.phase == "landed"
+        assert not v.home and v.phase == "returning"
         v.agent.ground = False  # climbing again in RTL
         d._update_phase(v)
         assert not v.home and v.phase == "returning"
-        d.store.flush()
-        with StoreReader(tmp_path / "s.sqlite") as rd:
-            assert [e.text for e in rd.events("home")] == ["vehicle 1 is airborne again in RTL: returning home"]
         v.agent.tel.armed, v.agent.ground = False, True  # down and disarmed
         d._update_phase(v)
         assert v.home and v.phase == "landed"
+        d.store.flush()
+        with StoreReader(tmp_path / "s.sqlite") as rd:
+            assert [e.text for e in rd.events("landed")] == ["vehicle 1 landed (on the ground and disarmed)"]
+            assert rd.events("home") == []
     finally:
         d.store.close()
 
@@ -489,5 +494,31 @@ def test_a_new_mission_item_is_stored_at_once_whatever_the_position_rate(tmp_pat
             seqs = [s for (s,) in rd._conn.execute("SELECT mission_seq FROM telemetry ORDER BY rowid")]
             assert rd.last_mission_seq() == {1: 6}
         assert seqs == [5, 6]  # the position row, then the item as it changed; the next position waits
+    finally:
+        d.store.close()
+
+
+def test_without_a_geofence_looks_stay_inside_the_area_plus_the_stated_margin(tmp_path):
+    """Issue 42 item 5: with no geofence in the scenario, looks left the field world's area by up to
+    111 m (the policy keeps look points within the area grown by the hearing range). The area plus
+    area.default_geofence_m is the fence now: a look planned 100 m north of the area is flown at
+    most default_geofence_m - geofence_margin_m beyond it, and the daemon's log says which fence."""
+    from shapely.geometry import Point, Polygon
+
+    from uavloc_gcs import geofence
+
+    d, _policy = _daemon(tmp_path)
+    sc = d.sc
+    area = Polygon(sc.area_xy_m())
+    north = float(np.max(sc.area_xy_m()[:, 1]))
+    try:
+        v = d.vehicles[1]
+        asyncio.run(d._upload_look(v, np.array([[200.0, north + 100.0]]), (7,)))
+        items = v.agent.uploads[-1]
+        pts = [d.frame.to_local(it.x / 1e7, it.y / 1e7) for it in items if it.command == 16 and it.x]
+        beyond = max(area.distance(Point(float(e), float(n))) for e, n in pts)
+        allowed = sc.area.default_geofence_m - sc.area.geofence_margin_m
+        assert 0.0 < beyond <= allowed + 0.5, (beyond, pts)
+        assert "No geofence given: the search area plus 50 m" in geofence.describe(sc)
     finally:
         d.store.close()

@@ -260,6 +260,9 @@ class _StuckAgent:
     def on_ground(self):
         return self.tel.rel_alt_m < 1.5
 
+    def landed(self):
+        return self.on_ground() and not self.tel.armed
+
     @property
     def in_mission_mode(self):
         return self.tel.mode == "AUTO"

@@ -97,6 +97,42 @@ def test_a_vehicle_the_autopilot_says_landed_and_disarmed_is_on_the_ground_at_an
     assert not a.on_ground()  # armed and moving: the altitude rule decides, as before
 
 
+def _ap_heartbeat(armed: bool, custom_mode: int = 6):  # ArduCopter, RTL
+    return mav.MAVLink_heartbeat_message(2, 3, 89 | (128 if armed else 0), custom_mode, 4 if armed else 3, 3)
+
+
+def test_landed_is_only_what_the_vehicle_says_disarmed_and_on_the_ground():
+    """Issue 42 item 1, as measured on ArduCopter SITL (tests/sitl/landing_measure.py): armed in RTL,
+    landed state LANDING, 1.48 m up, sinking at 0.5 m/s, not moving over ground -- the height-and-
+    speed rule said "on the ground" 5.4 s before the vehicle touched down and disarmed. Landed is
+    the vehicle's own word only: disarmed, and ON_GROUND where it sends a landed state."""
+    link, clock = _Link(), [100.0]
+    a = _agent(link, clock)
+    assert not a.landed()  # nothing heard: nothing said
+    link.feed(_ap_heartbeat(armed=True))
+    link.feed(mav.MAVLink_global_position_int_message(110700, 426250000, 132830000, 901480, 1480, 0, 0, 49, 0))
+    link.feed(mav.MAVLink_extended_sys_state_message(0, mav.MAV_LANDED_STATE_LANDING))
+    assert a.on_ground()  # what a start decides by: low and slow may be the ground
+    assert not a.landed()  # ... but it is armed and landing
+    link.feed(mav.MAVLink_extended_sys_state_message(0, mav.MAV_LANDED_STATE_ON_GROUND))
+    assert not a.landed()  # down, still armed (0.7 s on ArduCopter, 2-3 s on PX4)
+    link.feed(_ap_heartbeat(armed=False))
+    assert a.landed()
+    link.feed(mav.MAVLink_extended_sys_state_message(0, mav.MAV_LANDED_STATE_IN_AIR))
+    assert not a.landed()  # disarmed but not on the ground by its own word: not landed
+
+
+def test_without_a_landed_state_disarmed_is_landed_at_any_height():
+    """An autopilot that sends no EXTENDED_SYS_STATE: its HEARTBEAT's disarmed is the word."""
+    link, clock = _Link(), [100.0]
+    a = _agent(link, clock)
+    link.feed(_ap_heartbeat(armed=True))
+    link.feed(mav.MAVLink_global_position_int_message(1000, 426250000, 132830000, 900300, 300, 0, 0, 10, 0))
+    assert not a.landed()
+    link.feed(_ap_heartbeat(armed=False))
+    assert a.landed()
+
+
 def test_rssi_of_both_message_versions_arrives_with_its_sensor_columns_on_either_path():
     """UAVLOC_RSSI_BATCH2 (address, fingerprint, channel) and the old UAVLOC_RSSI_BATCH, through
     the autopilot's link and on a connection beside it."""

@@ -26,6 +26,7 @@ from ...scenario import Scenario
 from ...search.targets import inside_area
 from ..labels import PersonLabels
 from ..liveview import StatusSnapshot
+from ..clock import MissionClock, clock_label
 from ..results import person_state, utc_text
 
 _LOOKS = re.compile(r"(looks at )([\d, ]+)")  # the daemon's "vehicle 2 looks at 17, 42"
@@ -189,8 +190,11 @@ class MapFeed:
                 "required_accuracy_m": self.sc.people.required_accuracy_m, "state_colors": STATE_COLORS,
                 "vehicles": self.sc.fleet.vehicles}
 
-    def _epoch(self) -> float | None:
+    def _epoch(self):
+        """The search's clock (service.clock.MissionClock, or the stored epoch: real time)."""
         e = self.epoch() if self.epoch is not None else None
+        if isinstance(e, MissionClock) and e.epoch_unix_s is None:
+            e = None
         return e if e is not None else self.meta.get("epoch_unix_s")
 
     def set_final(self, people, coverage=None) -> None:
@@ -255,6 +259,7 @@ class MapFeed:
                         "mode": st.mode if st is not None else tel.get("mode", "?"),
                         "battery_pct": _f(batt, 0), "phase": st.phase if st is not None else "",
                         "lost": bool(st.lost if st is not None else tel.get("lost", False)),
+                        "note": getattr(st, "note", "") if st is not None else "",  # lost in the air: last heard
                         "mission_seq": st.mission_seq if st is not None else tel.get("mission_seq"),
                         "mission_total": st.mission_total if st is not None else None})
         return out
@@ -287,9 +292,15 @@ class MapFeed:
         snap = self.snapshot() if self.snapshot is not None else None
         t_s = snap.elapsed_s if snap is not None else max(
             (t["t_s"] for t in self.telemetry.values() if t.get("t_s") is not None), default=0.0)
-        return {"t_s": _f(t_s, 1), "epoch_unix_s": self._epoch(), "slots": snap.slots if snap is not None else None,
+        clock = self._epoch()
+        epoch = clock.epoch_unix_s if isinstance(clock, MissionClock) else clock
+        vehicles = self._vehicles(snap)
+        return {"t_s": _f(t_s, 1), "epoch_unix_s": epoch, "clock_utc": utc_text(clock, t_s) if clock is not None else "",
+                "clock_label": clock_label(clock), "slots": snap.slots if snap is not None else None,
                 "replans": snap.replans if snap is not None else None, "finished": self.finished,
-                "wall_unix_s": round(time.time(), 1), "vehicles": self._vehicles(snap), "people": self._people(snap),
+                "wall_unix_s": round(time.time(), 1), "vehicles": vehicles, "people": self._people(snap),
+                # what the operator must see first: a vehicle lost in the air (service/lost.py)
+                "alert": " ".join(v["note"] for v in vehicles if v.get("note")),
                 "plan": self._plan(), "coverage": self._coverage()}
 
     def state(self) -> dict:

@@ -193,7 +193,7 @@
                           transform: `translate(${x.toFixed(1)},${y.toFixed(1)})` }, gVeh);
       el("path", { d: "M0,-11 L7,8 L0,4 L-7,8 Z", fill: col, stroke: "#fff", "stroke-width": 1.5,
                    transform: `rotate(${ok(v.heading_deg) ? v.heading_deg : 0})` }, g);
-      const text = `UAV${v.id}` + (v.lost ? " LOST" : "");
+      const text = `UAV${v.id}` + (v.note ? " LOST IN THE AIR (last heard here)" : v.lost ? " LOST" : "");
       el("text", { x: 11, y: -8, fill: col, "font-weight": 700 }, g, text);
     }
     decorations();
@@ -232,9 +232,10 @@
   }
 
   // -- panels --------------------------------------------------------------------------------
-  function utc(t) {
-    if (!S || !ok(S.epoch_unix_s) || !ok(t)) return "";
-    return new Date((S.epoch_unix_s + t) * 1000).toISOString().slice(11, 19);
+  // UTC as the daemon maps it (service/clock.py): under a simulator's speed-up the vehicles' clock
+  // runs ahead of UTC, so times come from the server, already mapped, with the clock they are in
+  function utc(iso) {
+    return iso ? iso.slice(11, 19) : "";
   }
   function row(tbody, cells, attrs) {
     const tr = document.createElement("tr");
@@ -249,8 +250,10 @@
   }
   function panels() {
     document.getElementById("title").textContent = `uavloc · ${S.static.name}`;
-    const clock = utc(S.t_s);
-    document.getElementById("clock").textContent = `t = ${fmt(S.t_s, 1)} s` + (clock ? ` (${clock} UTC)` : "");
+    const clock = utc(S.clock_utc);
+    document.getElementById("clock").textContent = `mission t = ${fmt(S.t_s, 1)} s` +
+      (clock ? ` (${clock} ${S.clock_label === "UTC" ? "UTC" : "UTC, this computer's clock"})` : "");
+    document.getElementById("clock").title = S.clock_label || "";
     const nLoc = S.people.filter((p) => p.state === "located").length;
     document.getElementById("summary").textContent =
       `located ${nLoc}/${S.people.length} within ${S.static.required_accuracy_m} m` +
@@ -258,13 +261,16 @@
       (S.coverage ? ` · POD ${fmt(S.coverage.pod_overall, 2)} (target ${fmt(S.coverage.pod_target, 2)})` +
                     (S.coverage.unsearched_m2 > 0 ? ` · unsearched ${fmt(S.coverage.unsearched_m2 / 1e6, 3)} km²` : "") : "");
     document.getElementById("summary").title = S.coverage ? S.coverage.statement : "";
+    const alert = document.getElementById("alert");  // a vehicle lost in the air, said first
+    alert.textContent = S.alert || "";
+    alert.hidden = !S.alert;
     const vb = document.querySelector("#vehicles tbody");
     vb.textContent = "";
     for (const v of S.vehicles) {
       const sw = document.createElement("span");
       sw.textContent = `UAV${v.id}`; sw.style.color = v.color; sw.className = "state";
       row(vb, [sw, v.mode || "?", ok(v.battery_pct) ? `${v.battery_pct}%` : "-",
-               (v.lost ? "LOST " : "") + (v.phase || "") + (ok(v.mission_seq) && ok(v.mission_total) ? ` (${v.mission_seq}/${v.mission_total})` : "")]);
+               (v.note ? "LOST IN THE AIR " : v.lost ? "LOST " : "") + (v.phase || "") + (ok(v.mission_seq) && ok(v.mission_total) ? ` (${v.mission_seq}/${v.mission_total})` : "")]);
     }
     const pb = document.querySelector("#people tbody");
     pb.textContent = "";
@@ -281,7 +287,7 @@
         ll.textContent = `${p.lat_deg.toFixed(6)}, ${p.lon_deg.toFixed(6)}`;
         nm.appendChild(ll);
       }
-      row(pb, [nm, st, ok(p.radius95_m) ? `${fmt(p.radius95_m, 1)} m` : "-", utc(p.t_ref_s) || "-"], { "data-id": p.id });
+      row(pb, [nm, st, ok(p.radius95_m) ? `${fmt(p.radius95_m, 1)} m` : "-", utc(p.time_utc) || "-"], { "data-id": p.id });
       if (p.reason && p.state !== "located") {
         const tr = row(pb, [""]); tr.firstChild.colSpan = 4; tr.firstChild.className = "reason"; tr.firstChild.textContent = p.reason;
       }
