@@ -67,7 +67,7 @@ MAX_TRIES = 3000
 # position prior is flat, and a few bursts near the threshold leave a posterior some 200-300 m
 # wide, so a bench that kept people within 60-120 m of the tracks tested the radius against a
 # truth far more concentrated than its prior: the posterior's own 95 % region covered 1.00
-# (issue 24 item 4, measured in docs/readme/localization.md). 500 m is beyond where two bursts
+# (issue 24 item 4, measured in docs/science/estimator.md). 500 m is beyond where two bursts
 # are heard (27 frames at 2.5x the 50 % range still give ~50 % to hear one).
 PLACE_M = 500.0
 

@@ -5,7 +5,7 @@ area and fleet in the field world) and a target (default 0.95, for one and for t
 plan the scan (``search.pod_plan.plan_for_pod``, best effort, all of every pack's usable energy)
 with each number of packs and swaps of ``--swap-s`` seconds, and print what it reaches on the fine
 grid and how long it takes from the first take-off to the last landing, swaps included. The model
-is ``search/pod.py``'s (steady-state phones with long silences; docs/readme/pod.md), the flight
+is ``search/pod.py``'s (steady-state phones with long silences; docs/science/pod.md), the flight
 Zeng's power at cruise speed with take-off, landing and turns not counted.
 """
 

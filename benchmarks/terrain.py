@@ -1,5 +1,5 @@
 """``python -m benchmarks.terrain [--people N] [--walkers N]``: what terrain does to the missions and
-the estimator (docs/readme/terrain.md).
+the estimator (docs/science/terrain.md).
 
 1. The scan of ``examples/mountains.toml`` (Mount Washington's west flank, SRTM3): per vehicle the
    waypoints before and after ``terrain_safe``, the least and median height above the DEM along the

@@ -157,7 +157,7 @@ def test_paper_scan_pod_is_double_coverage():
         tracks.append((t, np.column_stack([xy, np.full(len(t), sc.fleet.altitude_m)])))
     g = pod.pod_from_tracks(sc, tracks, pod.grid_for(sc, 40.0))
     assert g.overall(1) == 1.0
-    # two looks (in-range runs more than 10 s apart): 84 % of people in docs/readme/world.md
+    # two looks (in-range runs more than 10 s apart): 84 % of people in docs/science/world.md
     assert 0.75 < g.overall(2) < 0.95, g.overall(2)
     fc = g.to_geojson(sc)
     assert len(fc["features"]) == int(g.inside.sum())

@@ -197,7 +197,7 @@ def _packs(sc, batteries: int, **search):
 
 def test_one_pack_plans_as_before_sorties(small):
     """batteries = 1: no sorties, the time is the longest flight (the plans are the same to the bit,
-    checked against the code before sorties on examples/field.toml, docs/readme/pod.md)."""
+    checked against the code before sorties on examples/field.toml, docs/science/pod.md)."""
     one = pod_plan._layout(small, 250.0, 250.0)
     run = pod_plan._Fleet(small, 12.0).passes(one, 3)
     assert run.sorties == () and run.packs == 1 and run.time_s == run.plan.makespan_s

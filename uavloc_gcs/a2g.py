@@ -21,7 +21,7 @@ frame of a phone with transmit offset ``tx`` at 3-D distance d and elevation the
   (:mod:`uavloc_gcs.a2g_fading`; a Gaussian in dB would make edge frames too easy to hear).
 
 A frame is heard when its RSSI exceeds the receiver's sensitivity S. Sources of every number are in
-:data:`ENVIRONMENTS` and docs/readme/world.md ("The air-to-ground channel"). The calibration: with
+:data:`ENVIRONMENTS` and docs/science/world.md ("The air-to-ground channel"). The calibration: with
 free-space spreading (eta = 2) the link budget P0 - S puts a LoS frame's 50 % hearing distance in
 open terrain (no excess loss; the 4 dB shadowing and the fading integrated) at Wi2SAR's measured
 298.8 m (:func:`wi2sar_reference_power_dbm`).
@@ -117,7 +117,7 @@ def p1410_los_probability(env: Environment, horizontal_m: float, height_m: float
     """The geometric LoS probability of ITU-R P.1410 (the model Al-Hourani's curve was fitted to) for
     a terminal on the ground and one ``height_m`` above it: floor(r sqrt(alpha beta) / 1000)
     buildings, Rayleigh heights of scale gamma, each below the ray where it crosses. For comparison
-    (docs/readme/world.md): it depends on the distance as well as the elevation."""
+    (docs/science/world.md): it depends on the distance as well as the elevation."""
     n = int(math.floor(horizontal_m * math.sqrt(env.built_up_fraction * env.buildings_per_km2) / 1000.0))
     if n == 0:
         return 1.0

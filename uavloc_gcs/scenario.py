@@ -142,7 +142,7 @@ class EmissionSpec:
     that rate.
 
     Burst parameters (used by ``probe-bursts`` only; defaults are the fit to public captures, see
-    sim_link/world/emission.py and docs/readme/world.md): every phone has a quantile u ~ U(0, 1)
+    sim_link/world/emission.py and docs/science/world.md): every phone has a quantile u ~ U(0, 1)
     that places its median gap between bursts log-linearly in
     [``burst_gap_median_min_s``, ``burst_gap_median_max_s``] and its 90th percentile in
     [``burst_gap_p90_min_s``, ``burst_gap_p90_max_s``] (a log-normal gap distribution per phone);
@@ -270,7 +270,7 @@ class LinkSpec:
     lost_timeout_s: float = 5.0
     rssi_connections: list | None = None
     set_speed_params: bool = False
-    source_system: int = 245  # QGroundControl is 255; see docs/readme/daemon.md
+    source_system: int = 245  # QGroundControl is 255; see docs/guide/daemon.md
     on_stop: Literal["rtl", "continue"] = "rtl"
 
 

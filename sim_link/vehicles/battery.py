@@ -5,7 +5,7 @@ air) and its voltage falls linearly with its charge from 16.8 to 14.0 V (a 4S Li
 The team gives it a fresh one (:meth:`Battery.swap`); on a real multirotor the pack also powers the
 autopilot, so a swap is a reboot as well (``FakeFleet.swap_pack``).
 
-What each autopilot reports, as measured on ``../shared/sitl`` (docs/readme/sitl.md, "Battery"):
+What each autopilot reports, as measured on ``../shared/sitl`` (docs/guide/sitl.md, "Battery"):
 
 * **ArduPilot** (AP_BattMonitor with ``BATT_MONITOR 4``, voltage and current) integrates the current
   since boot: remaining = 1 - consumed / capacity, whatever the pack's voltage. A pack put in

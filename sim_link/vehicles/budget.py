@@ -8,7 +8,7 @@ UAVLOC_RSSI_BATCH2 (what the companion emulator sends: address, fingerprint, cha
 unless ``--message`` asks for the old UAVLOC_RSSI_BATCH or ``auto`` (the old one whenever it
 carries the slots losslessly, as in the paper's continuous world).
 
-Two RSSI paths (docs/readme/daemon.md, "The RSSI path"): ``through`` -- the companion's RSSI goes
+Two RSSI paths (docs/guide/daemon.md, "The RSSI path"): ``through`` -- the companion's RSSI goes
 through the autopilot (ArduPilot with MAVn_OPTIONS bit 3) and shares the one radio with the
 telemetry; ``beside`` -- it goes on a link of its own (a second radio, or a router on the
 companion), so the autopilot's radio carries only the telemetry and the RSSI link only the

@@ -8,7 +8,7 @@ UAVLOC_RSSI_BATCH2 from component 191 of the autopilot's system, with a 1 Hz HEA
 the source address, the content fingerprint, the channel, the frame count and the mean RSSI (the
 paper's continuous world gives address = emitter id, fingerprint 0 and channel 0, sent as they are).
 
-Two paths to the ground (docs/readme/daemon.md, "The RSSI path"):
+Two paths to the ground (docs/guide/daemon.md, "The RSSI path"):
 
 - through the autopilot (default): the batches go to ``autopilot_url`` and the autopilot routes
   them to the ground station as a real companion's. ArduPilot forwards a message id it does not

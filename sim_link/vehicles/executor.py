@@ -28,7 +28,7 @@ NAV_COMMANDS = frozenset(POSITIONAL | {RTL})
 _RELATIVE_FRAMES = frozenset({3, 6, 10, 11})
 CIRCLE_RADIUS_DEFAULT_M = 10.0  # ArduCopter CIRCLE_RADIUS default (1000 cm)
 # ArduCopter flies a NAV_LOITER_TURNS circle at about sqrt(a r): 7.9 m/s around 60 m measured on
-# SITL (docs/readme/orbits.md, uavloc_gcs.search.orbit.ORBIT_SPEED_M_S), a = 1.04 m/s^2
+# SITL (docs/science/looks.md, uavloc_gcs.search.orbit.ORBIT_SPEED_M_S), a = 1.04 m/s^2
 CIRCLE_ACCEL_M_S2 = 7.9 * 7.9 / 60.0
 
 

@@ -247,7 +247,7 @@ class MissionServer:
                 if not math.isfinite(it.z) or abs(it.z) >= LOCATION_ALT_MAX_M:
                     return mav.MAV_MISSION_INVALID_PARAM7
             return mav.MAV_MISSION_ACCEPTED
-        if it.command == NAV_LOITER_TURNS:  # measured on PX4 SITL (docs/readme/orbits.md)
+        if it.command == NAV_LOITER_TURNS:  # measured on PX4 SITL (docs/science/looks.md)
             return mav.MAV_MISSION_UNSUPPORTED
         if positional:
             if it.frame == mav.MAV_FRAME_MISSION:

@@ -1,7 +1,7 @@
 """The telemetry a fake vehicle streams, and the messages it sends on request.
 
 Streams are scheduled in simulated time at the nominal rates of a real telemetry link, so the
-byte rate per simulated second is what a radio would carry (``docs/readme/sim.md``):
+byte rate per simulated second is what a radio would carry (``docs/guide/fake-vehicles.md``):
 HEARTBEAT 1 Hz (optionally also from the companion, component 191), GLOBAL_POSITION_INT 5 Hz,
 SYS_STATUS 1 Hz, SYSTEM_TIME 1 Hz, MISSION_CURRENT 1 Hz and on change, EXTENDED_SYS_STATE 1 Hz;
 GPS_RAW_INT and BATTERY_STATUS (battery.py) when asked. MAV_CMD_SET_MESSAGE_INTERVAL changes a

@@ -24,7 +24,7 @@
 - an elicited frame (an on-board access point that imitates a known network) is sent under the
   phone's per-network address: phones bind one random address to each saved network.
 
-Sources and fit (docs/readme/world.md has the tables):
+Sources and fit (docs/science/world.md has the tables):
 
 - within a burst (frames, spacing, channels, addresses per burst) and the rate of long silences:
   fitted with ``python -m sim_link.world.calibrate`` to the labelled per-device captures of 11 phones

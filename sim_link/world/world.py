@@ -11,7 +11,7 @@ what one vehicle hears depends only on the sequence of its own ``hear``/``hear_t
 on how the calls of several concurrently simulated vehicles interleave. Hearing a track slot by
 slot gives the same numbers as hearing it in one ``hear_track`` call.
 
-Two emission models (``scenario.emission.model``, docs/readme/world.md): ``continuous`` (the paper:
+Two emission models (``scenario.emission.model``, docs/science/world.md): ``continuous`` (the paper:
 every phone in every slot, under its emitter id, heard within ``fleet.comm_range_m``) and
 ``probe-bursts`` (the field: :mod:`.emission`'s bursts under changing addresses). With
 ``channel.receiver_sensitivity_dbm`` set, a frame is heard when its RSSI exceeds it (no range gate),

@@ -1,6 +1,6 @@
 """Battery packs on the real autopilots' SITL (issue 38): how each simulates one, and a swap.
 
-Measured on ../shared/sitl (``python -m tests.sitl.battery_measure``, docs/readme/sitl.md "Battery"):
+Measured on ../shared/sitl (``python -m tests.sitl.battery_measure``, docs/guide/sitl.md "Battery"):
 
 * ArduCopter SITL simulates the pack in its physics (``SIM_BATT_VOLTAGE`` full, ``SIM_BATT_CAP_AH``
   capacity; 0, the default, is a pack that never sags) and monitors it with ``BATT_MONITOR 4``:

@@ -5,7 +5,7 @@ rest and what uavloc's ``check_fresh_pack`` makes of it; a hover from take-off w
 and the voltage every few simulated seconds (the drain per simulated minute); the pack after the
 landing; whether it arms on it; MAV_CMD_BATTERY_RESET; the swap of ``tests/sitl/battery.py``; and,
 on ArduCopter, the low-voltage failsafe and a reboot. Prints one line per step. The figures are in
-docs/readme/sitl.md ("Battery").
+docs/guide/sitl.md ("Battery").
 """
 
 from __future__ import annotations

@@ -61,7 +61,7 @@ motion = "static"
 {link}
 """
 
-# examples/field.toml's receiver and phones (docs/readme/world.md): a -90 dBm threshold with the
+# examples/field.toml's receiver and phones (docs/science/world.md): a -90 dBm threshold with the
 # obstructed path loss (a frame is heard with probability 1/2 at about 150 m), probe bursts. One
 # orbit look per person: by default a person heard on their orbit is looked at again until the
 # energy is spent, and the 400 kJ these vehicles carry would take the PX4 search past its wall

@@ -38,7 +38,7 @@ ROOT = Path(__file__).resolve().parents[2]
 DEFAULT_SITL_DIR = ROOT.parent / "shared" / "sitl"
 
 # Simulated time runs this many times faster than wall time. Measured on the 2-core CI box with
-# other work running (docs/readme/sitl.md): ArduCopter keeps up at 5-10x, PX4 lockstep at ~5x.
+# other work running (docs/guide/sitl.md): ArduCopter keeps up at 5-10x, PX4 lockstep at ~5x.
 ARDUPILOT_SPEEDUP = int(os.environ.get("UAVLOC_SITL_AP_SPEEDUP", "5"))
 PX4_SPEEDUP = int(os.environ.get("UAVLOC_SITL_PX4_SPEEDUP", "5"))
 

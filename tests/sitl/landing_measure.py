@@ -1,4 +1,4 @@
-"""Measure how each SITL autopilot reports its landing (issue 42 item 1; docs/readme/daemon.md).
+"""Measure how each SITL autopilot reports its landing (issue 42 item 1; docs/guide/daemon.md).
 
     .venv/bin/python -m tests.sitl.landing_measure [ardupilot|px4 ...]
 

@@ -1,4 +1,4 @@
-"""Measure what each SITL autopilot flies for an orbit look (docs/readme/orbits.md).
+"""Measure what each SITL autopilot flies for an orbit look (docs/science/looks.md).
 
     .venv/bin/python -m tests.sitl.orbit_measure [ardupilot|px4 ...] [--radius 60] [--speed 10]
 

@@ -4,13 +4,13 @@ item 5: the field world).
 Each: the companion emulators supply the RSSI of 3 simulated static people in a 300 m x 300 m
 area; the daemon runs as a child process to its end. The searches in the field world (probe bursts,
 a receiver threshold), checked for what they may honestly claim (daemon_run.field_check), are in
-test_sitl_command.py: today's search flies look after look there (docs/readme/sitl.md), so the
+test_sitl_command.py: today's search flies look after look there (docs/guide/sitl.md), so the
 tests here, which are about the look phase and the vehicles' start and state, keep the paper's
 world, where people are heard often enough for looks to locate:
 exit 0, every person heard located, at most one outside their 95 % circle and none outside their
 99.9 % circle, a handful of uploads per vehicle; so does the previously-flown PX4 test, which is about
 the autopilot's state between two searches. Two ArduCopters at once and a PX4, started by ``uavloc
-sitl`` itself: test_sitl_command.py. Durations are in docs/readme/sitl.md.
+sitl`` itself: test_sitl_command.py. Durations are in docs/guide/sitl.md.
 """
 
 from __future__ import annotations
@@ -90,7 +90,7 @@ def test_a_previously_flown_vehicle_searches_again(sitl, tmp_path, kind):
     the next search right after its scan started (exit 1, no RTL). Two searches in a row on the
     same vehicle: the second must run to its end like the first. The paper's world: this is about
     the autopilot's state between searches, and two field searches would fly 4,000-6,000 s of
-    mission today (docs/readme/sitl.md); ArduCopter never showed the stale state, so only PX4."""
+    mission today (docs/guide/sitl.md); ArduCopter never showed the stale state, so only PX4."""
     v = dr.start_px4(sitl) if kind == "px4" else dr.start_arducopter(sitl)
     for k in range(2):
         sc = dr.load(dr.scenario_text(f"{kind}-again{k}", kind, [v], seed=3 + k, world="paper"),
@@ -113,7 +113,7 @@ def test_a_freshly_booted_vehicle_searches(sitl, tmp_path, kind):
     v = dr.start_px4(sitl, wait=wait) if kind == "px4" else dr.start_arducopter(sitl, wait=wait)
     # The paper's world: this is about the start, and today's search in the field world flies look
     # after look (a freshly booted ArduCopter there: still looking at 1,300 s of mission; PX4 did not
-    # end within 900 s of wall time; docs/readme/sitl.md)
+    # end within 900 s of wall time; docs/guide/sitl.md)
     sc = dr.load(dr.scenario_text(f"{kind}-fresh", kind, [v], world="paper"), tmp_path / "mission.toml")
     with dr.Companions(sc, [v]):
         run = dr.run_daemon(tmp_path / "mission.toml", tmp_path / "out")

@@ -45,7 +45,7 @@ speed_m_s = {speed}
 
 @pytest.mark.parametrize("kind, form", [("ardupilot", "shipped"), ("px4", "shipped"), ("ardupilot", "loiter-turns")])
 def test_orbit_look_radius_and_dwell(sitl, kind, form):
-    """(PX4 refuses NAV_LOITER_TURNS in a mission, MAV_MISSION_UNSUPPORTED: docs/readme/orbits.md.)"""
+    """(PX4 refuses NAV_LOITER_TURNS in a mission, MAV_MISSION_UNSUPPORTED: docs/science/looks.md.)"""
     sitl = sitl(kind)
     lat, lon = harness.HOME[:2]
     transit = TRANSIT_M if form == "shipped" else ALT_M  # NAV_LOITER_TURNS: at the transit altitude, as before

@@ -6,7 +6,7 @@ writes the results. Restarted with the same ``--out`` after a crash it resumes t
 Exit code 0 when every person heard was located within the required accuracy, 1 otherwise
 (the statement says who and why), 2 for bad input, 3 for link failures, 4 when part of the area
 was not searched because a vehicle was lost (or its scan never started) and no other vehicle could
-take it over (the statement says how much and where; docs/readme/daemon.md), 5 when a vehicle was
+take it over (the statement says how much and where; docs/guide/daemon.md), 5 when a vehicle was
 lost in the air (silent while not on the ground and disarmed, and not heard again; the statement's
 first sentence says which, where, how high, its battery and when it was last heard). 5 takes
 precedence over 4, and 4 over 1.

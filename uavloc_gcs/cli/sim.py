@@ -45,7 +45,7 @@ def register(sub) -> None:
     p.add_argument("--via-sense", action="store_true",
                    help="turn the simulated slots into radiotap probe requests and send what uavloc sense's parser "
                         "and aggregator make of them (the companion's, or the fake vehicles' onboard RSSI; "
-                        "docs/readme/sense.md)")
+                        "docs/guide/sense.md)")
     p.set_defaults(func=run)
 
 

@@ -64,17 +64,17 @@ PROBE_MERGE_M = 3.0
 BOUNDS_IN_COVARIANCE = True
 # At most this factor of shrinkage, in any direction, of a candidate's standard deviation by the
 # hearing constraints (see _capped); None: no cap. bench looks variant "bound-cap" (1.5): missions
-# 3.5 s slower, 0.983 inside instead of 0.968 (docs/readme/experiments.md), so off.
+# 3.5 s slower, 0.983 inside instead of 0.968 (docs/measurements/paper-comparison.md), so off.
 BOUND_SHRINK_MAX: float | None = None
 # Whether a mode the hearing constraints moved gets its own mirror starts (bench looks variant
-# "no-bounded-mirror" switches it off; measured in docs/readme/experiments.md).
+# "no-bounded-mirror" switches it off; measured in docs/measurements/paper-comparison.md).
 MIRROR_AFTER_BOUNDS = True
 # Whether a second motion model joins the estimate: that the person turned since the oldest data
 # (prior probability 1 - exp(-lag / maneuver time)), in which the old passes tie the present state
 # only through the speed bound (q = 3 v_max^2 / lag: a deviation of v_max * lag after the lag).
 # The Gaussian maneuver noise alone has light tails: a person who turned 100 s ago is several of
 # its sigmas off the line, and the mirror the turn leads to loses all its mass. Measured (bench
-# localize --runs 100 --family "lanes + look" [--switch turn-mixture]; docs/readme/experiments.md):
+# localize --runs 100 --family "lanes + look" [--switch turn-mixture]; docs/measurements/paper-comparison.md):
 # small area 0.83 -> 0.91 covered with the median radius 18.6 -> 28.9 m, two lanes + look 0.93 ->
 # 0.92, the solve 2.5-3x slower, and after two looks at a known turn radii 17-28 m instead of
 # 11-14 m (test_maneuver.py); short of 93 % in the small area, so off.
@@ -82,7 +82,7 @@ TURN_MIXTURE = False
 # The pass offsets' prior: multivariate t with this many degrees of freedom (None: Gaussian). A
 # scale mixture of the Gaussian maneuver prior over the intensity q: a person who turned is far in
 # the Gaussian's tail, in the t's only a logarithm away. Measured (bench localize --runs 200
-# --switch tail-4 [--switch turn-mixture]; docs/readme/experiments.md): small area + look 0.81 ->
+# --switch tail-4 [--switch turn-mixture]; docs/measurements/paper-comparison.md): small area + look 0.81 ->
 # 0.88 covered (0.93 with the mixture, every random-waypoint family then >= 0.93), but the look
 # families' radii about double and correlated shadowing's RMSE / bound goes 0.45 -> 0.8 for two
 # parallel legs (the offsets absorb the shadowing), so off.
@@ -96,7 +96,7 @@ MANEUVER_TAIL_DOF: float | None = None
 # (MANEUVER_TAIL_DOF). Without it the Gaussian maneuver noise has light tails and, after a turn,
 # the look families' radii are 1.7-2.6x too small at the 95th percentile. Measured with
 # TWINS_ACROSS_MODELS_ONLY = False, TURN_TIME_S = 200 and MIXTURE_RADIUS (bench localize --runs
-# 100, the "need" column; docs/readme/experiments.md): every random-waypoint family covered
+# 100, the "need" column; docs/measurements/paper-comparison.md): every random-waypoint family covered
 # 0.93-0.98 with radii 0.85-1.11 of what 95 % needs (without: small area + look 0.83, need 2.61);
 # correlated shadowing's RMSE / bound 0.46 (0.43-0.44 without); 1,000 slots in 8 ms instead of
 # 6.4 ms; in missions (bench looks --runs 20, variant "no-turns" is the main model alone) 0.6 s
@@ -117,11 +117,11 @@ MIRROR_PRIOR_SKIP = 12.0  # extra maneuver-prior cost (chi^2 units) beyond which
 # twin of the estimate, hiding a real alternative further down (seen in the small-area family with
 # TURN_JUMP: "mirrors" 0.2-3.7 m from the estimate holding 30-77 % of the mass, the truth 50 m
 # away). False merges those too (bench looks variant "split-twins" is True); measured in
-# docs/readme/experiments.md: with TURN_JUMP it lifts the small area + look family 0.90 -> 0.92.
+# docs/measurements/paper-comparison.md: with TURN_JUMP it lifts the small area + look family 0.90 -> 0.92.
 TWINS_ACROSS_MODELS_ONLY = False
 # Whether TURN_JUMP's turn models start from the main model's modes (the turn's velocity change
 # zero; the main model's mirrors among them) instead of the start grid, the CV fit and their own
-# mirror starts (TURN_MIRRORS). Measured (docs/readme/experiments.md): the same coverage, and the
+# mirror starts (TURN_MIRRORS). Measured (docs/measurements/paper-comparison.md): the same coverage, and the
 # solve for 1,000 slots 7.5 ms instead of 13 ms (the main model alone 6.8 ms).
 TURN_STARTS_FROM_MAIN = True
 TURN_MIRRORS = False
@@ -130,11 +130,11 @@ TURN_MIRRORS = False
 # radius of the circle about the estimate holding 95 % of the two modes' mixture (each a Gaussian
 # with its own 95 % radius, weighed by its mass); False, the circle reaching over the twin's whole
 # 95 % circle (distance + its radius), as if the twin held all the mass. Measured in
-# docs/readme/experiments.md (bench looks variant "cover-mirror" is False).
+# docs/measurements/paper-comparison.md (bench looks variant "cover-mirror" is False).
 MIXTURE_RADIUS = True
 # Whether, under a receiver threshold (the field world), the 95 % radius and the covariance come
 # from importance sampling of the posterior (.field_radius) instead of the Laplace Gaussian. Measured
-# in docs/readme/localization.md (bench localize --emission bursts).
+# in docs/science/estimator.md (bench localize --emission bursts).
 FIELD_SAMPLED_RADIUS = True
 
 

@@ -345,7 +345,7 @@ def burst_count_loglik(z: np.ndarray, heard: np.ndarray, burst: np.ndarray, n_bu
 # carry is F(A) = int p(lam) lam^N exp(-lam A) dlam: where the vehicles listened long within reach
 # (A large) hearing only N bursts is unlikely. Without it the posterior leans towards where the
 # vehicles listened most: under an orbit look, the 95 % radius of a walker covered 0.83-0.85
-# (docs/readme/localization.md, "The bursts nobody heard").
+# (docs/science/estimator.md, "The bursts nobody heard").
 
 EXPOSURE_STEP_S = 2.0  # the time cells A is summed over (a vehicle moves 24-50 m in one)
 EXPOSURE_MARGIN_S = 150.0  # listening this long before the first and after the last heard burst counts

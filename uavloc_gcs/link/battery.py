@@ -8,7 +8,7 @@ the pack's full and empty voltages are (:func:`pack_limits`, once per vehicle) a
 charge state is OK and the voltage at least FRESH_VOLTAGE_SHARE of the way from empty to full.
 
 Both figures, because each autopilot can be wrong in its own way (measured on ../shared/sitl,
-docs/readme/sitl.md "Battery"): ArduPilot counts the charge from the current it integrated since
+docs/guide/sitl.md "Battery"): ArduPilot counts the charge from the current it integrated since
 boot, so after the reboot a swap causes it says 100 % of any pack and only the voltage tells a
 used one; PX4 judges by the voltage. Where the full voltage is not known the remaining decides
 alone, and the verdict says so. The full and empty voltages: PX4 ``BAT1_N_CELLS`` x

@@ -5,7 +5,7 @@ usually silent (issue 25). An *orbit look* is a non-hovering circle of radius ``
 the person's predicted position, flown for ``dwell_s`` seconds: long enough that the phone sends
 ``k`` bursts with probability ``p`` (search.pod.BurstTiming) and, divided by the mean probability
 that a burst sent while the vehicle is on the circle is heard (search.pod.p_burst_heard), that
-they are heard. What each autopilot flies was measured on SITL (docs/readme/orbits.md,
+they are heard. What each autopilot flies was measured on SITL (docs/science/looks.md,
 ``python -m tests.sitl.orbit_measure``):
 
 * ArduCopter flies NAV_LOITER_TURNS as a true circle (radius held to about 1 m at 60 m), clockwise
@@ -36,19 +36,19 @@ import numpy as np
 
 from .look_mission import NAV_LOITER_TURNS  # noqa: F401 (its home before issue 41)
 
-# How each autopilot flies an orbit (measured, docs/readme/orbits.md). A ring of waypoints is what
+# How each autopilot flies an orbit (measured, docs/science/looks.md). A ring of waypoints is what
 # both fly (PX4 refuses NAV_LOITER_TURNS), so it is the shipped form for both; ArduCopter flies
 # NAV_LOITER_TURNS better (a true circle, faster) and ``"loiter-turns"`` selects it (uavloc's fake
 # ArduPilot flies it as the SITL does since 2026-11-26; before, it hovered at the centre for ever).
 ORBIT_FORM = {"ardupilot": "ring", "px4": "ring"}
 RING_POINTS_PER_TURN = 12
-# Speeds measured on SITL around a 60 m circle with 10 m/s asked (docs/readme/orbits.md): the
+# Speeds measured on SITL around a 60 m circle with 10 m/s asked (docs/science/looks.md): the
 # planner's orbit speed is min(cruise, this, sqrt(a_c * r)) with a_c the centripetal acceleration
 # the measured speed implies; energy and dwell are counted at that speed.
 ORBIT_SPEED_M_S = {"loiter-turns": 7.9, "ring": 4.9}
 ORBIT_MEASURED_RADIUS_M = 60.0
 # Bursts an orbit waits for and the probability it catches them (k, p): one heard burst locates
-# nobody in the field world, two or three give a fix of 116-153 m RMSE (docs/readme/localization.md),
+# nobody in the field world, two or three give a fix of 116-153 m RMSE (docs/science/estimator.md),
 # so an orbit asks for two.
 ORBIT_BURSTS = 2
 ORBIT_P = 0.5
@@ -106,7 +106,7 @@ class OrbitLook:
 
 # Ring of waypoints: both autopilots accelerate and brake on every leg, so the speed grows with the
 # leg length L, about sqrt(RING_SPEED_K * L) (measured 3.5-6.1 m/s on 16-31 m legs, K 0.5-1.3, median 0.8;
-# docs/readme/orbits.md).
+# docs/science/looks.md).
 RING_SPEED_K_M_S2 = 0.8
 
 
@@ -234,7 +234,7 @@ def dwell_s(sc, p_heard: float, k: int = ORBIT_BURSTS, p: float = ORBIT_P) -> fl
 
 # Frames an elicited look asks for, as a multiple of what the horizontal position alone would need
 # for the required accuracy (elicited_dwell_s). The estimator also fits velocity and transmit power
-# from them, but the look's frames add to those the scan heard; 1 was measured (docs/readme/orbits.md:
+# from them, but the look's frames add to those the scan heard; 1 was measured (docs/science/looks.md:
 # `uavloc bench field --elicitation 2 --trapped`), 2 asked for about 10 minutes a look.
 ELICITED_INFO_MARGIN = 1.0
 

@@ -103,7 +103,7 @@ GRID_AREA_MARGIN_M = 50.0
 
 
 # Burst-to-burst spread of one phone's frame count (log std), as fitted to the public captures
-# (sim_link/world/emission.py FRAMES_LOG_SIGMA, docs/readme/world.md).
+# (sim_link/world/emission.py FRAMES_LOG_SIGMA, docs/science/world.md).
 FRAMES_LOG_SIGMA = 0.41
 
 
@@ -279,7 +279,7 @@ class SearchPolicy:
         # where each vehicle listened (ingest_track): the estimator's silences (estimation.evidence)
         self._tracks: dict[int, list[tuple[np.ndarray, np.ndarray]]] = {}
         # silences of the recorded tracks (ingest_track) go to the estimator; measured on missions
-        # (docs/readme/localization.md): more people located, sooner
+        # (docs/science/estimator.md): more people located, sooner
         self.hearing_evidence = math.isfinite(scenario.fleet.comm_range_m)
         self.tracks_from_slots = False  # see SLOT_TRACK_QUIET_S
         # slots of a sensor that reports fingerprints, not yet linked into people (see _relink)

@@ -14,7 +14,7 @@ Structure (every task owned by one ``asyncio.TaskGroup``; every network wait has
 
 Resume: the store keeps the epoch, the slots and every acknowledged mission; a restarted daemon
 reloads the slots into the policy, downloads each vehicle's current mission, compares it with
-the last one it uploaded, and carries on from there (see docs/readme/daemon.md for the measured
+the last one it uploaded, and carries on from there (see docs/guide/daemon.md for the measured
 loss window).
 """
 

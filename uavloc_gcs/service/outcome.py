@@ -194,7 +194,7 @@ class _NoFrame:
 _NO_FRAME = _NoFrame()
 
 
-FINAL_WINDOW_S = 60.0  # on two paper demos 60 s beat 30 s, 120 s and the whole search (docs/readme/daemon.md)
+FINAL_WINDOW_S = 60.0  # on two paper demos 60 s beat 30 s, 120 s and the whole search (docs/guide/daemon.md)
 
 
 @dataclass(frozen=True)

@@ -79,7 +79,7 @@ def test_the_pack_drains_with_the_energy_model_in_the_air_only(flavour):
 
 
 def test_each_autopilot_fills_battery_status_as_its_sitl_does():
-    """Measured on ../shared/sitl (docs/readme/sitl.md, "Battery"): ArduCopter id 0, function 0,
+    """Measured on ../shared/sitl (docs/guide/sitl.md, "Battery"): ArduCopter id 0, function 0,
     type 0, voltages[0] the pack, current, consumed mAh and hJ; PX4 SIH function 1, type 1, current
     -100 cA in both messages, consumed 0 mAh and -1 hJ."""
     ap, px4 = _vehicle(ARDUPILOT), _vehicle(PX4)

@@ -352,7 +352,7 @@ def test_rtl_lands_in_rtl_and_the_next_missions_rtl_item_flies_home_again(ap):
 
 
 def test_ardupilot_flies_loiter_turns_as_a_circle_and_goes_on():
-    """NAV_LOITER_TURNS as ArduCopter SITL flies it (docs/readme/orbits.md): to the circle's edge,
+    """NAV_LOITER_TURNS as ArduCopter SITL flies it (docs/science/looks.md): to the circle's edge,
     the turns at about sqrt(a r) (7.9 m/s around 60 m), then the next item -- not a hover at the
     centre for ever, as the fake did before."""
     from uavloc_gcs.mission import WireItem

@@ -130,7 +130,7 @@ def test_px4_frame_rules():
         ([WireItem(**{**wp.__dict__, "seq": 0, "frame": 10})], mav.MAV_MISSION_UNSUPPORTED_FRAME),
         ([WireItem(**{**wp.__dict__, "seq": 0, "frame": 2})], mav.MAV_MISSION_UNSUPPORTED),
         ([WireItem(20, 3, 20, 0, 1, 0, 0, 0, 0, 0, 0, 0.0)], mav.MAV_MISSION_UNSUPPORTED),  # RTL frame 3
-        # NAV_LOITER_TURNS: refused by PX4 SITL (docs/readme/orbits.md), so by the fake too
+        # NAV_LOITER_TURNS: refused by PX4 SITL (docs/science/looks.md), so by the fake too
         ([WireItem(**{**wp.__dict__, "seq": 0, "command": 18, "param1": 2.0, "param3": 60.0})],
          mav.MAV_MISSION_UNSUPPORTED),
     ]
