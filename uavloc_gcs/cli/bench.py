@@ -22,6 +22,7 @@ BENCHMARKS = {
     "field": "the search for real phones vs the paper's plan, a lawnmower and the clairvoyant (located, time, energy, POD)",
     "demos": "uavloc demo run N times: people located and given up, the reasons, given up near the truth",
     "altitude": "what altitude costs and buys under the air-to-ground channel (hearing distance, share heard, range error)",
+    "low_orbit": "one low orbit over a trapped phone of the field world: how long until its 95 % radius is small enough",
     "sorties": "the POD the scan planner reaches with 1, 2, 3 packs per vehicle and the time it needs, swaps included",
 }
 
