@@ -124,7 +124,10 @@ async def fly_to_its_return(link, system: int, flavour, wire, on_position, *, wh
     watch = Watch(link, system)
     try:
         await request_streams(link, system, flavour, MISSION_STREAMS)
-        await watch.until("position", lambda: "GLOBAL_POSITION_INT" in watch.last and "MISSION_CURRENT" in watch.last, 30)
+        # the autopilot's own HEARTBEAT too: its mode and armed state are read below (PX4's position
+        # streams can come before its 1 Hz heartbeat reaches a new subscriber: KeyError 'HEARTBEAT')
+        await watch.until("position", lambda: all(k in watch.last for k in ("GLOBAL_POSITION_INT", "MISSION_CURRENT",
+                                                                               "HEARTBEAT")), 30)
         sub = link.subscribe("GLOBAL_POSITION_INT", source_system=system, callback=lambda m: on_position(m, watch))
         try:
             await upload_mission(link, system, 1, wire, verify=True, autopilot=flavour)
