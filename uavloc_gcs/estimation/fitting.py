@@ -254,6 +254,10 @@ class ProcessFitter:
                 p.terminate()
         for p in procs:
             p.join(timeout=5.0)
+        for p in procs:  # one that did not take SIGTERM in time (a busy machine): SIGKILL
+            if p.is_alive():
+                p.kill()
+                p.join(timeout=5.0)
 
     def close(self) -> None:
         self._futures, self._open = [], True
