@@ -414,28 +414,15 @@ class A2GChannel:
         K frames sent with ``frames_pmf[K]`` (K = 0..Kmax, every channel), each sent frame reaching a
         listened channel with ``channel_share``: sum_K p(K) C(K, N) E[(1 - c q)^(K - N) ...], N the
         heard frames (a polynomial in 1 - c q at each node)."""
-        from scipy.special import comb
-
-        rssi = np.asarray(rssi_dbm, float).reshape(-1)
-        cnt = np.ones(len(rssi)) if counts is None else np.asarray(counts, float).reshape(-1)
-        n_heard = int(round(cnt.sum()))
-        pmf = np.asarray(frames_pmf, float)
-        pmf = pmf / pmf.sum()
         h, z = np.broadcast_arrays(np.asarray(horizontal_m, float), np.asarray(height_m, float))
-        kk = np.arange(n_heard, len(pmf))
-        if kk.size == 0 or pmf[kk].sum() <= 0:
-            return np.full(h.shape, -np.inf)
-        coeffs = pmf[kk] * comb(kk, n_heard)  # the polynomial's coefficients in 1 - c q, m = K - N
         tx = np.broadcast_to(np.asarray(tx_offset_db, float), h.shape)
         d3 = np.hypot(h, z)
         p_los = np.clip(self.los_probability(h, z), _MIN_P, 1.0)
         parts = []
         for s, w in ((LOS, p_los), (NLOS, np.clip(1.0 - p_los, _MIN_P, 1.0))):
-            log_w, log_miss = self._log_integrand_nodes(rssi, cnt, d3, s, tx, None, channel_share)
-            poly = np.polynomial.polynomial.polyval(np.exp(log_miss), coeffs)
-            parts.append(np.log(w) + _logsumexp(log_w + np.log(np.maximum(poly, _MIN_P)), axis=-1))
+            parts.append(np.log(w) + self.state_log_likelihood_unknown_sent(
+                rssi_dbm, frames_pmf, self.mean_power_dbm(d3, s, tx), s, counts=counts, channel_share=channel_share))
         return np.logaddexp(parts[0], parts[1])
-
 
     def state_log_likelihood_unknown_sent(self, rssi_dbm, frames_pmf, mean_power_dbm, state: int, *, counts=None,
                                           channel_share: float = 1.0) -> np.ndarray:
