@@ -32,6 +32,7 @@ import numpy as np
 from ..errors import LinkError, UavlocError
 from ..observations import SlotBatch
 from ..scenario import Scenario
+from ..sorties import minutes
 from .clock import MissionClock
 from .commands import STOP_WAIT_S, WAYPOINT_TOLERANCE_M, VehicleCommands
 from .liveview import LiveView, StatusSnapshot, VehicleStatus, person_view
@@ -111,6 +112,7 @@ class Daemon(FleetPreparation, VehicleCommands, PackSwaps):
         self._replans = 0
         self._last_fleet: frozenset | None = None
         self._finishing_since: float | None = None  # mission time of "done" (everyone sent home)
+        self._time_up_s: float | None = None  # mission time the search's time limit was reached at
         self._idle_since: float | None = None  # mission time since which nobody flies and nothing is sent
         self._stop = asyncio.Event()
         self._rate = ClockRate()
@@ -425,6 +427,9 @@ class Daemon(FleetPreparation, VehicleCommands, PackSwaps):
         if t > self.opt.max_mission_s:
             self._event("end", f"mission time limit {self.opt.max_mission_s:g} s reached")
             return True
+        limit = self.sc.search.time_limit_s
+        if self._time_up_s is not None or (limit is not None and t >= limit):
+            return await self._finish(time_up=True)
         starting = [v for v in active if v.job is not None and v.phase in ("starting", "uploading scan")]
         active = [v for v in active if v not in starting]  # planned for once started (replan then)
         waiting = [v for v in active if v.waiting]  # on the ground for a fresh pack: planned for once ready
@@ -507,11 +512,18 @@ class Daemon(FleetPreparation, VehicleCommands, PackSwaps):
         self._save_counts()
         await self._jobs(jobs)
 
-    async def _finish(self) -> bool:
+    async def _finish(self, time_up: bool = False) -> bool:
+        """Send everyone home once the search is done or its time is up ([search] time_limit_s: no
+        look is planned after it, whatever is pending); True once they are home or overdue."""
         if self._finishing_since is None:
             self._finishing_since = self.now_s()
             self._finish_wall = self.wall()
-            self._event("done", "every person heard is located or given up: all vehicles return home")
+            if time_up:
+                self._time_up_s = self._finishing_since
+                self._event("done", f"the search's time limit ({minutes(self.sc.search.time_limit_s)}, "
+                            "search.time_limit_s) is reached: no more looks; all vehicles return home")
+            else:
+                self._event("done", "every person heard is located or given up: all vehicles return home")
             # Whatever a vehicle was being told (a look's upload or start) is moot now, also for a
             # vehicle on the ground: left running, a start whose ACK is late sends it out again.
             moot = [v.job for v in self._active() if v.job is not None]
@@ -552,6 +564,9 @@ class Daemon(FleetPreparation, VehicleCommands, PackSwaps):
         unflown = [v for v in self.vehicles.values() if v.start_failed and not v.scan_done]
         for v in unflown:  # a refused start is no scan flown: say so, whatever else is said
             text += f" Vehicle {v.id} did not fly its scan ({v.start_failed}); its part of the area was not searched."
+        if self._time_up_s is not None:
+            text += (f" The search's time limit ({minutes(self.sc.search.time_limit_s)}, search.time_limit_s) was "
+                     f"reached at {self._time_up_s / 60.0:.1f} min of search: no look was planned after it.")
         if self.sc.fleet.batteries > 1:
             text += " " + self._packs_text()
         if partial:

@@ -118,13 +118,16 @@ def test_moving_people_are_met_inside_their_disk_after_the_swaps():
 
 
 def test_spare_packs_that_are_not_needed_change_nothing():
-    """Packs big enough for one sortie each: no swap, and the same makespan as without spares."""
+    """Packs big enough for one sortie each: the planner started from the plan without spares
+    chooses no swap and does no worse. (Two time-limited searches compared with each other
+    differed by 6 % under CI's load: the comparison is made on one plan.)"""
     p = _sortie_problem(12, 5, pack_m=1e6, spares=2)
-    res = solve(p, rng=5, time_limit_s=0.6)
-    assert res.success and all(r.swaps_before == () for r in res.plan.routes)
     plain = RoutingProblem(tuple(VehicleState(v.id, v.start_xy_m, v.home_xy_m, v.energy_j) for v in p.vehicles),
                            p.targets, V)
-    assert res.fun <= solve(plain, rng=5, time_limit_s=0.6).fun * 1.01
+    base = solve(plain, rng=5, time_limit_s=0.6)
+    res = solve(p, rng=5, time_limit_s=0.6, warm_start=base.plan)
+    assert res.success and all(r.swaps_before == () for r in res.plan.routes)
+    assert res.fun <= base.fun * 1.01
 
 
 def test_a_vehicle_that_came_home_empty_flies_on_a_fresh_pack():

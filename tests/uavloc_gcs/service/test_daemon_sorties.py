@@ -191,3 +191,29 @@ def test_the_operators_word_counts_only_where_the_vehicle_reports_nothing_agains
     assert not against(100.0, FULL_V)  # fresh
     assert against(19.0, None) and against(19.0, FULL_V)  # a used pack by its remaining
     assert against(100.0, EMPTY_V + 0.5 * (FULL_V - EMPTY_V))  # ArduPilot's 100 % after a reboot: the voltage
+
+
+def test_the_search_ends_at_its_time_limit_with_everyone_home(tmp_path):
+    """[search] time_limit_s: when the search's time is up no look is planned, every vehicle is
+    sent home mid-scan, and the statement says the limit ended it (the policy here is never done:
+    without the limit this search would not end)."""
+    sc = small_scenario("ardupilot", speedup=SPEEDUP)
+    sc = sc.replace(search={"time_limit_s": 60.0})
+
+    async def go():
+        fleet = await FakeFleet(sc, speedup=SPEEDUP, seed=1, base_port=0).start()
+        try:
+            d = Daemon(sc, [(1, c) for _n, c in fleet.endpoints][:1],
+                       DaemonOptions(store_path=tmp_path / "s.sqlite", resume=False, connect_timeout_s=10.0,
+                                     lost_timeout_s=5.0), policy=_SearchGoesOn())
+            out = await asyncio.wait_for(d.run(), 4 * TIMEOUT_S)
+            return d, out, fleet.vehicle(1)
+        finally:
+            await fleet.aclose()
+
+    d, out, fake = asyncio.run(go())
+    assert "time limit (1 min, search.time_limit_s) was reached at" in out.statement, out.statement
+    assert 1.0 <= d._time_up_s / 60.0 < 1.5
+    assert out.vehicles_home == (1,) and fake.landed and not fake.armed
+    events = _events(tmp_path / "s.sqlite")
+    assert any("time limit (1 min, search.time_limit_s) is reached: no more looks" in e for e in events), events
