@@ -70,8 +70,12 @@ def airborne_floor_m(sc) -> float:
     """Height [m above the ground] below which a vehicle is taking off, landing or on the ground:
     half the lowest height the search flies on purpose, the survey's or its looks'
     (``search.look_height_m``). With no look height asked this is half the survey altitude, the
-    rule of before issue 41 (``MIN_ALTITUDE_FRACTION``), so those scenarios keep every slot choice."""
-    return AIRBORNE_SHARE * min(survey_alt_m(sc), planned_look_alt_m(sc))
+    rule of before issue 41 (``MIN_ALTITUDE_FRACTION``), so those scenarios keep every slot choice.
+    Where phones send BLE beacons their looks fly at the look floor (uavloc_gcs.radios.ble_view)."""
+    lowest = min(survey_alt_m(sc), planned_look_alt_m(sc))
+    if getattr(sc.emission, "findmy_share", 0.0) > 0:  # BLE identities are looked at from the floor
+        lowest = min(lowest, look_floor_m(sc))
+    return AIRBORNE_SHARE * lowest
 
 
 def check_look_alt(sc, alt_m: float | None, what: str = "a look") -> float:

@@ -121,6 +121,11 @@ class ChannelSpec:
     # log-distance law above is the free-space part of it. None: the i.i.d. log-normal channel with
     # shadowing_sigma_db per frame (the world before issue 41).
     environment: str | None = None
+    # The Bluetooth LE scanner beside the Wi-Fi radios (issue 39): it hears an advertising frame
+    # above this [dBm]. -95 dBm is the nRF52840's sensitivity in 1 Mbit/s BLE mode (Nordic
+    # Semiconductor, nRF52840 Product Specification v1.7, "Radio: receiver sensitivity"), the chip of
+    # the nRF Sniffer for Bluetooth LE. Used only when phones send beacons (emission.findmy_share).
+    ble_receiver_sensitivity_dbm: float = -95.0
 
     @property
     def listen_channel_list(self) -> tuple:
@@ -166,6 +171,21 @@ class EmissionSpec:
     frames_per_burst_median_max: int = 27
     frames_per_burst_max: int = 80
     frame_spacing_s: float = 0.040
+    # Bluetooth LE beacons (issue 39; uavloc_gcs/radios.py, sim_link/world/beacons.py). The share of
+    # phones that send Apple Find My offline-finding beacons: an iPhone (iOS 13+, Find My on) with no
+    # internet connection advertises every ble_interval_s (2 s: seemoo-lab/openhaystack's firmware,
+    # after Heinrich et al., PETS 2021) under an address made of its current public key, which
+    # rotates every ble_key_rotation_s (15 min: public reverse engineering, furiousMAC/continuity
+    # and open firmware; stated as such). 0: no phone sends beacons (the world before issue 39).
+    findmy_share: float = 0.0
+    ble_interval_s: float = 2.0
+    ble_key_rotation_s: float = 900.0
+    # A beacon's RSSI at channel.reference_distance_m relative to a Wi-Fi frame's
+    # (channel.reference_power_dbm) [dB]: an iBeacon at 0 dBm transmit power reads -59 dBm at 1 m
+    # (Blue Charm Beacons' calibration chart; Apple's iBeacon "measured power" convention) where the
+    # field world's Wi-Fi frames read -40 dBm: -19 dB. Phones advertise at up to +12 dBm
+    # (kCBAdvDataTxPowerLevel reports, Apple developer forums thread 747391): 0 dBm is the cautious end.
+    ble_power_offset_db: float = -19.0
 
 
 @dataclass(frozen=True)
@@ -702,6 +722,21 @@ def _check_environment(sc: Scenario) -> None:
 def _check_emission(sc: Scenario) -> None:
     """Values of [emission] that no phone could have, each refused in one sentence naming its key."""
     em = sc.emission
+    _check(0.0 <= em.findmy_share <= 1.0, f"is a share of the phones, between 0 and 1, got {em.findmy_share}", sc,
+           "emission.findmy_share")
+    _check(em.ble_interval_s >= 0.02, f"{em.ble_interval_s} s is shorter than any BLE advertising interval "
+           "(at least 0.02 s, Bluetooth Core 5.x)", sc, "emission.ble_interval_s")
+    _check(em.ble_key_rotation_s > em.ble_interval_s, f"{em.ble_key_rotation_s} s is not longer than the "
+           f"advertising interval ({em.ble_interval_s} s)", sc, "emission.ble_key_rotation_s")
+    _check(-60.0 <= em.ble_power_offset_db <= 20.0, f"{em.ble_power_offset_db} dB is not a phone's BLE power "
+           "against its Wi-Fi (between -60 and +20 dB)", sc, "emission.ble_power_offset_db")
+    _check(-130.0 <= sc.channel.ble_receiver_sensitivity_dbm <= -30.0,
+           f"{sc.channel.ble_receiver_sensitivity_dbm} dBm is no BLE receiver's sensitivity (between -130 and -30)",
+           sc, "channel.ble_receiver_sensitivity_dbm")
+    if em.findmy_share > 0:
+        _check(em.model == "probe-bursts" and sc.channel.environment is not None,
+               "phones that send BLE beacons live in the field world: set [emission] model = \"probe-bursts\" "
+               "and [channel] environment", sc, "emission.findmy_share")
     _check(em.elicitation_rate_hz >= 0, f"must not be negative, got {em.elicitation_rate_hz} Hz", sc,
            "emission.elicitation_rate_hz")
     _check(em.elicitation_rate_hz <= 1000, f"{em.elicitation_rate_hz} Hz is more than any phone answers "

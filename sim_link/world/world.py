@@ -37,12 +37,14 @@ from uavloc_gcs.observations import SlotBatch
 from uavloc_gcs.scenario import Scenario
 
 from .airground import PathMemory, draw_rssi_dbm
+from .beacons import BeaconParams, FindMyBeacons, fingerprint_of
 from .channel import ChannelParams, ShadowingState, draw_frame_shadowing_db, draw_shadowing_db
 from .emission import BurstParams, Frames, ProbeBursts
 from .people import Tracks, constant_velocity_tracks, make_tracks
 
 # spawn keys of the independent random streams derived from the seed
 _PEOPLE, _IDS, _TX, _VEHICLE, _TRAITS, _BURSTS, _ELICIT = 0, 1, 2, 3, 4, 5, 6
+_BLE = 10  # (7..9: sim_link/world/beacons.py)
 
 
 class World:
@@ -89,6 +91,19 @@ class World:
         if self.emission_model == "probe-bursts":
             self.emission = ProbeBursts(BurstParams.from_scenario(scenario), n, self._rng(_TRAITS),
                                         lambda i: self._rng(_BURSTS, i))
+        # Bluetooth LE beacons of a share of the phones (emission.findmy_share, issue 39): their own
+        # link budget (uavloc_gcs.radios.ble_view), path memory and random streams, so the Wi-Fi
+        # world is drawn exactly as without them (paired comparisons)
+        self.beacons: FindMyBeacons | None = None
+        self.ble_a2g: A2GChannel | None = None
+        if self.emission is not None and scenario.emission.findmy_share > 0 and self.a2g is not None:
+            from uavloc_gcs.radios import ble_view
+
+            self.beacons = FindMyBeacons(BeaconParams.from_scenario(scenario), n, scenario.emission.findmy_share,
+                                         self._rng, horizon_s)
+            self.ble_a2g = A2GChannel.from_scenario(ble_view(scenario))
+        self._ble_paths: dict[int, PathMemory] = {}
+        self._ble_rngs: dict[int, np.random.Generator] = {}
         self._id_index = {int(e): i for i, e in enumerate(self.emitter_ids)}
         # People stand on the ground (terrain.dem): their height above the launch point, which the
         # vehicles' z is measured from. None: flat ground at the launch point's height (z = h).
@@ -134,6 +149,8 @@ class World:
         """Truth: the person index (row of ``positions``) behind each 802.11 address (or, in the
         continuous world, emitter id) heard; -1 for an address no person of this world has used."""
         table = self._id_index if self.emission is None else self.emission.owner
+        if self.beacons is not None:
+            table = {**table, **self.beacons.owner}
         a = np.asarray(addresses, dtype=np.int64).reshape(-1)
         if self.emission is not None and any(int(x) not in table for x in a):
             # the bursts (and their addresses) are drawn as hearing needs them: a world rebuilt
@@ -241,6 +258,18 @@ class World:
         if self.elicitation_rate_hz > 0:
             frames, slot = self._add_elicited(vehicle, t, xyz, frames, slot)
         state.last_t_s, state.last_xyz_m, state.odometer_m = float(t[-1]), xyz[-1].copy(), float(odometer[-1])
+        wifi = self._frames_heard(vehicle, state, t, xyz, odometer, frames, slot)
+        if self.beacons is None:
+            return wifi
+        ble = self._beacons_heard(vehicle, t, xyz, odometer)
+        if len(ble) == 0:
+            return wifi
+        both = SlotBatch.concat([wifi, ble])
+        return both.take(np.argsort(both.t_s, kind="stable"))
+
+    def _frames_heard(self, vehicle: int, state: ShadowingState, t: np.ndarray, xyz: np.ndarray,
+                      odometer: np.ndarray, frames: Frames, slot: np.ndarray) -> SlotBatch:
+        """The Wi-Fi frames sent in the track's slots that the vehicle hears, as slots."""
         if len(frames) == 0:
             return SlotBatch.empty()
 
@@ -277,6 +306,34 @@ class World:
         return SlotBatch.from_columns(
             t[rows], np.full(len(rows), vehicle), xyz[rows], address, mean, count,
             address=address, fingerprint=fingerprint, channel=frames.channel[first],
+        )
+
+    def _beacons_heard(self, vehicle: int, t: np.ndarray, xyz: np.ndarray, odometer: np.ndarray) -> SlotBatch:
+        """The BLE beacons sent in the track's slots that the vehicle's scanner hears (every beacon
+        its own unit of the air-to-ground channel, the BLE link budget), one slot row each."""
+        slot_s = self.scenario.channel.slot_s
+        frames = self.beacons.frames(float(t[0]), float(t[-1]) + slot_s)
+        slot = np.searchsorted(t, frames.t_s, side="right") - 1
+        inside = (slot >= 0) & (frames.t_s < t[np.maximum(slot, 0)] + slot_s)
+        frames, slot = frames.take(inside), slot[inside]
+        rng = self._ble_rngs.get(vehicle)
+        if rng is None:
+            rng = self._ble_rngs[vehicle] = self._rng(_BLE, vehicle)
+        paths = self._ble_paths.get(vehicle)
+        if paths is None:
+            paths = self._ble_paths[vehicle] = PathMemory.empty(len(self))
+        pxy = self.tracks.positions_of(frames.person, t[slot])
+        dz = xyz[slot, 2] if self.dem is None else xyz[slot, 2] - self.ground_above_launch_m(pxy)
+        horizontal = np.linalg.norm(pxy - xyz[slot, :2], axis=1)
+        rssi = draw_rssi_dbm(self.ble_a2g, paths, rng, frames.person, frames.burst, odometer[slot], pxy,
+                             horizontal, dz, self.tx_offset_db[frames.person])
+        heard = rssi > self.ble_a2g.sensitivity_dbm
+        frames, slot, rssi = frames.take(heard), slot[heard], rssi[heard]
+        if len(frames) == 0:
+            return SlotBatch.empty()
+        return SlotBatch.from_columns(
+            t[slot], np.full(len(slot), vehicle), xyz[slot], frames.address, rssi, np.ones(len(slot), dtype=int),
+            address=frames.address, fingerprint=fingerprint_of(frames.address), channel=frames.channel,
         )
 
     def elicitation_range_m(self) -> float:

@@ -23,10 +23,16 @@ before the air-to-ground channel), :class:`A2GBursts` for the air-to-ground chan
 ``uavloc_gcs.a2g`` (``[channel] environment``: line of sight by elevation angle, one shadowing per
 burst), the model the simulated world draws from.
 
-Bursts are taken as independent. That holds for probe bursts tens of seconds apart (a vehicle flies
-hundreds of metres between them, past the channel's shadowing decorrelation distance); frames
-elicited by an on-board access point a second apart share their shadowing, and treating them as
-independent bursts overstates what they say.
+Units close together share their shadowing. Probe bursts tens of seconds apart are heard hundreds of
+metres apart, past the channel's shadowing decorrelation distance; frames elicited by an on-board
+access point a second apart, or BLE beacons 2 s apart (uavloc_gcs/radios.py), are heard a few metres
+apart and nearly share it: summed as if independent they overstated what they say (a person located
+with 4 of 4 elicited looks had 1 outside its 95 % circle, docs/measurements/field-world.md). Under
+the air-to-ground channel each unit's log-likelihood is therefore weighted by what it adds to the
+one before it from the same vehicle: with rho = exp(-d / decorrelation_m) (d: the distance between
+the two places the vehicle heard them; the channel's Gudmundson correlation), an AR(1) chain of n
+such units carries the information of n (1 - rho) / (1 + rho) independent ones, so each weighs
+(1 - rho) / (1 + rho) (:func:`unit_weights`; a composite likelihood). Units far apart weigh 1.
 """
 
 from __future__ import annotations
@@ -135,6 +141,8 @@ class LogDistanceBursts:
         z_s = (self.sensitivity_dbm - mu) / self.shadowing_sigma_db
         return self._count_terms(log_ndtr(z_s), 0, np.asarray(frames_pmf, float))
 
+    decorrelation_m = None  # i.i.d. per frame: no weighting of units (unit_weights)
+
     def reach_m(self, height_m: float) -> float:
         # the distance at which a frame 5 sigma above the median (and 3 sigma of offset) is just heard
         margin = self.reference_power_dbm + 3.0 * self.tx_sigma_db + 5.0 * self.shadowing_sigma_db - self.sensitivity_dbm
@@ -202,6 +210,11 @@ class A2GBursts:
     def reach_m(self, height_m: float) -> float:
         return _a2g_reach_m(self, round(float(height_m)))
 
+    @property
+    def decorrelation_m(self) -> float:
+        """The distance over which a path's shadowing decorrelates (unit_weights)."""
+        return float(self.channel.environment.decorrelation_m)
+
 
 @functools.lru_cache(maxsize=64)
 def _a2g_reach_m(model: A2GBursts, height_m: float) -> float:
@@ -267,6 +280,70 @@ def bursts_from_slots(slots: SlotBatch, *, gap_s: float = BURST_GAP_S) -> list[B
             out.append(Burst(float(t[a]), int(v), tuple(float(c) for c in xyz),
                              tuple(float(r) for r in part.rssi_dbm[a:b]), tuple(int(c) for c in part.n_samples[a:b])))
     return sorted(out, key=lambda b: (b.t_s, b.vehicle))
+
+
+def missed_beacons(heard: Sequence[Burst], interval_s: float, tracks: dict, *, listen_gap_s: float = 1.0,
+                   heard_until: dict | None = None) -> list[Burst]:
+    """The advertising events of one BLE identity that a listening vehicle did not hear, as silent
+    units. A beacon identity advertises on a fixed schedule (every ``interval_s``, each event late by
+    at most 10 ms of advDelay), so between its first and last heard beacon every event is known; a
+    vehicle whose track (``tracks``: vehicle -> (t (N,), xyz (N, 3))) was within ``listen_gap_s`` of
+    an event and that heard nothing then was too far or shadowed. Left out, the heard beacons alone
+    are the loud ones near the edge of hearing, and a person orbited 20 m up was placed 24 m off
+    inside a 15 m circle (``uavloc bench low_orbit --ble --alt 20``). ``heard_until``: vehicle -> time
+    through which its receiver has reported everything (later events are not yet known missed)."""
+    if not heard or interval_s <= 0:
+        return []
+    times = np.array(sorted(b.t_s for b in heard))
+    t0 = float(times[0])
+    n = int(round((float(times[-1]) - t0) / interval_s))
+    if n < 1:
+        return []
+    k = np.arange(n + 1)
+    events = t0 + k * interval_s
+    out = []
+    for v, (tt, xyz) in tracks.items():
+        tt = np.asarray(tt, float)
+        if len(tt) == 0:
+            continue
+        mine = np.array([b.t_s for b in heard if b.vehicle == v])
+        miss = ~np.isin(k, np.rint((mine - t0) / interval_s).astype(int)) if len(mine) else np.ones(len(k), bool)
+        until = math.inf if heard_until is None else heard_until.get(v, math.inf)
+        e = events[miss & (events + 1.0 <= until)]
+        if len(e) == 0:
+            continue
+        order = np.argsort(tt)
+        ts, xs = tt[order], np.asarray(xyz, float)[order]
+        j = np.clip(np.searchsorted(ts, e), 1, len(ts) - 1)
+        near = np.minimum(np.abs(ts[j] - e), np.abs(ts[j - 1] - e))
+        e = e[near <= listen_gap_s]
+        for t in e:
+            pos = [float(np.interp(t, ts, xs[:, c])) for c in range(3)]
+            out.append(Burst(float(t), int(v), (pos[0], pos[1], pos[2])))
+    return out
+
+
+# False: every unit weighs 1 (the estimator before issue 39; a named variant for comparison)
+WEIGH_UNITS = True
+
+
+def unit_weights(bursts: Sequence[Burst], decorrelation_m: float | None) -> np.ndarray:
+    """Each unit's weight in the summed log-likelihood (module docstring): (1 - rho) / (1 + rho),
+    rho = exp(-d / decorrelation_m), d the distance from where the same vehicle heard (or listened
+    for) its previous unit; 1 for a vehicle's first unit and without a decorrelation distance."""
+    w = np.ones(len(bursts))
+    if not (WEIGH_UNITS and decorrelation_m) or len(bursts) < 2:
+        return w
+    last: dict[int, np.ndarray] = {}
+    for i in np.argsort([b.t_s for b in bursts], kind="stable"):
+        b = bursts[int(i)]
+        here = np.asarray(b.xyz_m, float)
+        prev = last.get(b.vehicle)
+        if prev is not None:
+            rho = math.exp(-float(np.linalg.norm(here - prev)) / float(decorrelation_m))
+            w[int(i)] = (1.0 - rho) / (1.0 + rho)
+        last[b.vehicle] = here
+    return w
 
 
 @dataclass(frozen=True)
@@ -491,8 +568,13 @@ class BurstGridEstimator:
         still = np.zeros((len(self._nodes),) + x.shape, np.float32)
         walk = np.zeros_like(still) if vmax > 0 else None
         eps = float(self.outlier_share)
-        for b in bursts:
+        weights = unit_weights(bursts, getattr(self.model, "decorrelation_m", None))
+        for b, wb in zip(bursts, weights):
+            if wb <= 0.0:
+                continue
             ll = self._table(b).at(np.hypot(x - b.xyz_m[0], y - b.xyz_m[1]))  # (N_tx, ny, nx)
+            if wb < 1.0:
+                ll = ll * np.float32(wb)
             if eps > 0:  # or another phone's, somewhere on the grid: its likelihood averaged over it
                 lw = self._log_w[:, None, None]
                 m = float(np.max(ll))

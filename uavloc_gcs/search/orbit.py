@@ -239,7 +239,8 @@ def dwell_s(sc, p_heard: float, k: int = ORBIT_BURSTS, p: float = ORBIT_P) -> fl
 ELICITED_INFO_MARGIN = 1.0
 
 
-def elicited_dwell_s(sc, radius_m: float, spread_m: float, *, draws: int = 300, seed: int = 0) -> float:
+def elicited_dwell_s(sc, radius_m: float, spread_m: float, *, draws: int = 300, seed: int = 0,
+                     speed_m_s: float | None = None) -> float:
     """Seconds on the circle for the frames an on-board access point elicits to place the person
     within ``people.required_accuracy_m`` (95 %): per frame the phone is asked for, the Fisher
     information about its horizontal position, averaged over the circle and where the person may
@@ -247,7 +248,11 @@ def elicited_dwell_s(sc, radius_m: float, spread_m: float, *, draws: int = 300, 
     frames needed are the worst axis's variance over the target's ((required/2.45)^2, a 2-D
     normal's 95 % circle), times ELICITED_INFO_MARGIN; divided by the elicitation rate; at most
     MAX_DWELL_S. At 2 Hz, 100 m up, 4 dB: about 280 s for 15 m (the paper's continuous
-    emitter, 400 samples/s, would need about a second)."""
+    emitter, 400 samples/s, would need about a second). Under the air-to-ground channel frames
+    heard a few metres apart share their shadowing and the estimator weighs each by what it adds
+    (estimation.burst_grid.unit_weights): with the vehicle at ``speed_m_s`` on the circle, the
+    frames needed are divided by that weight, (1 - rho) / (1 + rho), rho = exp(-speed / rate /
+    decorrelation_m)."""
     from ..estimation.model import ChannelModel
 
     rel, rho, ph = _circle_geometry(sc, radius_m, spread_m, draws, seed)
@@ -262,7 +267,37 @@ def elicited_dwell_s(sc, radius_m: float, spread_m: float, *, draws: int = 300, 
         return MAX_DWELL_S
     target = sc.people.required_accuracy_m / 2.45
     frames = ELICITED_INFO_MARGIN / (lo * target * target)
-    return float(min(frames / sc.emission.elicitation_rate_hz, MAX_DWELL_S))
+    rate = sc.emission.elicitation_rate_hz
+    env = getattr(sc.channel, "environment", None)
+    if env is not None and speed_m_s is not None and speed_m_s > 0:
+        from ..a2g import ENVIRONMENTS
+
+        rho = math.exp(-float(speed_m_s) / rate / ENVIRONMENTS[env].decorrelation_m)
+        frames /= max((1.0 - rho) / (1.0 + rho), 1e-6)
+    return float(min(frames / rate, MAX_DWELL_S))
+
+
+_QUICK_CACHE: dict = {}
+
+
+def _quickest_elicited_orbit(sc, form: str, spread: float, r0: float, v0: float) -> tuple[float, float, float]:
+    """(radius, speed, dwell) of the orbit that gathers the accuracy asked for soonest from a
+    stream of single frames (elicited, or BLE beacons): under the air-to-ground channel frames a
+    few metres apart add little (elicited_dwell_s), so a wider, faster circle can beat the radius
+    of most information per frame (``r0``, orbit_radius_m). Cached per 5 m of spread."""
+    key = (_heard_key(sc), 5.0 * round(spread / 5.0), form, repr(sc.people))
+    hit = _QUICK_CACHE.get(key)
+    if hit is None:
+        best = (elicited_dwell_s(sc, r0, spread, speed_m_s=v0), r0, v0)
+        if getattr(sc.channel, "environment", None) is not None:
+            rng_h = max(float(sc.horizontal_range_m), MIN_RADIUS_M + 1.0)
+            for r in np.linspace(MIN_RADIUS_M, 1.5 * rng_h, 30):
+                v = orbit_speed_m_s(form, float(r), sc.fleet.speed_m_s)
+                d = elicited_dwell_s(sc, float(r), spread, speed_m_s=v)
+                if d < best[0] - 1e-9:
+                    best = (d, float(r), v)
+        hit = _QUICK_CACHE[key] = (best[1], best[2], best[0])
+    return hit
 
 
 def plan_orbit(sc, centre_xy_m, spread_m: float, autopilot: str | None = None,
@@ -274,11 +309,11 @@ def plan_orbit(sc, centre_xy_m, spread_m: float, autopilot: str | None = None,
     form = ORBIT_FORM.get(autopilot or sc.fleet.autopilot, "ring")
     spread = float(min(max(spread_m, 0.0), sc.horizontal_range_m)) if math.isfinite(spread_m) else sc.horizontal_range_m
     r = orbit_radius_m(sc, spread)
+    v = orbit_speed_m_s(form, r, sc.fleet.speed_m_s)
     if elicited(sc):
-        dwell = elicited_dwell_s(sc, r, spread)
+        r, v, dwell = _quickest_elicited_orbit(sc, form, spread, r, v)
     else:
         dwell = dwell_s(sc, mean_p_heard(sc, r, spread), k, p)
-    v = orbit_speed_m_s(form, r, sc.fleet.speed_m_s)
     alt = sc.search.look_height_m  # None: the survey altitude, no descent (heights.changes_height)
     from ..heights import changes_height
 
@@ -390,7 +425,8 @@ def orbit_targets(policy, t_s: float, targets: list) -> list:
         else:
             r95 = policy._radius95(p) if p is not None and p.estimate is not None and policy._ok(p) else math.inf
             spread = r95 / 2.45 if math.isfinite(r95) else float(sc.horizontal_range_m)  # 95 % of a 2-D normal
-            orb = plan_orbit(sc, t.xy_m, spread)
+            # (a BLE identity's look is planned for its beacons: uavloc_gcs.radios.ble_view)
+            orb = plan_orbit(policy.scenario_for(eid), t.xy_m, spread)
             # the whole circle within the area and its stated margin (policy._inside_reach): a
             # person predicted outside is orbited from the edge, not chased (the field demo flew
             # an orbit centred 250 m south of the area)

@@ -41,6 +41,7 @@ import numpy as np
 from .. import geofence
 from ..errors import EstimationError, InfeasibleError
 from ..observations import SlotBatch
+from ..radios import BLE, WIFI, ble_view, radio_of
 from ..scenario import Scenario
 from . import orbit as orb
 from . import targets as tg
@@ -291,7 +292,7 @@ class SearchPolicy:
         self._frames_prior = None  # estimation.evidence.FramesPrior of the scenario's bursts (frames_prior)
         self._burst_rates = None  # and their rate law (burst_rates), for the bursts nobody heard
         self._deferred: set[int] = set()  # people waiting for a fresh pack in the current plan (replan)
-        self._grid = None  # estimation.burst_grid.GridSpec of this scenario (the field world, _grid_spec)
+        self._grid = None  # radio -> estimation.burst_grid.GridSpec (the field world, _grid_spec)
         # where the estimates are computed (estimation.fitting): in this thread by default; the
         # daemon passes a ProcessFitter so that fitting never stops its event loop
         if fitter is None:
@@ -473,7 +474,7 @@ class SearchPolicy:
             p.dirty, p.fitting = False, True
             if len(p.batches) > 1:
                 p.batches = [SlotBatch.concat(p.batches).sorted_by_time()]
-            spec = self._grid_spec()
+            spec = self._grid_spec(radio_of(p.batches[0].channel))
             if spec is not None:  # the field world: the grid posterior of the person's bursts
                 job = FitJob(p.emitter_id, p.version, p.batches[0], self.model_speed_m_s, p.last_slot_t_s,
                              self.model_motion, check_within_m=self.required_m, grid=spec,
@@ -489,26 +490,48 @@ class SearchPolicy:
         changed |= self._check_looks(t_s)
         return changed
 
-    def _grid_spec(self):
+    def _grid_spec(self, radio: str = WIFI):
         """The field world's grid estimate (estimation.burst_grid) when phones send bursts under a
-        receiver threshold and GRID_ESTIMATE is on; None for the fits of estimation.estimate."""
+        receiver threshold and GRID_ESTIMATE is on; None for the fits of estimation.estimate.
+        ``radio``: the identity's (uavloc_gcs.radios): a BLE identity's units are single beacons
+        under the BLE link budget."""
         if not (GRID_ESTIMATE and self._bursts and self.channel.sensitivity_dbm is not None):
             return None
         if self._grid is None:
+            self._grid = {}
+        spec = self._grid.get(radio)
+        if spec is None:
             from ..estimation.burst_grid import A2GBursts, GridSpec, LogDistanceBursts
 
             sc = self.scenario
-            fp = np.asarray(frames_prior(sc).p, float)
-            pmf = np.concatenate([[0.0], fp / fp.sum()])  # K = 0 .. Kmax frames sent
-            vmax = float(self.model_speed_m_s)
-            # the air-to-ground channel where the scenario names an environment (the world's own)
-            from .pod import _channel_share
+            if radio == BLE:  # one frame per unit, every one on the channel the scanner hears it on
+                sc = ble_view(sc)
+                pmf = np.array([0.0, 1.0])
+                model = A2GBursts.from_scenario(sc, pmf, 1.0)
+                if model is None:
+                    raise EstimationError("BLE beacons are estimated under the air-to-ground channel: "
+                                          "set [channel] environment")
+            else:
+                fp = np.asarray(frames_prior(sc).p, float)
+                pmf = np.concatenate([[0.0], fp / fp.sum()])  # K = 0 .. Kmax frames sent
+                # the air-to-ground channel where the scenario names an environment (the world's own)
+                from .pod import _channel_share
 
-            model = A2GBursts.from_scenario(sc, pmf, _channel_share(sc)) or LogDistanceBursts.from_scenario(sc)
-            self._grid = GridSpec(model, tuple(float(v) for v in pmf), vmax,
-                                  1.0 if vmax <= 0 else float(sc.people.static_share),
-                                  tuple((float(x), float(y)) for x, y in self.area_xy_m), GRID_AREA_MARGIN_M)
-        return self._grid
+                model = A2GBursts.from_scenario(sc, pmf, _channel_share(sc)) or LogDistanceBursts.from_scenario(sc)
+            vmax = float(self.model_speed_m_s)
+            spec = self._grid[radio] = GridSpec(model, tuple(float(v) for v in pmf), vmax,
+                                                1.0 if vmax <= 0 else float(sc.people.static_share),
+                                                tuple((float(x), float(y)) for x, y in self.area_xy_m),
+                                                GRID_AREA_MARGIN_M)
+        return spec
+
+    def scenario_for(self, emitter_id: int) -> Scenario:
+        """The scenario as the person's radio sees it: uavloc_gcs.radios.ble_view for an identity
+        heard only in BLE beacons (its looks and estimates use the BLE link budget and rate)."""
+        p = self._people.get(int(emitter_id))
+        if p is None or not p.batches or self.scenario.emission.findmy_share <= 0:
+            return self.scenario
+        return ble_view(self.scenario) if radio_of(p.batches[0].channel) == BLE else self.scenario
 
     def _bursts_of(self, p: "_Person") -> tuple:
         """``p``'s bursts as each vehicle heard them, and every vehicle that listened during one of
@@ -519,6 +542,17 @@ class SearchPolicy:
 
         heard = bursts_from_slots(p.batches[0])
         out = list(heard)
+        if radio_of(p.batches[0].channel) == BLE:  # a fixed schedule: every event missed is known
+            from ..estimation.burst_grid import missed_beacons
+
+            tracks = {}
+            for v, parts in self._tracks.items():
+                if len(parts) > 1:
+                    self._tracks[v] = parts = [(np.concatenate([a for a, _ in parts]),
+                                                np.vstack([c for _, c in parts]))]
+                tracks[v] = parts[0]
+            return tuple(out + missed_beacons(heard, self.scenario.emission.ble_interval_s, tracks,
+                                              listen_gap_s=LISTEN_GAP_S, heard_until=self._heard_until))
         times: list[float] = []
         for b in heard:  # one burst heard by several vehicles is one time
             if not times or b.t_s - times[-1] > 2.0:

@@ -128,7 +128,15 @@ def final_results(statuses, slots, scenario, frame: LocalFrame, linking=None, *,
                                 float(est.velocity_m_s[1]), r95, _f(est.annulus_bound_m), base.fix_time_s,
                                 located, resolved, "" if located else reason_with_radius(base.reason, r95, required),
                                 float(est.t_ref_s)))
-    return [_never_located_beyond(r, required) for r in out]
+    return [_never_located_beyond(_with_radio(r, slots), required) for r in out]
+
+
+def _with_radio(r: PersonResult, slots) -> PersonResult:
+    """``r`` with the radio its slots were heard by (uavloc_gcs.radios; Wi-Fi when unknown)."""
+    from ..radios import radio_of  # noqa: PLC0415
+
+    part = slots.for_emitter(r.emitter_id)
+    return dataclasses.replace(r, radio=radio_of(part.channel)) if len(part) else r
 
 
 _RADIUS_TEXT = re.compile(r"95 % radius (?:[-+]?\d+(?:\.\d*)?|inf|nan) m")
@@ -274,6 +282,11 @@ def statement_for(people: Sequence[PersonResult], required_m: float, lost: Seque
         why = "; ".join(f"{p.name if p.label else f'person {p.emitter_id}'}: {p.reason or 'not located'}"
                         for p in missing)
         text = f"{len(people) - len(missing)} of {len(people)} people located within {required_m:g} m; not located: {why}."
+    radios = {getattr(p, "radio", "wifi") for p in people}
+    if len(radios) > 1:
+        n_ble = sum(getattr(p, "radio", "wifi") == "ble" for p in people)
+        text += (f" {n_ble} of them were heard by their Bluetooth LE beacons alone: a phone heard by both radios "
+                 "is counted once per radio (its Wi-Fi bursts and its beacons share nothing to link them by).")
     if not fleet:
         return text
     said = {x.vehicle for x in lost_in_air}

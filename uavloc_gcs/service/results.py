@@ -26,7 +26,7 @@ CSV_COLUMNS = (
     "label", "emitter_id", "state", "located", "time_utc", "t_ref_s", "lat_deg", "lon_deg", "east_m",
     "north_m", "vel_east_m_s", "vel_north_m_s", "speed_m_s", "radius95_m", "annulus_bound_m",
     "fix_time_s", "fix_time_utc", "ambiguity_resolved", "reason", "addresses", "link", "link_reason",
-    "pod_here",
+    "pod_here", "radio",
 )
 STATES = ("located", "heard", "given up", "never heard")
 
@@ -61,6 +61,9 @@ class PersonResult:
     addresses: tuple = ()  # int 48-bit addresses; () = (emitter_id,)
     link_reason: str = ""
     pod_here: float = math.nan  # achieved POD of the cell at the reported position (search.coverage)
+    # the radio the person was heard by (uavloc_gcs.radios): "wifi" probe bursts or "ble" beacons; one
+    # phone heard by both is two identities, reported apart (they share no content to link them by)
+    radio: str = "wifi"
 
     @property
     def link(self) -> str:
@@ -121,7 +124,7 @@ def people_csv(people: Sequence[PersonResult], epoch_unix_s: float | None = None
                     _num(p.north_m, 2), _num(p.vel_east_m_s, 3), _num(p.vel_north_m_s, 3), _num(_speed(p), 3),
                     _num(p.radius95_m, 2), _num(p.annulus_bound_m, 2), _num(p.fix_time_s, 2),
                     utc_text(epoch_unix_s, p.fix_time_s), int(p.ambiguity_resolved), p.reason,
-                    format_addresses(p.address_list), p.link, p.link_reason, _num(p.pod_here, 3)])
+                    format_addresses(p.address_list), p.link, p.link_reason, _num(p.pod_here, 3), p.radio])
     return buf.getvalue()
 
 
@@ -139,7 +142,7 @@ def _properties(p: PersonResult, epoch_unix_s: float | None) -> dict:
         "fix_time_utc": utc_text(epoch_unix_s, p.fix_time_s) or None,
         "ambiguity_resolved": p.ambiguity_resolved, "reason": p.reason,
         "addresses": [format_address(a) for a in p.address_list], "link": p.link,
-        "link_reason": p.link_reason or None, "pod_here": _clean(p.pod_here, 3),
+        "link_reason": p.link_reason or None, "pod_here": _clean(p.pod_here, 3), "radio": p.radio,
     }
 
 

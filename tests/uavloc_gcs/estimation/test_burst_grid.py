@@ -90,3 +90,38 @@ def test_the_log_distance_world_keeps_its_model():
     sc = _field().replace(channel={"environment": None})
     spec = SearchPolicy(sc)._grid_spec()
     assert isinstance(spec.model, LogDistanceBursts) and isinstance(spec, GridSpec)
+
+
+# -- units that share their shadowing (issue 39: BLE beacons 2 s apart, elicited frames) ------------
+
+def test_units_heard_close_together_weigh_what_they_add():
+    from uavloc_gcs.estimation.burst_grid import Burst, unit_weights
+
+    b = [Burst(0.0, 1, (0.0, 0.0, 30.0), (-80.0,), (1,)), Burst(2.0, 1, (16.0, 0.0, 30.0), (-80.0,), (1,)),
+         Burst(4.0, 2, (16.0, 0.0, 30.0), (-80.0,), (1,)), Burst(60.0, 1, (600.0, 0.0, 30.0), (-80.0,), (1,))]
+    w = unit_weights(b, 50.0)
+    rho = np.exp(-16.0 / 50.0)
+    assert w[0] == 1.0 and w[1] == pytest.approx((1 - rho) / (1 + rho))
+    assert w[2] == 1.0  # another vehicle's first unit
+    assert w[3] == pytest.approx(1.0, abs=1e-4)  # far from the one before: independent
+    assert np.all(unit_weights(b, None) == 1.0)  # the log-distance channel: i.i.d. frames
+
+
+def test_beacons_heard_from_one_place_say_what_one_beacon_says():
+    """A vehicle hovering hears the same shadowing again and again: fifty beacons from one place
+    must not make a circle that one beacon does not (they did, summed as independent)."""
+    from uavloc_gcs.estimation.burst_grid import Burst
+    from uavloc_gcs.radios import ble_view
+
+    sc = _field().replace(emission={"findmy_share": 1.0})
+    spec = SearchPolicy(sc)._grid_spec("ble")
+    assert spec.model.channel.reference_power_dbm == pytest.approx(
+        sc.channel.reference_power_dbm + sc.emission.ble_power_offset_db)
+    assert spec.model.channel.sensitivity_dbm == sc.channel.ble_receiver_sensitivity_dbm
+    assert spec.model.channel == A2GBursts.from_scenario(ble_view(sc), np.array([0.0, 1.0])).channel
+    est = spec.estimator()
+    one = [Burst(0.0, 1, (500.0, 300.0, 30.0), (-88.0,), (1,))]
+    many = [Burst(2.0 * k, 1, (500.0, 300.0, 30.0), (-88.0 + 0.1 * (k % 3),), (1,)) for k in range(50)]
+    r1 = est.posterior(one, 0.0)
+    r50 = est.posterior(many, 100.0)
+    assert r50.radius_about(r50.mean_xy_m) >= 0.95 * r1.radius_about(r1.mean_xy_m)

@@ -101,17 +101,20 @@ def test_points_after_the_looks_are_flown_through(field):
 
 def test_elicited_phones_get_orbits_as_long_as_the_frames_the_accuracy_needs(field):
     """With an on-board access point a look is an orbit long enough for the elicited frames to place
-    the person within the required accuracy: the dwell falls with the rate and with the square of
-    the accuracy asked (a fly-by at 25 m/s hears about 20 frames at 2 Hz)."""
+    the person within the required accuracy: the dwell falls with the square of the accuracy asked
+    (a fly-by at 25 m/s hears about 20 frames at 2 Hz). Frames a few metres apart share their
+    shadowing (estimation.burst_grid.unit_weights): asking four times as often barely shortens it
+    (before issue 39 it made the look four times shorter, and its estimate overconfident)."""
     from uavloc_gcs.search import SearchPolicy
 
-    ap = field.replace(emission={"elicitation_rate_hz": 2.0})
+    ap = field.replace(emission={"elicitation_rate_hz": 2.0}, search={"look_height_m": 30.0},
+                       people={"required_accuracy_m": 30.0})
     assert orbit.elicited(ap) and not orbit.elicited(field)
     o2 = orbit.plan_orbit(ap, (0.0, 0.0), 5.0)
     assert 150.0 < o2.dwell_s < orbit.MAX_DWELL_S  # minutes, not the seconds of a fly-by
-    o8 = orbit.plan_orbit(field.replace(emission={"elicitation_rate_hz": 8.0}), (0.0, 0.0), 5.0)
-    assert o8.dwell_s == pytest.approx(o2.dwell_s / 4, rel=0.02)
-    loose = orbit.plan_orbit(ap.replace(people={"required_accuracy_m": 30.0}), (0.0, 0.0), 5.0)
+    o8 = orbit.plan_orbit(ap.replace(emission={"elicitation_rate_hz": 8.0}), (0.0, 0.0), 5.0)
+    assert 0.9 * o2.dwell_s <= o8.dwell_s <= o2.dwell_s
+    loose = orbit.plan_orbit(ap.replace(people={"required_accuracy_m": 60.0}), (0.0, 0.0), 5.0)
     assert loose.dwell_s == pytest.approx(o2.dwell_s / 4, rel=0.02)
     assert orbit._uses_orbits(SearchPolicy(ap)) and not orbit._uses_orbits(SearchPolicy(
         load_scenario(scenario_path("paper")).replace(emission={"elicitation_rate_hz": 2.0})))
