@@ -106,7 +106,7 @@ def _radio_budget(buf: bytes) -> None:
     t = e.t_s - e.t_s[0]
     xyz = np.column_stack([10.0 * t, np.zeros_like(t), np.full_like(t, 100.0)])  # 10 m/s at 100 m
     slots = SlotBatch.from_columns(t, np.ones(len(t), dtype=int), xyz, e.address, e.rssi_dbm, e.n_frames,
-                                   address=e.address, fingerprint=e.fingerprint, channel=e.channel)
+                                   address=e.address, fingerprint=e.fingerprint, channel=e.channel, radio=e.radio)
     msgs = encode_rssi_batches(slots, LocalFrame(47.0, 8.0), slot_s=0.025, message=BATCH2)
     codec = mavlink.MAVLink(None, srcSystem=1, srcComponent=191)
     sizes = np.array([len(m.pack(codec)) + 13 for m in msgs])  # + the 13-byte signature
