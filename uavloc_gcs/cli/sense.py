@@ -148,11 +148,14 @@ def _learn(args, frames) -> None:
 
 
 def _offline(args, frames, skips, exclusion) -> int:
+    import numpy as np
+
     from ..sense.aggregate import emitter_ids, frames_csv, slot_entries
     from ._output import atomic_output_dir
 
-    print(f"{args.capture}: {skips.read.records} records, {len(frames)} probe requests used; "
-          f"skipped: {skips.summary()}")
+    ble = int(np.count_nonzero(frames.radio))
+    print(f"{args.capture}: {skips.read.records} records, {len(frames) - ble} probe requests and {ble} BLE "
+          f"advertisements used; skipped: {skips.summary()}")
     if args.learn_team:
         _learn(args, frames)
     if exclusion is not None:
@@ -161,8 +164,6 @@ def _offline(args, frames, skips, exclusion) -> int:
         print(f"excluded {int(team.sum())} frames of the team's devices ({len(exclusion)} list entries)")
     if not args.out:
         return 0
-    import numpy as np
-
     ids = emitter_ids(frames)
     entries = slot_entries(frames, args.slot_ms / 1000.0)
     slots_text = None
