@@ -166,7 +166,8 @@ def _ble(args) -> tuple[float, bool, float]:
     buf, truth = synthetic_ble_capture(args.frames, rng=np.random.default_rng(args.seed))
     span = truth.t_s[-1] - truth.t_s[0]
     print(f"\nBLE capture: {args.frames} advertisements (link type 256), {len(buf) / 1e6:.1f} MB, "
-          f"{args.frames / max(span, 1e-9):,.0f} frames/s over {span:,.0f} s, {int(np.sum(truth.apple == 0x12))} Find My")
+          f"{args.frames / max(span, 1e-9):,.0f} frames/s over {span:,.0f} s, "
+          f"{int(np.sum(truth.apple == 0x12))} Find My")
     rows = []
     t_own, got = _time(lambda: _uavloc(buf), args.repeats)
     rows.append(("uavloc", args.frames, len(got[0]), _agree(got, truth, args.frames), t_own))

@@ -1,12 +1,12 @@
-"""``uavloc sense``: the companion computer's sensor. Wi-Fi probe requests and BLE advertising -> RSSI slots.
+"""``uavloc sense``: the companion computer's sensor. Wi-Fi probe requests, BLE advertising -> RSSI slots.
 
 Input: a capture file (``.pcap``/``.pcapng`` with radiotap or PPI Wi-Fi, or Bluetooth LE link types
 256 / 272 / 201; a btsnoop HCI log), live monitor-mode interfaces (``--interface``, libpcap
-through pcapy-ng) and/or a Linux Bluetooth adapter (``--ble-adapter``, bleak over BlueZ). Output: ``--out DIR`` gets ``frames.csv`` (one row
-per frame used) and, with ``--tlog FLIGHT.tlog``, ``slots.csv`` that ``uavloc localize`` reads;
-``--mavlink URL`` sends UAVLOC_RSSI_BATCH2 to the autopilot (or beside it), time-tagged in the
-autopilot's clock; ``--learn-team FILE`` writes the exclusion list of what is heard (on the ground,
-before take-off). Broken frames are counted, never fatal; a file that is not a capture exits 2.
+through pcapy-ng) and/or a Linux Bluetooth adapter (``--ble-adapter``, bleak over BlueZ).
+Output: ``--out DIR`` gets ``frames.csv`` (one row per frame used, with its radio) and, with
+``--tlog FLIGHT.tlog``, ``slots.csv`` that ``uavloc localize`` reads; ``--mavlink URL`` sends
+UAVLOC_RSSI_BATCH2 to the autopilot (or beside it), time-tagged in the autopilot's clock;
+``--learn-team FILE`` writes the exclusion list of what is heard (on the ground, before take-off). Broken frames are counted, never fatal; a file that is not a capture exits 2.
 """
 
 from __future__ import annotations
@@ -25,8 +25,9 @@ def register(sub: argparse._SubParsersAction) -> None:
         "sense",
         help="the on-board sensor: Wi-Fi probe requests and BLE advertising from a capture or live -> RSSI",
         description="Read 802.11 probe requests (radiotap or PPI) and Bluetooth LE advertising (link types 256, "
-                    "272, 201, btsnoop) from CAPTURE, or live from --interface(s) and --ble-adapter, aggregate them into RSSI slots and write frames.csv / slots.csv (--out) or send "
-                    "UAVLOC_RSSI_BATCH2 over MAVLink (--mavlink).",
+                    "272, 201, btsnoop) from CAPTURE, or live from --interface(s) and --ble-adapter, aggregate "
+                    "them into RSSI slots and write frames.csv / slots.csv (--out) or send UAVLOC_RSSI_BATCH2 "
+                    "over MAVLink (--mavlink).",
     )
     p.add_argument("capture", nargs="?", metavar="CAPTURE", help=".pcap, .pcapng or btsnoop file to replay")
     p.add_argument("--interface", "-i", action="append", default=[], metavar="IFACE",

@@ -1,8 +1,8 @@
 """Frames -> what the sensor reports: an emitter id per frame and one entry per (slot, address).
 
 Emitter ids (``frames.csv``'s ``emitter_id``): frames share an id when they come from one radio
-(Wi-Fi or BLE), one source address AND carry one content fingerprint. That is deliberately conservative: two devices never
-share an id when their content differs (a fingerprint is part of the key), and a phone that
+(Wi-Fi or BLE), one source address AND carry one content fingerprint. That is deliberately
+conservative: two devices never share an id when their content differs (a fingerprint is part of the key), and a phone that
 changes its random address gets a new id, which the ground's identity stage links into people
 with the flight's geometry (the sensor alone cannot tell a new address of one phone from a second
 phone of the same model). Ids count from 1 in order of first frame.
