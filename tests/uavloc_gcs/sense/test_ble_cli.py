@@ -142,3 +142,23 @@ def test_store_keeps_the_radio(tmp_path):
         st.add_slots(_slots([1, 0, 1]))
     with StoreReader(tmp_path / "m.sqlite") as st:
         assert st.slots().radio.tolist() == [1, 0, 1]
+
+
+def test_team_exclusion_on_ble_frames():
+    """An OUI never matches a BLE random address; BLE frames without a Find My key (fingerprint 0)
+    are never listed by fingerprint."""
+    from uavloc_gcs.sense import parse_capture_bytes
+    from uavloc_gcs.sense.exclusion import learn_team, loads_exclusion
+
+    buf, truth = capture("phdr", 60, seed=9)
+    frames, _ = parse_capture_bytes(buf)
+    text = learn_team(frames, fingerprints=True)
+    assert "fp 0x00000000" not in text
+    public = frames.address[frames.random == 0]
+    oui = f"{int(public[0]) >> 24:06x}"
+    random_oui = f"{int(frames.address[frames.random == 1][0]) >> 24:06x}"
+    assert len(loads_exclusion(text)) > 0  # what was learned reads back (0 is refused as a fingerprint)
+    lists = loads_exclusion(f"oui {oui[:2]}:{oui[2:4]}:{oui[4:]}\noui {random_oui[:2]}:{random_oui[2:4]}:"
+                            f"{random_oui[4:]}\n")
+    team = lists.mask(frames)
+    assert set(frames.address[team].tolist()) == {int(public[0])}
