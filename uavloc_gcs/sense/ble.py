@@ -8,7 +8,9 @@ the advertising channel index (37, 38, 39; 0-36 for secondary channels; 0 when t
 say); the link-layer PDU type (:data:`PDU_NAMES`); and what :mod:`.ble_ad` reads from the AD
 structures. A record that is not an advertisement gives a reason string (counted, benign), a broken
 one raises :class:`~.radiotap.Malformed` (counted by reason). Never anything else: every length is
-checked against what is left before it is used.
+checked against what is left before it is used. An HCI event may carry several reports; reports
+without an address or RSSI are left out, and the record is counted (``no_signal``) only when none
+is left.
 
 Link types (tcpdump.org/linktypes.html; Wireshark's dissectors named):
 
@@ -241,28 +243,26 @@ def _reports(data: bytes, pos: int, end: int, snapped: bool, extended: bool) -> 
             etype = data[pos] | data[pos + 1] << 8
             atype = data[pos + 2]
             address = int.from_bytes(data[pos + 3:pos + 9], "little")
-            rssi = data[pos + 13]
             dlen = data[pos + 23]
             dstart = pos + 24
-            pdu = _HCI_EXT_LEGACY_PDU.get(etype & 0x1F, ADV_IND) if etype & 0x10 else ADV_EXT
             next_pos = dstart + dlen
         else:
             etype, atype = data[pos], data[pos + 1]
             address = int.from_bytes(data[pos + 2:pos + 8], "little")
             dlen = data[pos + 8]
             dstart = pos + 9
-            next_pos = dstart + dlen + 1
-            if next_pos > end:
-                raise Malformed("hci_bad_report")
-            rssi = data[next_pos - 1]
-            pdu = _HCI_LEGACY_PDU.get(etype, -1)
+            next_pos = dstart + dlen + 1  # the RSSI follows the data
         if next_pos > end:
             raise Malformed("hci_bad_report")
+        if extended:
+            rssi = data[pos + 13]
+            pdu = _HCI_EXT_LEGACY_PDU.get(etype & 0x1F, ADV_IND) if etype & 0x10 else ADV_EXT
+        else:
+            rssi = data[next_pos - 1]
+            pdu = _HCI_LEGACY_PDU.get(etype, -1)
         pos = next_pos
-        if atype == 0xFF:
-            continue  # anonymous advertising: no address
-        if rssi == HCI_RSSI_UNAVAILABLE:
-            continue
+        if atype == 0xFF or rssi == HCI_RSSI_UNAVAILABLE:
+            continue  # anonymous advertising (no address), or no RSSI: the record counts once if none is left
         apple, fp = advertising_data(address, data[dstart:dstart + dlen], snapped)
         out.append((address, bool(atype & 1), rssi - 256 if rssi > 127 else rssi, 0, pdu, apple, fp))
     return out if out else "no_signal"
