@@ -11,7 +11,9 @@ with z the height above the launch point; times are seconds on one clock shared 
 What a real sensor knows of a phone is not a person: ``address`` is the 802.11 source address the
 slot's frames came from (48 bits as an integer; a phone may use a new random one for every burst),
 ``fingerprint`` a hash of the frames' content (information elements; phones of one model and OS
-share it, 0 = unknown) and ``channel`` the 802.11 channel heard on (0 = unknown). ``emitter_id`` is
+share it, 0 = unknown), ``channel`` the 802.11 channel heard on (0 = unknown) and ``radio`` the
+radio that heard it (0 Wi-Fi, 1 Bluetooth LE, as :data:`uavloc_gcs.sense.frames.RADIO_NAMES`: each
+radio has its own channel parameters and address rotation; old logs read as Wi-Fi). ``emitter_id`` is
 the identity the estimator works on: the address as it arrives from a sensor, and the linked
 person once :mod:`uavloc_gcs.estimation.identity` has grouped the addresses into people. Where a
 source has no address (old logs, the paper's world), ``address`` defaults to ``emitter_id``.
@@ -37,6 +39,7 @@ class SlotBatch:
     address: np.ndarray | None = None  # (N,) int64 802.11 source address; None: = emitter_id
     fingerprint: np.ndarray | None = None  # (N,) int64 content fingerprint; None: 0 (unknown)
     channel: np.ndarray | None = None  # (N,) int 802.11 channel; None: 0 (unknown)
+    radio: np.ndarray | None = None  # (N,) int 0 Wi-Fi, 1 BLE; None: 0 (Wi-Fi)
 
     def __post_init__(self) -> None:
         n = len(self.t_s)
@@ -46,7 +49,9 @@ class SlotBatch:
             object.__setattr__(self, "fingerprint", np.zeros(n, dtype=np.int64))
         if self.channel is None:
             object.__setattr__(self, "channel", np.zeros(n, dtype=int))
-        for name in ("vehicle", "emitter_id", "rssi_dbm", "n_samples", "address", "fingerprint", "channel"):
+        if self.radio is None:
+            object.__setattr__(self, "radio", np.zeros(n, dtype=int))
+        for name in ("vehicle", "emitter_id", "rssi_dbm", "n_samples", "address", "fingerprint", "channel", "radio"):
             if len(getattr(self, name)) != n:
                 raise ValueError(f"SlotBatch.{name} has {len(getattr(self, name))} rows, t_s has {n}")
         if np.shape(self.xyz_m) != (n, 3):
@@ -64,7 +69,7 @@ class SlotBatch:
 
     @staticmethod
     def from_columns(t_s, vehicle, xyz_m, emitter_id, rssi_dbm, n_samples, *, address=None, fingerprint=None,
-                     channel=None) -> "SlotBatch":
+                     channel=None, radio=None) -> "SlotBatch":
         return SlotBatch(
             np.asarray(t_s, dtype=float).reshape(-1),
             np.asarray(vehicle, dtype=int).reshape(-1),
@@ -75,6 +80,7 @@ class SlotBatch:
             None if address is None else np.asarray(address, dtype=np.int64).reshape(-1),
             None if fingerprint is None else np.asarray(fingerprint, dtype=np.int64).reshape(-1),
             None if channel is None else np.asarray(channel, dtype=int).reshape(-1),
+            None if radio is None else np.asarray(radio, dtype=int).reshape(-1),
         )
 
     @staticmethod
@@ -92,6 +98,7 @@ class SlotBatch:
             np.concatenate([b.address for b in batches]),
             np.concatenate([b.fingerprint for b in batches]),
             np.concatenate([b.channel for b in batches]),
+            np.concatenate([b.radio for b in batches]),
         )
 
     def take(self, index) -> "SlotBatch":
@@ -99,14 +106,14 @@ class SlotBatch:
         return SlotBatch(
             self.t_s[index], self.vehicle[index], self.xyz_m[index], self.emitter_id[index],
             self.rssi_dbm[index], self.n_samples[index], self.address[index], self.fingerprint[index],
-            self.channel[index],
+            self.channel[index], self.radio[index],
         )
 
     def with_emitter_ids(self, emitter_id) -> "SlotBatch":
         """The same slots under other emitter ids (e.g. the linked people), addresses kept."""
         return SlotBatch(
             self.t_s, self.vehicle, self.xyz_m, np.asarray(emitter_id, dtype=np.int64).reshape(-1), self.rssi_dbm,
-            self.n_samples, self.address, self.fingerprint, self.channel,
+            self.n_samples, self.address, self.fingerprint, self.channel, self.radio,
         )
 
     def for_emitter(self, emitter_id: int) -> "SlotBatch":

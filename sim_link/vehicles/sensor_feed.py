@@ -62,7 +62,8 @@ def through_sensor(heard: SlotBatch, slot_s: float, epoch_unix_s: float) -> Slot
     row = {(int(s), int(a)): i for i, (s, a) in enumerate(zip(slot_of, heard.address & 0xFFFFFFFFFFFF))}
     idx = np.array([row[(int(round(t / slot_s)), int(a))] for t, a in zip(e.t_s, e.address)], dtype=int)
     return SlotBatch.from_columns(heard.t_s[idx], heard.vehicle[idx], heard.xyz_m[idx], e.address, e.rssi_dbm,
-                                  e.n_frames, address=e.address, fingerprint=e.fingerprint, channel=e.channel)
+                                  e.n_frames, address=e.address, fingerprint=e.fingerprint, channel=e.channel,
+                                  radio=e.radio)
 
 
 __all__ = ["frames_for", "through_sensor"]

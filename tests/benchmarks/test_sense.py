@@ -18,3 +18,14 @@ def test_the_three_parsers_agree_with_the_truth(capsys):
     sense._radio_budget(buf)
     out = capsys.readouterr().out
     assert "UAVLOC_RSSI_BATCH2/s" in out and "% of a 57.6 kbit/s radio" in out
+
+
+def test_the_ble_parsers_agree_with_the_truth_and_the_radio_share_is_reported(capsys):
+    pytest.importorskip("scapy")
+    from uavloc_gcs.sense.synth_ble import synthetic_ble_capture
+
+    buf, truth = synthetic_ble_capture(400, rng=np.random.default_rng(4))
+    assert sense._agree(sense._uavloc(buf), truth, 400) == 400
+    assert sense._agree(sense._scapy_ble(buf, 100), truth, 100) == 100
+    share = sense._radio_budget(buf)
+    assert 0 < share < 1 and "% of a 57.6 kbit/s radio" in capsys.readouterr().out

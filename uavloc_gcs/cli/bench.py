@@ -18,7 +18,7 @@ BENCHMARKS = {
     "scan_coverage": "full adaptive mission with double vs single lane coverage (time, accuracy)",
     "looks": "look-planning rules on and off on paired worlds (located, inside radius, time vs clairvoyant)",
     "identity": "linking addresses into people vs truth (people reported, bursts on the wrong person, splits, merges)",
-    "sense": "Wi-Fi capture parser vs dpkt and scapy dissectors (frames/s on one core, fields agreeing)",
+    "sense": "Wi-Fi and BLE capture parsers vs dpkt and scapy dissectors (frames/s on one core, fields agreeing)",
     "field": "the search for real phones vs the paper's plan, a lawnmower and the clairvoyant (located, time, energy, POD)",
     "demos": "uavloc demo run N times: people located and given up, the reasons, given up near the truth",
     "altitude": "what altitude costs and buys under the air-to-ground channel (hearing distance, share heard, range error)",

@@ -1,11 +1,12 @@
-"""``uavloc sense``: the companion computer's sensor. Wi-Fi probe requests -> RSSI slots.
+"""``uavloc sense``: the companion computer's sensor. Wi-Fi probe requests, BLE advertising -> RSSI slots.
 
-Input: a capture file (``.pcap``/``.pcapng``, radiotap or PPI) or live monitor-mode interfaces
-(``--interface``, libpcap through pcapy-ng). Output: ``--out DIR`` gets ``frames.csv`` (one row
-per frame used) and, with ``--tlog FLIGHT.tlog``, ``slots.csv`` that ``uavloc localize`` reads;
-``--mavlink URL`` sends UAVLOC_RSSI_BATCH2 to the autopilot (or beside it), time-tagged in the
-autopilot's clock; ``--learn-team FILE`` writes the exclusion list of what is heard (on the ground,
-before take-off). Broken frames are counted, never fatal; a file that is not a capture exits 2.
+Input: a capture file (``.pcap``/``.pcapng`` with radiotap or PPI Wi-Fi, or Bluetooth LE link types
+256 / 272 / 201; a btsnoop HCI log), live monitor-mode interfaces (``--interface``, libpcap
+through pcapy-ng) and/or a Linux Bluetooth adapter (``--ble-adapter``, bleak over BlueZ).
+Output: ``--out DIR`` gets ``frames.csv`` (one row per frame used, with its radio) and, with
+``--tlog FLIGHT.tlog``, ``slots.csv`` that ``uavloc localize`` reads; ``--mavlink URL`` sends
+UAVLOC_RSSI_BATCH2 to the autopilot (or beside it), time-tagged in the autopilot's clock;
+``--learn-team FILE`` writes the exclusion list of what is heard (on the ground, before take-off). Broken frames are counted, never fatal; a file that is not a capture exits 2.
 """
 
 from __future__ import annotations
@@ -22,15 +23,19 @@ log = logging.getLogger(__name__)
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "sense",
-        help="the on-board Wi-Fi sensor: probe requests from a capture or a monitor-mode interface -> RSSI",
-        description="Read 802.11 probe requests (radiotap or PPI) from CAPTURE or live --interface(s), "
-                    "aggregate them into RSSI slots and write frames.csv / slots.csv (--out) or send "
-                    "UAVLOC_RSSI_BATCH2 over MAVLink (--mavlink).",
+        help="the on-board sensor: Wi-Fi probe requests and BLE advertising from a capture or live -> RSSI",
+        description="Read 802.11 probe requests (radiotap or PPI) and Bluetooth LE advertising (link types 256, "
+                    "272, 201, btsnoop) from CAPTURE, or live from --interface(s) and --ble-adapter, aggregate "
+                    "them into RSSI slots and write frames.csv / slots.csv (--out) or send UAVLOC_RSSI_BATCH2 "
+                    "over MAVLink (--mavlink).",
     )
-    p.add_argument("capture", nargs="?", metavar="CAPTURE", help=".pcap or .pcapng file to replay")
+    p.add_argument("capture", nargs="?", metavar="CAPTURE", help=".pcap, .pcapng or btsnoop file to replay")
     p.add_argument("--interface", "-i", action="append", default=[], metavar="IFACE",
                    help="monitor-mode interface to capture from (repeat for several; needs pcapy-ng and "
                         "capture permission)")
+    p.add_argument("--ble-adapter", default=None, metavar="HCI",
+                   help="also scan for Bluetooth LE advertising on this Linux adapter, e.g. hci0 (needs bleak and "
+                        "BlueZ; every advertisement is reported, duplicates included)")
     p.add_argument("--channels", default=None, metavar="LIST",
                    help="hop the (single) interface over these channels, e.g. 1,6,11, or with a dwell per channel "
                         "in ms, 1:400,6:200,11:200 (uses 'iw'; default: stay on the channel it is set to)")
@@ -74,20 +79,26 @@ def run(args: argparse.Namespace) -> int:
     from ..sense import parse_capture
     from ..sense.exclusion import read_exclusion
 
-    if bool(args.capture) == bool(args.interface):
-        raise ConfigError("give either a CAPTURE file or --interface (not both, not neither)", key="capture")
+    live = bool(args.interface or args.ble_adapter)
+    if bool(args.capture) == live:
+        raise ConfigError("give either a CAPTURE file or live sources (--interface, --ble-adapter), not both, "
+                          "not neither", key="capture")
     if args.mavlink and args.slot_ms > SLOT_US_MAX / 1000:
         raise ConfigError(f"--slot-ms {args.slot_ms:g}: UAVLOC_RSSI_BATCH2 carries the slot length as a 16-bit count of "
                           f"microseconds, at most {SLOT_US_MAX / 1000:g} ms")
     if args.tlog and not args.out:
         raise ConfigError("--tlog writes DIR/slots.csv: give --out DIR too", key="--tlog")
-    if args.tlog and (args.interface or args.mavlink):
+    if args.tlog and (live or args.mavlink):
         raise ConfigError("--tlog places a capture file's slots on a recorded flight: not with --interface or "
                           "--mavlink", key="--tlog")
     if args.channels:
         from ..sense.live import parse_channels
 
         parse_channels(args.channels, args.dwell_ms / 1000.0)  # refused before anything starts
+    if args.ble_adapter:
+        from ..sense.ble_live import _import_bleak
+
+        _import_bleak()  # a missing library is refused before anything starts
     if args.channels and len(args.interface) != 1:
         raise ConfigError("--channels hops one interface; give exactly one --interface (several interfaces stay "
                           "on their own fixed channels)", key="--channels")
@@ -148,11 +159,14 @@ def _learn(args, frames) -> None:
 
 
 def _offline(args, frames, skips, exclusion) -> int:
+    import numpy as np
+
     from ..sense.aggregate import emitter_ids, frames_csv, slot_entries
     from ._output import atomic_output_dir
 
-    print(f"{args.capture}: {skips.read.records} records, {len(frames)} probe requests used; "
-          f"skipped: {skips.summary()}")
+    ble = int(np.count_nonzero(frames.radio))
+    print(f"{args.capture}: {skips.read.records} records, {len(frames) - ble} probe requests and {ble} BLE "
+          f"advertisements used; skipped: {skips.summary()}")
     if args.learn_team:
         _learn(args, frames)
     if exclusion is not None:
@@ -161,8 +175,6 @@ def _offline(args, frames, skips, exclusion) -> int:
         print(f"excluded {int(team.sum())} frames of the team's devices ({len(exclusion)} list entries)")
     if not args.out:
         return 0
-    import numpy as np
-
     ids = emitter_ids(frames)
     entries = slot_entries(frames, args.slot_ms / 1000.0)
     slots_text = None

@@ -9,8 +9,9 @@ off by a few centimetres in a 5 m/s^2 turn (a t^2 / 8 over 0.2 s).
 
 Two messages (``RSSI_DIALECT.md``):
 
-- ``UAVLOC_RSSI_BATCH2`` (54101) carries per entry what a Wi-Fi sensor knows: the 48-bit source
-  address, a 32-bit content fingerprint, the channel, the frame count and the mean RSSI. The
+- ``UAVLOC_RSSI_BATCH2`` (54101) carries per entry what a sensor knows: the 48-bit source
+  address, a 32-bit content fingerprint, the channel, the frame count, the mean RSSI and the radio
+  (extension field ``radio``: 0 Wi-Fi, 1 Bluetooth LE; 0 from senders that predate it). The
   ground's ``emitter_id`` of a decoded entry is its address (a sensor knows no person).
 - ``UAVLOC_RSSI_BATCH`` (54100, the first version) carries a uint32 emitter id, the RSSI and the
   sample count; decoded entries get ``address = emitter_id``, fingerprint 0 and channel 0
@@ -18,10 +19,11 @@ Two messages (``RSSI_DIALECT.md``):
 
 The encoders take ``message``: :data:`BATCH2`, :data:`BATCH` or :data:`AUTO` (the default), which
 sends the old message when it carries the slots losslessly (every address equal to its emitter id
-and within uint32, no fingerprint, no channel: the paper's continuous world), so that a ground
+and within uint32, no fingerprint, no channel, all Wi-Fi: the paper's continuous world), so that a ground
 station older than UAVLOC_RSSI_BATCH2 still understands it, and UAVLOC_RSSI_BATCH2 otherwise. Both
-cost the same bytes then: BATCH2's address-high, channel and fingerprint arrays are extension
-fields, last on the wire, and MAVLink 2 trims them when they are zero.
+cost the same bytes then: BATCH2's address-high, channel, fingerprint and radio arrays are
+extension fields, last on the wire, and MAVLink 2 trims them when they are zero (a Wi-Fi-only
+message costs what it did before the radio field; one with a BLE entry carries all 12 radio bytes).
 
 A message with ``count`` 0 is a *keepalive* (:func:`keepalive_message`): the receiver listened and
 everything it heard before ``time_usec`` has been sent. A companion sends one whenever a second
@@ -94,7 +96,7 @@ def fits_batch(slots: SlotBatch) -> bool:
     """Whether the old UAVLOC_RSSI_BATCH carries ``slots`` without losing a column."""
     return bool(np.array_equal(slots.address, slots.emitter_id)
                 and np.all((slots.emitter_id >= 0) & (slots.emitter_id <= _UINT32_MAX))
-                and not np.any(slots.fingerprint) and not np.any(slots.channel))
+                and not np.any(slots.fingerprint) and not np.any(slots.channel) and not np.any(slots.radio))
 
 
 def encode_rssi_batches(
@@ -148,6 +150,8 @@ def _check_wire_ranges(s: SlotBatch, message: str) -> None:
             raise ValueError("UAVLOC_RSSI_BATCH2: address must fit 48 bits (0 .. 0xffffffffffff)")
         if np.any(s.channel < 0) or np.any(s.channel > 255):
             raise ValueError("UAVLOC_RSSI_BATCH2: channel must be 0 .. 255")
+        if np.any(s.radio < 0) or np.any(s.radio > 255):
+            raise ValueError("UAVLOC_RSSI_BATCH2: radio must be 0 .. 255")
     if np.any(s.n_samples < 1) or np.any(s.n_samples > 255):
         raise ValueError(f"{message}: n_samples must be 1 .. 255")
     if not np.all(np.isfinite(s.rssi_dbm)) or np.any(np.abs(s.rssi_dbm) > 327.0):
@@ -190,6 +194,7 @@ def _encode_one(s: SlotBatch, start: int, stop: int, t_ms: np.ndarray, frame: Lo
         addr_hi=[int(v) for v in hi] + pad,
         fingerprint=[int(v) for v in wire_fingerprint(s.fingerprint[start:stop])] + pad,
         channel=[int(v) for v in s.channel[start:stop]] + pad,
+        radio=[int(v) for v in s.radio[start:stop]] + pad,
         n_frames=counts,
         rssi_cdbm=rssi_cdbm,
     )
@@ -218,7 +223,7 @@ def keepalive_message(until_s: float, *, epoch_unix_s: float = 0.0, slot_s: floa
                 rssi_cdbm=zeros)
     if message == BATCH:
         return msg(**head, emitter_id=zeros, n_samples=zeros)
-    return msg(**head, addr_lo=zeros, addr_hi=zeros, fingerprint=zeros, channel=zeros, n_frames=zeros)
+    return msg(**head, addr_lo=zeros, addr_hi=zeros, fingerprint=zeros, channel=zeros, radio=zeros, n_frames=zeros)
 
 
 def message_time_s(msg, *, epoch_unix_s: float = 0.0) -> float:
@@ -233,8 +238,9 @@ def decode_rssi_batch(
     """Decode one UAVLOC_RSSI_BATCH2 or UAVLOC_RSSI_BATCH into a SlotBatch (``vehicle`` defaults to
     the sender's system id).
 
-    UAVLOC_RSSI_BATCH2: ``emitter_id`` = ``address``. UAVLOC_RSSI_BATCH: ``address`` =
-    ``emitter_id``, fingerprint and channel 0 (unknown). Entries beyond ``count`` are ignored; a
+    UAVLOC_RSSI_BATCH2: ``emitter_id`` = ``address``, ``radio`` as sent (0, Wi-Fi, when the sender
+    predates the field). UAVLOC_RSSI_BATCH: ``address`` = ``emitter_id``, fingerprint and channel 0
+    (unknown), radio 0 (Wi-Fi). Entries beyond ``count`` are ignored; a
     ``count`` above 12 is clipped to 12. Raises ValueError for any other message.
     """
     kind = msg.get_type()
@@ -261,7 +267,8 @@ def decode_rssi_batch(
     return SlotBatch.from_columns(t0_s + dt_s, np.full(k, int(vehicle)), xyz, address, rssi,
                                   np.asarray(msg.n_frames[:k], dtype=int), address=address,
                                   fingerprint=np.asarray(msg.fingerprint[:k], dtype=np.int64),
-                                  channel=np.asarray(msg.channel[:k], dtype=int))
+                                  channel=np.asarray(msg.channel[:k], dtype=int),
+                                  radio=np.asarray(getattr(msg, "radio", [0] * k)[:k], dtype=int))
 
 
 def decode_rssi_batches(msgs: Iterable, frame: LocalFrame, *, epoch_unix_s: float = 0.0) -> SlotBatch:

@@ -358,6 +358,16 @@ class Enum(Dict[int, EnumEntry]):
 
 enums: Dict[str, Enum] = {}
 
+# UAVLOC_RADIO
+enums["UAVLOC_RADIO"] = Enum()
+enums["UAVLOC_RADIO"].bitmask = False
+UAVLOC_RADIO_WIFI = 0
+enums["UAVLOC_RADIO"][0] = EnumEntry("UAVLOC_RADIO_WIFI", """802.11 (Wi-Fi) frames: the address is the 802.11 source address, the channel an 802.11 channel number, the fingerprint a hash of the information elements.""")
+UAVLOC_RADIO_BLE = 1
+enums["UAVLOC_RADIO"][1] = EnumEntry("UAVLOC_RADIO_BLE", """Bluetooth LE advertising: the address is the advertiser address (AdvA), the channel the BLE channel index (37-39 primary, 0-36 secondary), the fingerprint a hash of the Apple Find My key (0 if none).""")
+UAVLOC_RADIO_ENUM_END = 2
+enums["UAVLOC_RADIO"][2] = EnumEntry("UAVLOC_RADIO_ENUM_END", """""")
+
 # HL_FAILURE_FLAG
 enums["HL_FAILURE_FLAG"] = Enum()
 enums["HL_FAILURE_FLAG"].bitmask = True
@@ -6608,22 +6618,22 @@ class MAVLink_uavloc_rssi_batch2_message(MAVLink_message):
 
     id = MAVLINK_MSG_ID_UAVLOC_RSSI_BATCH2
     msgname = "UAVLOC_RSSI_BATCH2"
-    fieldnames = ["time_usec", "lat", "lon", "relative_alt", "vx", "vy", "vz", "slot_us", "count", "dt_ms", "addr_lo", "rssi_cdbm", "n_frames", "addr_hi", "channel", "fingerprint"]
-    ordered_fieldnames = ["time_usec", "lat", "lon", "relative_alt", "addr_lo", "vx", "vy", "vz", "slot_us", "rssi_cdbm", "count", "dt_ms", "n_frames", "addr_hi", "channel", "fingerprint"]
-    fieldtypes = ["uint64_t", "int32_t", "int32_t", "int32_t", "int16_t", "int16_t", "int16_t", "uint16_t", "uint8_t", "uint8_t", "uint32_t", "int16_t", "uint8_t", "uint16_t", "uint8_t", "uint32_t"]
+    fieldnames = ["time_usec", "lat", "lon", "relative_alt", "vx", "vy", "vz", "slot_us", "count", "dt_ms", "addr_lo", "rssi_cdbm", "n_frames", "addr_hi", "channel", "fingerprint", "radio"]
+    ordered_fieldnames = ["time_usec", "lat", "lon", "relative_alt", "addr_lo", "vx", "vy", "vz", "slot_us", "rssi_cdbm", "count", "dt_ms", "n_frames", "addr_hi", "channel", "fingerprint", "radio"]
+    fieldtypes = ["uint64_t", "int32_t", "int32_t", "int32_t", "int16_t", "int16_t", "int16_t", "uint16_t", "uint8_t", "uint8_t", "uint32_t", "int16_t", "uint8_t", "uint16_t", "uint8_t", "uint32_t", "uint8_t"]
     fielddisplays_by_name: Dict[str, str] = {}
-    fieldenums_by_name: Dict[str, str] = {}
+    fieldenums_by_name: Dict[str, str] = {"radio": "UAVLOC_RADIO"}
     fieldunits_by_name: Dict[str, str] = {"time_usec": "us", "lat": "degE7", "lon": "degE7", "relative_alt": "mm", "vx": "cm/s", "vy": "cm/s", "vz": "cm/s", "slot_us": "us", "dt_ms": "ms", "rssi_cdbm": "cdBm"}
-    native_format = bytearray(b"<QiiiIhhhHhBBBHBI")
-    orders = [0, 1, 2, 3, 5, 6, 7, 8, 10, 11, 4, 9, 12, 13, 14, 15]
-    lengths = [1, 1, 1, 1, 12, 1, 1, 1, 1, 12, 1, 12, 12, 12, 12, 12]
-    array_lengths = [0, 0, 0, 0, 12, 0, 0, 0, 0, 12, 0, 12, 12, 12, 12, 12]
+    native_format = bytearray(b"<QiiiIhhhHhBBBHBIB")
+    orders = [0, 1, 2, 3, 5, 6, 7, 8, 10, 11, 4, 9, 12, 13, 14, 15, 16]
+    lengths = [1, 1, 1, 1, 12, 1, 1, 1, 1, 12, 1, 12, 12, 12, 12, 12, 12]
+    array_lengths = [0, 0, 0, 0, 12, 0, 0, 0, 0, 12, 0, 12, 12, 12, 12, 12, 12]
     crc_extra = 154
-    unpacker = struct.Struct("<Qiii12IhhhH12hB12B12B12H12B12I")
+    unpacker = struct.Struct("<Qiii12IhhhH12hB12B12B12H12B12I12B")
     instance_field = None
     instance_offset = -1
 
-    def __init__(self, time_usec: int, lat: int, lon: int, relative_alt: int, vx: int, vy: int, vz: int, slot_us: int, count: int, dt_ms: Sequence[int], addr_lo: Sequence[int], rssi_cdbm: Sequence[int], n_frames: Sequence[int], addr_hi: Sequence[int] = (0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0), channel: Sequence[int] = (0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0), fingerprint: Sequence[int] = (0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0)):
+    def __init__(self, time_usec: int, lat: int, lon: int, relative_alt: int, vx: int, vy: int, vz: int, slot_us: int, count: int, dt_ms: Sequence[int], addr_lo: Sequence[int], rssi_cdbm: Sequence[int], n_frames: Sequence[int], addr_hi: Sequence[int] = (0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0), channel: Sequence[int] = (0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0), fingerprint: Sequence[int] = (0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0), radio: Sequence[int] = (0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0)):
         MAVLink_message.__init__(self, MAVLink_uavloc_rssi_batch2_message.id, MAVLink_uavloc_rssi_batch2_message.msgname)
         self._fieldnames = MAVLink_uavloc_rssi_batch2_message.fieldnames
         self._instance_field = MAVLink_uavloc_rssi_batch2_message.instance_field
@@ -6644,9 +6654,10 @@ class MAVLink_uavloc_rssi_batch2_message(MAVLink_message):
         self.addr_hi = addr_hi
         self.channel = channel
         self.fingerprint = fingerprint
+        self.radio = radio
 
     def pack(self, mav: "MAVLink", force_mavlink1: bool = False) -> bytes:
-        return self._pack(mav, self.crc_extra, self.unpacker.pack(self.time_usec, self.lat, self.lon, self.relative_alt, self.addr_lo[0], self.addr_lo[1], self.addr_lo[2], self.addr_lo[3], self.addr_lo[4], self.addr_lo[5], self.addr_lo[6], self.addr_lo[7], self.addr_lo[8], self.addr_lo[9], self.addr_lo[10], self.addr_lo[11], self.vx, self.vy, self.vz, self.slot_us, self.rssi_cdbm[0], self.rssi_cdbm[1], self.rssi_cdbm[2], self.rssi_cdbm[3], self.rssi_cdbm[4], self.rssi_cdbm[5], self.rssi_cdbm[6], self.rssi_cdbm[7], self.rssi_cdbm[8], self.rssi_cdbm[9], self.rssi_cdbm[10], self.rssi_cdbm[11], self.count, self.dt_ms[0], self.dt_ms[1], self.dt_ms[2], self.dt_ms[3], self.dt_ms[4], self.dt_ms[5], self.dt_ms[6], self.dt_ms[7], self.dt_ms[8], self.dt_ms[9], self.dt_ms[10], self.dt_ms[11], self.n_frames[0], self.n_frames[1], self.n_frames[2], self.n_frames[3], self.n_frames[4], self.n_frames[5], self.n_frames[6], self.n_frames[7], self.n_frames[8], self.n_frames[9], self.n_frames[10], self.n_frames[11], self.addr_hi[0], self.addr_hi[1], self.addr_hi[2], self.addr_hi[3], self.addr_hi[4], self.addr_hi[5], self.addr_hi[6], self.addr_hi[7], self.addr_hi[8], self.addr_hi[9], self.addr_hi[10], self.addr_hi[11], self.channel[0], self.channel[1], self.channel[2], self.channel[3], self.channel[4], self.channel[5], self.channel[6], self.channel[7], self.channel[8], self.channel[9], self.channel[10], self.channel[11], self.fingerprint[0], self.fingerprint[1], self.fingerprint[2], self.fingerprint[3], self.fingerprint[4], self.fingerprint[5], self.fingerprint[6], self.fingerprint[7], self.fingerprint[8], self.fingerprint[9], self.fingerprint[10], self.fingerprint[11]), force_mavlink1=force_mavlink1)
+        return self._pack(mav, self.crc_extra, self.unpacker.pack(self.time_usec, self.lat, self.lon, self.relative_alt, self.addr_lo[0], self.addr_lo[1], self.addr_lo[2], self.addr_lo[3], self.addr_lo[4], self.addr_lo[5], self.addr_lo[6], self.addr_lo[7], self.addr_lo[8], self.addr_lo[9], self.addr_lo[10], self.addr_lo[11], self.vx, self.vy, self.vz, self.slot_us, self.rssi_cdbm[0], self.rssi_cdbm[1], self.rssi_cdbm[2], self.rssi_cdbm[3], self.rssi_cdbm[4], self.rssi_cdbm[5], self.rssi_cdbm[6], self.rssi_cdbm[7], self.rssi_cdbm[8], self.rssi_cdbm[9], self.rssi_cdbm[10], self.rssi_cdbm[11], self.count, self.dt_ms[0], self.dt_ms[1], self.dt_ms[2], self.dt_ms[3], self.dt_ms[4], self.dt_ms[5], self.dt_ms[6], self.dt_ms[7], self.dt_ms[8], self.dt_ms[9], self.dt_ms[10], self.dt_ms[11], self.n_frames[0], self.n_frames[1], self.n_frames[2], self.n_frames[3], self.n_frames[4], self.n_frames[5], self.n_frames[6], self.n_frames[7], self.n_frames[8], self.n_frames[9], self.n_frames[10], self.n_frames[11], self.addr_hi[0], self.addr_hi[1], self.addr_hi[2], self.addr_hi[3], self.addr_hi[4], self.addr_hi[5], self.addr_hi[6], self.addr_hi[7], self.addr_hi[8], self.addr_hi[9], self.addr_hi[10], self.addr_hi[11], self.channel[0], self.channel[1], self.channel[2], self.channel[3], self.channel[4], self.channel[5], self.channel[6], self.channel[7], self.channel[8], self.channel[9], self.channel[10], self.channel[11], self.fingerprint[0], self.fingerprint[1], self.fingerprint[2], self.fingerprint[3], self.fingerprint[4], self.fingerprint[5], self.fingerprint[6], self.fingerprint[7], self.fingerprint[8], self.fingerprint[9], self.fingerprint[10], self.fingerprint[11], self.radio[0], self.radio[1], self.radio[2], self.radio[3], self.radio[4], self.radio[5], self.radio[6], self.radio[7], self.radio[8], self.radio[9], self.radio[10], self.radio[11]), force_mavlink1=force_mavlink1)
 
 
 # Define name on the class for backwards compatibility (it is now msgname).
@@ -17391,7 +17402,7 @@ class MAVLink(object):
         """
         self.send(self.uavloc_rssi_batch_encode(time_usec, lat, lon, relative_alt, vx, vy, vz, slot_us, count, dt_ms, emitter_id, rssi_cdbm, n_samples), force_mavlink1=force_mavlink1)
 
-    def uavloc_rssi_batch2_encode(self, time_usec: int, lat: int, lon: int, relative_alt: int, vx: int, vy: int, vz: int, slot_us: int, count: int, dt_ms: Sequence[int], addr_lo: Sequence[int], rssi_cdbm: Sequence[int], n_frames: Sequence[int], addr_hi: Sequence[int] = (0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0), channel: Sequence[int] = (0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0), fingerprint: Sequence[int] = (0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0)) -> MAVLink_uavloc_rssi_batch2_message:
+    def uavloc_rssi_batch2_encode(self, time_usec: int, lat: int, lon: int, relative_alt: int, vx: int, vy: int, vz: int, slot_us: int, count: int, dt_ms: Sequence[int], addr_lo: Sequence[int], rssi_cdbm: Sequence[int], n_frames: Sequence[int], addr_hi: Sequence[int] = (0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0), channel: Sequence[int] = (0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0), fingerprint: Sequence[int] = (0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0), radio: Sequence[int] = (0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0)) -> MAVLink_uavloc_rssi_batch2_message:
         """
         What a receiver heard from ground transmitters in consecutive time
         slots, batched; the         successor of UAVLOC_RSSI_BATCH
@@ -17426,11 +17437,12 @@ class MAVLink(object):
         addr_hi                   : High 16 bits of the 48-bit 802.11 source address (its first two octets). (type:uint16_t)
         channel                   : 802.11 channel number the frames were heard on, 0 if unknown. (type:uint8_t)
         fingerprint               : Hash of the frames' content (information elements) identifying the phone model, 0 if unknown. (type:uint32_t)
+        radio                     : Radio the frames were heard on; 0 (Wi-Fi) from senders that predate the field. (type:uint8_t, values:UAVLOC_RADIO)
 
         """
-        return MAVLink_uavloc_rssi_batch2_message(time_usec, lat, lon, relative_alt, vx, vy, vz, slot_us, count, dt_ms, addr_lo, rssi_cdbm, n_frames, addr_hi, channel, fingerprint)
+        return MAVLink_uavloc_rssi_batch2_message(time_usec, lat, lon, relative_alt, vx, vy, vz, slot_us, count, dt_ms, addr_lo, rssi_cdbm, n_frames, addr_hi, channel, fingerprint, radio)
 
-    def uavloc_rssi_batch2_send(self, time_usec: int, lat: int, lon: int, relative_alt: int, vx: int, vy: int, vz: int, slot_us: int, count: int, dt_ms: Sequence[int], addr_lo: Sequence[int], rssi_cdbm: Sequence[int], n_frames: Sequence[int], addr_hi: Sequence[int] = (0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0), channel: Sequence[int] = (0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0), fingerprint: Sequence[int] = (0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0), force_mavlink1: bool = False) -> None:
+    def uavloc_rssi_batch2_send(self, time_usec: int, lat: int, lon: int, relative_alt: int, vx: int, vy: int, vz: int, slot_us: int, count: int, dt_ms: Sequence[int], addr_lo: Sequence[int], rssi_cdbm: Sequence[int], n_frames: Sequence[int], addr_hi: Sequence[int] = (0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0), channel: Sequence[int] = (0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0), fingerprint: Sequence[int] = (0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0), radio: Sequence[int] = (0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0), force_mavlink1: bool = False) -> None:
         """
         What a receiver heard from ground transmitters in consecutive time
         slots, batched; the         successor of UAVLOC_RSSI_BATCH
@@ -17465,9 +17477,10 @@ class MAVLink(object):
         addr_hi                   : High 16 bits of the 48-bit 802.11 source address (its first two octets). (type:uint16_t)
         channel                   : 802.11 channel number the frames were heard on, 0 if unknown. (type:uint8_t)
         fingerprint               : Hash of the frames' content (information elements) identifying the phone model, 0 if unknown. (type:uint32_t)
+        radio                     : Radio the frames were heard on; 0 (Wi-Fi) from senders that predate the field. (type:uint8_t, values:UAVLOC_RADIO)
 
         """
-        self.send(self.uavloc_rssi_batch2_encode(time_usec, lat, lon, relative_alt, vx, vy, vz, slot_us, count, dt_ms, addr_lo, rssi_cdbm, n_frames, addr_hi, channel, fingerprint), force_mavlink1=force_mavlink1)
+        self.send(self.uavloc_rssi_batch2_encode(time_usec, lat, lon, relative_alt, vx, vy, vz, slot_us, count, dt_ms, addr_lo, rssi_cdbm, n_frames, addr_hi, channel, fingerprint, radio), force_mavlink1=force_mavlink1)
 
     def sys_status_encode(self, onboard_control_sensors_present: int, onboard_control_sensors_enabled: int, onboard_control_sensors_health: int, load: int, voltage_battery: int, current_battery: int, battery_remaining: int, drop_rate_comm: int, errors_comm: int, errors_count1: int, errors_count2: int, errors_count3: int, errors_count4: int, onboard_control_sensors_present_extended: int = 0, onboard_control_sensors_enabled_extended: int = 0, onboard_control_sensors_health_extended: int = 0) -> MAVLink_sys_status_message:
         """

@@ -1,16 +1,18 @@
 """RSSI slots as CSV: one row per slot, the offline input of ``uavloc localize``.
 
-Header (these columns, in this order, then optionally any of ``address,fingerprint,channel``)::
+Header (these columns, in this order, then optionally any of ``address,fingerprint,channel,radio``)::
 
-    t_s,vehicle_id,lat_deg,lon_deg,alt_m,emitter_id,rssi_dbm,n_samples[,address,fingerprint,channel]
+    t_s,vehicle_id,lat_deg,lon_deg,alt_m,emitter_id,rssi_dbm,n_samples[,address,fingerprint,channel,radio]
 
 ``t_s`` seconds on one clock for all vehicles, ``alt_m`` the vehicle's height above the launch
 point, ``rssi_dbm`` the mean of the slot's ``n_samples`` RSSI samples (frames). What a Wi-Fi
 sensor adds: ``address`` the 802.11 source address, as 12 hex digits (``da0a1b2c3d4e``) or six
 octets (``da:0a:1b:2c:3d:4e``, ``-`` also accepted); ``fingerprint`` the content hash, a whole
-number (decimal or ``0x`` hex); ``channel`` the 802.11 channel. An absent column or an empty cell
-reads as the default: address = emitter_id, fingerprint 0 and channel 0 (unknown). The writer
-adds the three columns only when some slot has a value other than the default. Blank lines and lines
+number (decimal or ``0x`` hex); ``channel`` the 802.11 channel (or BLE channel index); ``radio``
+``wifi`` or ``ble`` (or 0 / 1). An absent column or an empty cell reads as the default: address =
+emitter_id, fingerprint 0, channel 0 (unknown) and radio wifi (files from before the column). The
+writer adds the first three columns only when some slot has a value other than the default, and
+``radio`` only when some slot is not Wi-Fi. Blank lines and lines
 starting with ``#`` are ignored. :func:`loads_slots_csv` / :func:`dumps_slots_csv` convert
 between the text and a :class:`SlotBatch` in a scenario's local frame; malformed input raises
 :class:`FileFormatError` naming the line and the field.
@@ -28,11 +30,12 @@ from ..geo import LocalFrame
 from ..observations import SlotBatch
 
 COLUMNS = ("t_s", "vehicle_id", "lat_deg", "lon_deg", "alt_m", "emitter_id", "rssi_dbm", "n_samples")
-OPTIONAL_COLUMNS = ("address", "fingerprint", "channel")
-_INT = {"vehicle_id", "emitter_id", "n_samples", "fingerprint", "channel"}
+OPTIONAL_COLUMNS = ("address", "fingerprint", "channel", "radio")
+RADIOS = ("wifi", "ble")  # by radio code, as uavloc_gcs.sense.frames.RADIO_NAMES
+_INT = {"vehicle_id", "emitter_id", "n_samples", "fingerprint", "channel", "radio"}
 _RANGE = {"lat_deg": (-90.0, 90.0), "lon_deg": (-180.0, 180.0), "vehicle_id": (0, 2**31 - 1),
           "emitter_id": (0, 2**63 - 1), "n_samples": (1, 2**31 - 1), "address": (0, 2**48 - 1),
-          "fingerprint": (0, 2**63 - 1), "channel": (0, 255)}
+          "fingerprint": (0, 2**63 - 1), "channel": (0, 255), "radio": (0, 255)}
 _HEX = set("0123456789abcdefABCDEF")
 
 
@@ -68,9 +71,10 @@ def loads_slots_csv(text: str, frame: LocalFrame, *, path: str = "<string>") -> 
     address = np.array([eid if v is None else v for eid, v in zip(emitter_id, a[:, 8])], dtype=np.int64)
     fingerprint = np.array([0 if v is None else v for v in a[:, 9]], dtype=np.int64)
     channel = np.array([0 if v is None else v for v in a[:, 10]], dtype=int)
+    radio = np.array([0 if v is None else v for v in a[:, 11]], dtype=int)
     return SlotBatch.from_columns(a[:, 0].astype(float), a[:, 1].astype(np.int64), xyz, emitter_id,
                                   a[:, 6].astype(float), a[:, 7].astype(np.int64), address=address,
-                                  fingerprint=fingerprint, channel=channel)
+                                  fingerprint=fingerprint, channel=channel, radio=radio)
 
 
 def _header(fields: list[str], line: str, path: str, lineno: int) -> tuple[str, ...]:
@@ -110,12 +114,15 @@ def _value(text: str, name: str, path: str, lineno: int):
     try:
         if name == "address":
             v = parse_address(text)
+        elif name == "radio" and text.lower() in RADIOS:
+            v = RADIOS.index(text.lower())
         elif name == "fingerprint" and text.lower().startswith("0x"):
             v = int(text, 16)
         else:
             v = int(text) if name in _INT else float(text)
     except ValueError:
         kind = ("12 hex digits or six hex octets (aa:bb:cc:dd:ee:ff)" if name == "address"
+                else f"{' or '.join(RADIOS)} (or its number)" if name == "radio"
                 else "a whole number" if name in _INT else "a number")
         raise FileFormatError(f"must be {kind}, got {text!r}", path=path, line=lineno, field=name) from None
     if isinstance(v, float) and not math.isfinite(v):
@@ -130,11 +137,13 @@ def _value(text: str, name: str, path: str, lineno: int):
 def dumps_slots_csv(slots: SlotBatch, frame: LocalFrame) -> str:
     """Slot CSV text (time order, deterministic; lat/lon to 1e-8 degrees, about 1 mm). The columns
     address (aa:bb:cc:dd:ee:ff), fingerprint and channel are written when some slot has a value
-    other than the default (address = emitter_id, fingerprint 0, channel 0)."""
+    other than the default (address = emitter_id, fingerprint 0, channel 0), radio when some slot
+    is not Wi-Fi."""
     s = slots.sorted_by_time()
     latlon = frame.to_wgs84_latlon(s.xyz_m[:, :2]) if len(s) else np.zeros((0, 2))
-    sensor = bool(np.any(s.address != s.emitter_id) or np.any(s.fingerprint) or np.any(s.channel))
-    lines = [",".join(COLUMNS + (OPTIONAL_COLUMNS if sensor else ()))]
+    radio = bool(np.any(s.radio))
+    sensor = bool(np.any(s.address != s.emitter_id) or np.any(s.fingerprint) or np.any(s.channel)) or radio
+    lines = [",".join(COLUMNS + (OPTIONAL_COLUMNS[:3] if sensor else ()) + (("radio",) if radio else ()))]
     for k in range(len(s)):
         line = (f"{s.t_s[k]:.3f},{s.vehicle[k]},{latlon[k, 0]:.8f},{latlon[k, 1]:.8f},{s.xyz_m[k, 2]:.2f},"
                 f"{s.emitter_id[k]},{s.rssi_dbm[k]:.2f},{s.n_samples[k]}")
@@ -142,6 +151,8 @@ def dumps_slots_csv(slots: SlotBatch, frame: LocalFrame) -> str:
             a = s.address[k]
             cell = "" if a == s.emitter_id[k] and not 0 <= a < 2**48 else format_address(a)
             line += f",{cell},{s.fingerprint[k]},{s.channel[k]}"
+        if radio:
+            line += f",{RADIOS[s.radio[k]] if 0 <= s.radio[k] < len(RADIOS) else s.radio[k]}"
         lines.append(line)
     return "\n".join(lines) + "\n"
 

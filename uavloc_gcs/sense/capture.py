@@ -1,9 +1,18 @@
-"""Capture files: classic pcap and pcapng, read from one buffer as a stream of records.
+"""Capture files: classic pcap, pcapng and btsnoop, read from one buffer as a stream of records.
 
 Every length read from the file is checked against what is left before it is used (as Wireshark's
 and dpkt's readers do): a record that runs past the end of the file or claims an impossible length
 ends the walk and is counted, never raised. Only a file that is not a capture at all (its first
-bytes are neither pcap's nor pcapng's magic) raises :class:`~uavloc_gcs.errors.FileFormatError`.
+bytes are neither pcap's, pcapng's nor btsnoop's magic) raises
+:class:`~uavloc_gcs.errors.FileFormatError`.
+
+btsnoop (RFC 1761's snoop, as Android's ``btsnoop_hci.log`` and BlueZ's ``btmon -w`` write it;
+Wireshark's wiretap/btsnoop.c): ``"btsnoop\\0"``, version u32 = 1, datalink u32 (1001 H1: the HCI
+packet without its type byte, which the record's flags give; 1002 H4: with it), then records of
+``original length u32, included length u32, flags u32 (bit 0 received, bit 1 command or event),
+cumulative drops u32, time i64 [us since 0000-01-01]``, all big-endian, each followed by the
+packet. Its records are handed on as link type 187 (LINKTYPE_BLUETOOTH_HCI_H4), H1 packets with the
+type byte put back (0x04 event, 0x01 command, 0x02 ACL data).
 
 A record is ``(linktype, t_s, data, snapped)``: the interface's link-layer type (127 radiotap,
 192 PPI, 105 bare 802.11, ...), the UNIX time in seconds, the captured bytes and whether the
@@ -30,6 +39,10 @@ PCAP_MAGICS = {
     b"\x4d\x3c\xb2\xa1": ("<", 1e-9), b"\xa1\xb2\x3c\x4d": (">", 1e-9),
 }
 PCAPNG_SHB = b"\x0a\x0d\x0d\x0a"
+BTSNOOP_MAGIC = b"btsnoop\0"
+BTSNOOP_H1, BTSNOOP_H4 = 1001, 1002
+BTSNOOP_EPOCH_US = 0x00DCDDB30F2F8000  # microseconds from 0000-01-01 to 1970-01-01 (wiretap/btsnoop.c)
+LINKTYPE_BLUETOOTH_HCI_H4 = 187
 
 Record = tuple[int, float, bytes, bool]
 
@@ -45,23 +58,27 @@ class ReadStats:
 
 
 def capture_kind(head: bytes) -> str | None:
-    """'pcap', 'pcapng' or None from a file's first 4 bytes."""
+    """'pcap', 'pcapng', 'btsnoop' or None from a file's first 8 bytes."""
     if head[:4] in PCAP_MAGICS:
         return "pcap"
     if head[:4] == PCAPNG_SHB:
         return "pcapng"
+    if head[:8] == BTSNOOP_MAGIC:
+        return "btsnoop"
     return None
 
 
 def read_records(buf: bytes, stats: ReadStats, *, path: str = "<buffer>") -> Iterator[Record]:
     """The records of a pcap or pcapng buffer. Raises FileFormatError only when the buffer is not a
     capture (no magic, or a header shorter than the format's)."""
-    kind = capture_kind(buf[:4])
+    kind = capture_kind(buf[:8])
     if kind == "pcap":
         return _pcap(buf, stats, path)
     if kind == "pcapng":
         return _pcapng(buf, stats, path)
-    raise FileFormatError("is not a pcap or pcapng capture (its first bytes are "
+    if kind == "btsnoop":
+        return _btsnoop(buf, stats, path)
+    raise FileFormatError("is not a pcap, pcapng or btsnoop capture (its first bytes are "
                           f"{buf[:4].hex() or 'missing'}, not a capture's magic number)", path=path)
 
 
@@ -74,8 +91,8 @@ def read_capture_file(path: str | Path) -> bytes:
         raise FileFormatError("file not found", path=str(p)) from None
     except IsADirectoryError:
         raise FileFormatError("is a directory, not a capture file", path=str(p)) from None
-    if capture_kind(buf[:4]) is None:
-        raise FileFormatError("is not a pcap or pcapng capture (its first bytes are "
+    if capture_kind(buf[:8]) is None:
+        raise FileFormatError("is not a pcap, pcapng or btsnoop capture (its first bytes are "
                               f"{buf[:4].hex() or 'missing'}, not a capture's magic number)", path=str(p))
     return buf
 
@@ -156,6 +173,31 @@ def _pcapng(buf: bytes, stats: ReadStats, path: str) -> Iterator[Record]:
 
 
 PCAPNG_SHB_TYPE = 0x0A0D0D0A
+_H1_TYPE = {0: b"\x02", 1: b"\x02", 2: b"\x01", 3: b"\x04"}  # flags & 3 -> H4 type byte
+
+
+def _btsnoop(buf: bytes, stats: ReadStats, path: str) -> Iterator[Record]:
+    if len(buf) < 16:
+        raise FileFormatError(f"btsnoop header is {len(buf)} bytes, needs 16", path=path)
+    version, datalink = struct.unpack_from(">II", buf, 8)
+    if version != 1 or datalink not in (BTSNOOP_H1, BTSNOOP_H4):
+        raise FileFormatError(f"btsnoop version {version}, datalink {datalink} is not read (version 1 with "
+                              "datalink 1001 H1 or 1002 H4 is)", path=path)
+    unpack = struct.Struct(">IIIIq").unpack_from
+    pos, n = 16, len(buf)
+    while pos + 24 <= n:
+        orig, incl, flags, _, ts = unpack(buf, pos)
+        end = pos + 24 + incl
+        if incl > MAX_RECORD or end > n:
+            stats.bad_records += 1
+            break
+        data = buf[pos + 24:end]
+        if datalink == BTSNOOP_H1:
+            data = _H1_TYPE[flags & 3] + data
+        stats.records += 1
+        yield LINKTYPE_BLUETOOTH_HCI_H4, (ts - BTSNOOP_EPOCH_US) / 1e6, data, incl < orig
+        pos = end
+    stats.trailing_bytes += n - pos
 
 
 def _if_tick(buf: bytes, pos: int, end: int, order: str) -> tuple[int, float]:

@@ -22,7 +22,7 @@ import numpy as np
 
 from ..errors import FileFormatError
 from .aggregate import format_mac
-from .frames import Frames
+from .frames import RADIO_BLE, Frames
 
 
 @dataclass
@@ -38,8 +38,11 @@ class Exclusion:
         """(N,) bool: True where the frame is the team's."""
         a = frames.address
         out = np.isin(a, np.fromiter(self.addresses, dtype=np.int64, count=len(self.addresses)))
-        out |= np.isin(a >> 24, np.fromiter(self.ouis, dtype=np.int64, count=len(self.ouis)))
-        out |= np.isin(frames.fingerprint, np.fromiter(self.fingerprints, dtype=np.int64, count=len(self.fingerprints)))
+        # an OUI names a vendor only in a public address: not in a BLE random one (TxAdd set)
+        vendor = np.isin(a >> 24, np.fromiter(self.ouis, dtype=np.int64, count=len(self.ouis)))
+        out |= vendor & ~((frames.radio == RADIO_BLE) & (frames.random == 1))
+        fp = np.isin(frames.fingerprint, np.fromiter(self.fingerprints, dtype=np.int64, count=len(self.fingerprints)))
+        out |= fp & (frames.fingerprint != 0)  # 0: no fingerprint (BLE without a Find My key)
         return out
 
 
@@ -100,7 +103,9 @@ def learn_team(frames: Frames, *, min_frames: int = 3, fingerprints: bool = Fals
         if c >= min_frames:
             lines.append(f"mac {format_mac(a)}  # {c} frames")
     if fingerprints:
-        fixed = (frames.address >> 41) & 1 == 0  # bit 1 of the first octet clear: a burned-in address
+        # a burned-in address: Wi-Fi with bit 1 of the first octet clear, BLE public (TxAdd clear)
+        ble = frames.radio == RADIO_BLE
+        fixed = np.where(ble, frames.random == 0, (frames.address >> 41) & 1 == 0) & (frames.fingerprint != 0)
         for fp in np.unique(frames.fingerprint[fixed]).tolist():
             lines.append(f"fp 0x{fp:08x}")
     return "\n".join(lines) + "\n"

@@ -18,6 +18,7 @@ import numpy as np
 
 from ..errors import FileFormatError
 from .aggregate import Entries, format_mac
+from .frames import RADIO_NAMES
 
 MAX_GAP_S = 1.0
 
@@ -89,10 +90,10 @@ def slots_csv(entries: Entries, track: Track, *, max_gap_s: float = MAX_GAP_S) -
     idx = np.flatnonzero(ok)
     epoch = math.floor(entries.t_s[idx[0]]) if len(idx) else 0
     lines = [f"# uavloc sense: t_s counts from UNIX time {epoch} s",
-             "t_s,vehicle_id,lat_deg,lon_deg,alt_m,emitter_id,rssi_dbm,n_samples,address,fingerprint,channel"]
+             "t_s,vehicle_id,lat_deg,lon_deg,alt_m,emitter_id,rssi_dbm,n_samples,address,fingerprint,channel,radio"]
     for k in idx.tolist():
         a = int(entries.address[k])
         lines.append(f"{entries.t_s[k] - epoch:.3f},{track.vehicle},{pos[k, 0]:.8f},{pos[k, 1]:.8f},{pos[k, 2]:.2f},"
                      f"{a},{entries.rssi_dbm[k]:.2f},{entries.n_frames[k]},{format_mac(a)},"
-                     f"{int(entries.fingerprint[k])},{entries.channel[k]}")
+                     f"{int(entries.fingerprint[k])},{entries.channel[k]},{RADIO_NAMES[entries.radio[k]]}")
     return "\n".join(lines) + "\n", int(len(entries) - len(idx))

@@ -163,7 +163,7 @@ class RssiSender:
         k = int(np.sum(ok))
         slots = SlotBatch.from_columns(e.t_s[ok], np.full(k, self.sysid), xyz, e.address[ok], e.rssi_dbm[ok],
                                        e.n_frames[ok], address=e.address[ok], fingerprint=e.fingerprint[ok],
-                                       channel=e.channel[ok])
+                                       channel=e.channel[ok], radio=e.radio[ok])
         for msg in self._batcher.add(slots):
             self._send(self.rssi_link, msg)
             self.stats.messages += 1

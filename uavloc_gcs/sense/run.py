@@ -52,6 +52,12 @@ async def _main(args, exclusion) -> StreamResult:
                 sources.append(LiveInterface(name))
             if plan:
                 hopper = ChannelHopper(args.interface[0], plan)
+            if getattr(args, "ble_adapter", None):
+                from .ble_live import BleScanner
+
+                scanner = BleScanner(args.ble_adapter)
+                await scanner.start()
+                sources.append(scanner)
         if args.mavlink:
             from .mavout import open_sender
 
@@ -103,7 +109,10 @@ async def _main(args, exclusion) -> StreamResult:
                               sender.sysid if sender else None)
     finally:
         for s in sources:
-            s.close()
+            if hasattr(s, "stop"):  # the BLE scanner stops on the event loop
+                await s.stop()
+            else:
+                s.close()
         if hopper is not None:
             hopper.close()
         if sender is not None:

@@ -38,7 +38,7 @@ CREATE TABLE IF NOT EXISTS slots (
     t_s REAL NOT NULL, vehicle INTEGER NOT NULL, x_m REAL NOT NULL, y_m REAL NOT NULL,
     z_m REAL NOT NULL, emitter_id INTEGER NOT NULL, rssi_dbm REAL NOT NULL,
     n_samples INTEGER NOT NULL, address INTEGER, fingerprint INTEGER NOT NULL DEFAULT 0,
-    channel INTEGER NOT NULL DEFAULT 0);
+    channel INTEGER NOT NULL DEFAULT 0, radio INTEGER NOT NULL DEFAULT 0);
 CREATE TABLE IF NOT EXISTS telemetry (
     t_s REAL NOT NULL, vehicle INTEGER NOT NULL, lat_deg REAL, lon_deg REAL, alt_m REAL,
     battery_pct REAL, mode TEXT, mission_seq INTEGER, lost INTEGER NOT NULL DEFAULT 0);
@@ -58,16 +58,17 @@ CREATE INDEX IF NOT EXISTS missions_vehicle ON missions (vehicle, t_s);
 
 # Columns added to ``slots`` after the first schema, with the definition ALTER TABLE adds them by:
 # a store written before them opens (and migrates) with address NULL (read as the emitter id),
-# fingerprint 0 and channel 0 (unknown).
+# fingerprint 0, channel 0 (unknown) and radio 0 (Wi-Fi: the only radio before the column).
 _SLOT_COLUMNS_ADDED = (
     ("address", "INTEGER"),  # 48-bit 802.11 source address; NULL: the emitter id
     ("fingerprint", "INTEGER NOT NULL DEFAULT 0"),  # content fingerprint, 0 unknown
     ("channel", "INTEGER NOT NULL DEFAULT 0"),  # 802.11 channel, 0 unknown
+    ("radio", "INTEGER NOT NULL DEFAULT 0"),  # 0 Wi-Fi, 1 Bluetooth LE (observations.SlotBatch.radio)
 )
 
 _INSERT = {
     "slots": "INSERT INTO slots (t_s, vehicle, x_m, y_m, z_m, emitter_id, rssi_dbm, n_samples, address, "
-             "fingerprint, channel) VALUES (?,?,?,?,?,?,?,?,?,?,?)",
+             "fingerprint, channel, radio) VALUES (?,?,?,?,?,?,?,?,?,?,?,?)",
     "telemetry": "INSERT INTO telemetry VALUES (?,?,?,?,?,?,?,?,?)",
     "estimates": "INSERT INTO estimates VALUES (?,?,?,?,?,?,?,?,?,?,?)",
     "plans": "INSERT INTO plans VALUES (?,?)",
@@ -173,7 +174,7 @@ class Store:
                         batch.xyz_m[:, 1].tolist(), batch.xyz_m[:, 2].tolist(),
                         batch.emitter_id.tolist(), batch.rssi_dbm.tolist(),
                         batch.n_samples.tolist(), batch.address.tolist(), batch.fingerprint.tolist(),
-                        batch.channel.tolist()))
+                        batch.channel.tolist(), batch.radio.tolist()))
         self._put("slots", rows)
 
     def add_telemetry(self, rows: Iterable[TelemetryRow]) -> None:
@@ -329,7 +330,7 @@ class StoreReader:
 
     def slots(self) -> SlotBatch:
         """Every slot in arrival order. A store of the older schema (read-only here, so not
-        migrated) reads with address = emitter id, fingerprint 0 and channel 0."""
+        migrated) reads with address = emitter id, fingerprint 0, channel 0 and radio 0 (Wi-Fi)."""
         have = _slot_columns(self._conn)
         extra = [("COALESCE(address, emitter_id)" if name == "address" else name) if name in have
                  else ("emitter_id" if name == "address" else "0") for name, _ in _SLOT_COLUMNS_ADDED]
@@ -341,7 +342,8 @@ class StoreReader:
         real = np.array([r[:5] for r in rows], dtype=float)
         ints = np.array([r[5:] for r in rows], dtype=np.int64)  # exact: addresses are 48 bits
         return SlotBatch.from_columns(real[:, 0], ints[:, 0], real[:, 1:4], ints[:, 1], real[:, 4], ints[:, 2],
-                                      address=ints[:, 3], fingerprint=ints[:, 4], channel=ints[:, 5])
+                                      address=ints[:, 3], fingerprint=ints[:, 4], channel=ints[:, 5],
+                                      radio=ints[:, 6])
 
     def slot_count(self) -> int:
         return int(self._conn.execute("SELECT COUNT(*) FROM slots").fetchone()[0])

@@ -68,15 +68,16 @@ def test_rssi_batch2_fits_mavlink2_and_has_the_documented_shape():
     cls = mavlink.mavlink_map[RSSI_BATCH2_ID]
     assert cls.msgname == "UAVLOC_RSSI_BATCH2" and RSSI_BATCH2_ID == RSSI_BATCH_ID + 1
     lengths = dict(zip(cls.ordered_fieldnames, cls.array_lengths))
-    per_entry = ("dt_ms", "addr_lo", "addr_hi", "fingerprint", "channel", "n_frames", "rssi_cdbm")
+    per_entry = ("dt_ms", "addr_lo", "addr_hi", "fingerprint", "channel", "radio", "n_frames", "rssi_cdbm")
     assert {lengths[n] for n in per_entry} == {RSSI_BATCH_MAX_ENTRIES}
     types = dict(zip(cls.fieldnames, cls.fieldtypes))
-    assert (types["addr_lo"], types["addr_hi"], types["fingerprint"], types["channel"]) == (
-        "uint32_t", "uint16_t", "uint32_t", "uint8_t")
-    assert cls.unpacker.size == 209 <= 255  # payload bytes; documented in RSSI_DIALECT.md
-    # the columns a sensor may not know come last on the wire (extensions), so zeros there are trimmed
-    assert list(cls.ordered_fieldnames[-3:]) == ["addr_hi", "channel", "fingerprint"]
-    assert list(cls.ordered_fieldnames[:-3]) == list(mavlink.mavlink_map[RSSI_BATCH_ID].ordered_fieldnames[:4]) + [
+    assert (types["addr_lo"], types["addr_hi"], types["fingerprint"], types["channel"], types["radio"]) == (
+        "uint32_t", "uint16_t", "uint32_t", "uint8_t", "uint8_t")
+    assert cls.unpacker.size == 221 <= 255  # payload bytes; documented in RSSI_DIALECT.md
+    # the columns a sensor may not know come last on the wire (extensions), so zeros there are
+    # trimmed: the radio last, so that a Wi-Fi-only message costs what it did before the field
+    assert list(cls.ordered_fieldnames[-4:]) == ["addr_hi", "channel", "fingerprint", "radio"]
+    assert list(cls.ordered_fieldnames[:-4]) == list(mavlink.mavlink_map[RSSI_BATCH_ID].ordered_fieldnames[:4]) + [
         "addr_lo", "vx", "vy", "vz", "slot_us", "rssi_cdbm", "count", "dt_ms", "n_frames"]
     # the old message keeps its definition, so old logs and companions decode
     assert mavlink.mavlink_map[RSSI_BATCH_ID].crc_extra == 221

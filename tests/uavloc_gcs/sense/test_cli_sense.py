@@ -102,7 +102,7 @@ def test_not_a_capture_exits_2_in_one_sentence(tmp_path):
     p.write_bytes(b"\x00\x01\x02\x03 not a capture")
     r = _cli(str(p), "--out", str(tmp_path / "o"))
     assert r.returncode == 2 and "Traceback" not in r.stderr
-    assert r.stderr.strip().count("\n") == 0 and "not a pcap or pcapng capture" in r.stderr
+    assert r.stderr.strip().count("\n") == 0 and "not a pcap, pcapng or btsnoop capture" in r.stderr
     assert not (tmp_path / "o").exists()  # nothing half-written
 
 

@@ -142,7 +142,7 @@ def test_truncated_file_counts_the_cut_record():
 def test_not_a_capture_is_refused(tmp_path):
     p = tmp_path / "notes.txt"
     p.write_text("hello world\n")
-    with pytest.raises(FileFormatError, match="not a pcap or pcapng capture"):
+    with pytest.raises(FileFormatError, match="not a pcap, pcapng or btsnoop capture"):
         parse_capture(p)
 
 
