@@ -85,7 +85,7 @@ def main(args: argparse.Namespace) -> int:
             track_t.append(t[::20])
             track_xyz.append(xyz[::20])
             if args.ble:  # the identity alive now: the last BLE address heard
-                heard = heard.take(is_ble(heard.channel))
+                heard = heard.take(is_ble(heard))
                 if len(heard) and parts and len(parts[-1]) and heard.address[-1] != parts[-1].address[-1]:
                     parts = [p.take(p.address == heard.address[-1]) for p in parts]  # its key rotated
             parts.append(heard)

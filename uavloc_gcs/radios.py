@@ -1,8 +1,9 @@
 """The radios a phone is heard by: Wi-Fi probe requests and Bluetooth LE advertising (issue 39).
 
-A slot's radio is told by its channel: Wi-Fi on the 2.4 GHz channels 1-14 (what the sensor's
-Wi-Fi radios listen on), Bluetooth LE advertising on its three primary advertising channels 37, 38
-and 39 (Bluetooth Core 5.x, Vol 6 Part B 1.4.1). One phone's Wi-Fi bursts and BLE beacons share no
+A slot's radio is recorded with it (``SlotBatch.radio``: 0 Wi-Fi, 1 Bluetooth LE, as the sensor,
+the telemetry and the files carry it); a BLE frame's channel is one of the three primary
+advertising channels 37, 38 and 39 (Bluetooth Core 5.x, Vol 6 Part B 1.4.1) when the capture says
+it (an HCI report does not: 0). One phone's Wi-Fi bursts and BLE beacons share no
 content, so an identity is of one radio (the identity module never links different fingerprints).
 
 A BLE identity differs from a Wi-Fi one in what each unit of evidence is: one beacon every
@@ -21,17 +22,24 @@ import numpy as np
 BLE_ADV_CHANNELS = (37, 38, 39)
 WIFI = "wifi"
 BLE = "ble"
+RADIO_BLE = 1  # SlotBatch.radio / the dialect's radio field (uavloc_gcs.sense.frames.RADIO_BLE)
 
 
-def is_ble(channel) -> np.ndarray:
-    """Per slot, whether its channel is a BLE advertising channel."""
-    return np.isin(np.asarray(channel, dtype=int), BLE_ADV_CHANNELS)
+def is_ble(slots) -> np.ndarray:
+    """Per slot, whether the BLE radio heard it: a SlotBatch's ``radio`` column (RADIO_BLE, what the
+    sensor records: an HCI report carries no channel); an array is taken as channels and tested
+    against the advertising channels (only where the radio is not recorded: 6 GHz Wi-Fi has a
+    channel 37)."""
+    radio = getattr(slots, "radio", None)
+    if radio is not None:
+        return np.asarray(radio, dtype=int) == RADIO_BLE
+    return np.isin(np.asarray(slots, dtype=int), BLE_ADV_CHANNELS)
 
 
-def radio_of(channels) -> str:
-    """The radio of one identity's slots: "ble" when every slot is on an advertising channel."""
-    c = np.asarray(channels, dtype=int)
-    return BLE if len(c) and bool(np.all(is_ble(c))) else WIFI
+def radio_of(slots) -> str:
+    """The radio of one identity's slots: "ble" when the BLE radio heard every one."""
+    b = is_ble(slots)
+    return BLE if len(b) and bool(np.all(b)) else WIFI
 
 
 def beacons_on(sc) -> bool:

@@ -34,6 +34,7 @@ import numpy as np
 
 from uavloc_gcs.a2g import LOS, A2GChannel
 from uavloc_gcs.observations import SlotBatch
+from uavloc_gcs.radios import RADIO_BLE
 from uavloc_gcs.scenario import Scenario
 
 from .airground import PathMemory, draw_rssi_dbm
@@ -334,6 +335,7 @@ class World:
         return SlotBatch.from_columns(
             t[slot], np.full(len(slot), vehicle), xyz[slot], frames.address, rssi, np.ones(len(slot), dtype=int),
             address=frames.address, fingerprint=fingerprint_of(frames.address), channel=frames.channel,
+            radio=np.full(len(slot), RADIO_BLE),
         )
 
     def elicitation_range_m(self) -> float:

@@ -474,7 +474,7 @@ class SearchPolicy:
             p.dirty, p.fitting = False, True
             if len(p.batches) > 1:
                 p.batches = [SlotBatch.concat(p.batches).sorted_by_time()]
-            spec = self._grid_spec(radio_of(p.batches[0].channel))
+            spec = self._grid_spec(radio_of(p.batches[0]))
             if spec is not None:  # the field world: the grid posterior of the person's bursts
                 job = FitJob(p.emitter_id, p.version, p.batches[0], self.model_speed_m_s, p.last_slot_t_s,
                              self.model_motion, check_within_m=self.required_m, grid=spec,
@@ -531,7 +531,7 @@ class SearchPolicy:
         p = self._people.get(int(emitter_id))
         if p is None or not p.batches or self.scenario.emission.findmy_share <= 0:
             return self.scenario
-        return ble_view(self.scenario) if radio_of(p.batches[0].channel) == BLE else self.scenario
+        return ble_view(self.scenario) if radio_of(p.batches[0]) == BLE else self.scenario
 
     def _bursts_of(self, p: "_Person") -> tuple:
         """``p``'s bursts as each vehicle heard them, and every vehicle that listened during one of
@@ -542,7 +542,7 @@ class SearchPolicy:
 
         heard = bursts_from_slots(p.batches[0])
         out = list(heard)
-        if radio_of(p.batches[0].channel) == BLE:  # a fixed schedule: every event missed is known
+        if radio_of(p.batches[0]) == BLE:  # a fixed schedule: every event missed is known
             from ..estimation.burst_grid import missed_beacons
 
             tracks = {}

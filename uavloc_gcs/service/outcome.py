@@ -136,7 +136,7 @@ def _with_radio(r: PersonResult, slots) -> PersonResult:
     from ..radios import radio_of  # noqa: PLC0415
 
     part = slots.for_emitter(r.emitter_id)
-    return dataclasses.replace(r, radio=radio_of(part.channel)) if len(part) else r
+    return dataclasses.replace(r, radio=radio_of(part)) if len(part) else r
 
 
 _RADIUS_TEXT = re.compile(r"95 % radius (?:[-+]?\d+(?:\.\d*)?|inf|nan) m")

@@ -58,10 +58,10 @@ def test_beacons_are_heard_close_and_low_and_not_from_the_scan_height():
     person = world.positions(0.0)[0]
     low = _hover(world, [person[0] + 20.0, person[1], 30.0], 300.0, vehicle=1)
     high = _hover(world, [person[0] + 20.0, person[1], 150.0], 300.0, vehicle=2)
-    n_low, n_high = int(is_ble(low.channel).sum()), int(is_ble(high.channel).sum())
+    n_low, n_high = int(is_ble(low).sum()), int(is_ble(high).sum())
     assert n_low >= 40, n_low  # of 150 sent, most heard 36 m away (one shadowing draw: some may fade)
     assert n_high <= 5, n_high  # 150 m up, below the BLE scanner's threshold
-    assert (~is_ble(high.channel)).sum() == 0 or np.all(high.channel[~is_ble(high.channel)] <= 14)
+    assert (~is_ble(high)).sum() == 0 or np.all(high.channel[~is_ble(high)] <= 14)
     # the BLE link budget is the cautious one: shorter than Wi-Fi's
     from uavloc_gcs.a2g import LOS, A2GChannel
     wifi, ble = A2GChannel.from_scenario(world.scenario), A2GChannel.from_scenario(ble_view(world.scenario))
@@ -73,11 +73,11 @@ def test_the_wifi_world_is_drawn_exactly_as_without_beacons():
     xyz = [p0[0] + 15.0, p0[1], 40.0]
     plain = _hover(World(_field(0.0), seed=7, people=8, motion="static"), xyz, 600.0)
     both = _hover(World(_field(1.0), seed=7, people=8, motion="static"), xyz, 600.0)
-    wifi = both.take(~is_ble(both.channel))
+    wifi = both.take(~is_ble(both))
     assert len(plain) > 0 and len(wifi) == len(plain)
     assert np.array_equal(wifi.rssi_dbm, plain.rssi_dbm) and np.array_equal(wifi.address, plain.address)
-    assert is_ble(both.channel).sum() > 0
-    assert radio_of(both.take(is_ble(both.channel)).channel) == "ble" and radio_of(plain.channel) == "wifi"
+    assert is_ble(both).sum() > 0
+    assert radio_of(both.take(is_ble(both))) == "ble" and radio_of(plain) == "wifi"
     assert World(_field(0.0), seed=7, people=8).beacons is None
 
 
@@ -97,3 +97,10 @@ def test_beacons_need_the_field_worlds_channel():
     with pytest.raises(ConfigError, match="field world") as e:
         paper.replace(emission={"findmy_share": 0.3})
     assert "emission.findmy_share" in str(e.value)
+
+
+def test_the_world_and_the_sensor_mark_the_ble_radio_alike():
+    from uavloc_gcs.radios import RADIO_BLE
+    from uavloc_gcs.sense.frames import RADIO_BLE as SENSED_BLE
+
+    assert RADIO_BLE == SENSED_BLE

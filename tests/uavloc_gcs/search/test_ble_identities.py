@@ -31,17 +31,17 @@ def heard():
 
 def test_a_beacon_identity_is_estimated_from_its_beacons_and_the_ones_missed(heard):
     sc, world, person, t, xyz, slots = heard
-    ble = slots.take(is_ble(slots.channel))
+    ble = slots.take(is_ble(slots))
     assert len(np.unique(ble.address)) >= 1 and len(ble) >= 30
     policy = SearchPolicy(sc)
     policy.ingest(slots)
     policy.ingest_track(1, t, xyz)
     policy.update(float(t[-1]))
-    ids = [p for p in policy._people.values() if radio_of(p.batches[0].channel) == BLE]
+    ids = [p for p in policy._people.values() if radio_of(p.batches[0]) == BLE]
     assert ids, "no BLE identity among the people"
     p = max(ids, key=lambda q: len(q.batches[0]))
-    assert all(radio_of(q.batches[0].channel) in (BLE, WIFI) for q in policy._people.values())
-    assert not any(np.any(is_ble(q.batches[0].channel)) and not np.all(is_ble(q.batches[0].channel))
+    assert all(radio_of(q.batches[0]) in (BLE, WIFI) for q in policy._people.values())
+    assert not any(np.any(is_ble(q.batches[0])) and not np.all(is_ble(q.batches[0]))
                    for q in policy._people.values()), "a Wi-Fi and a BLE identity made one person"
     units = policy._bursts_of(p)
     heard_u = [u for u in units if not u.silent]
