@@ -9,10 +9,18 @@ are then the parser's and aggregator's output, not the world's.
 The world's fingerprint travels inside the frames: each phone model's probe requests carry an
 Extended Capabilities element whose body holds the world's fingerprint, so the sensor's content
 hash is a one-to-one function of it (equal models, equal hashes; different models, different).
+
+Slots the BLE radio heard (the world's Find My beacons, ``SlotBatch.radio``) become the
+advertisements an Ubertooth-style sniffer captures (link type 256): ADV_NONCONN_IND from the slot's
+random static address carrying Apple's offline-finding message, the rest of the key a hash of the
+address, on the slot's advertising channel; the sensor rebuilds the key and fingerprints it.
 """
 
 from __future__ import annotations
 
+
+import hashlib
+import struct
 
 import numpy as np
 
@@ -48,15 +56,48 @@ def frames_for(heard: SlotBatch, slot_s: float, epoch_unix_s: float) -> bytes:
     return pcap_bytes(recs)
 
 
+_RF_CHANNEL = {37: 0, 38: 12, 39: 39}  # advertising channel index -> RF channel (Core Vol 6 Part B 1.4.1)
+_BLE_FLAGS = 0x0001 | 0x0002 | 0x0400 | 0x0800  # dewhitened, signal valid, CRC checked, CRC valid
+
+
+def ble_frames_for(heard: SlotBatch, slot_s: float, epoch_unix_s: float) -> bytes:
+    """A link-type-256 pcap of the Find My advertisements behind BLE slots ``heard``."""
+    recs = []
+    for k in range(len(heard)):
+        addr = int(heard.address[k]) & 0xFFFFFFFFFFFF
+        first = addr.to_bytes(6, "big")
+        rest = hashlib.blake2b(first, digest_size=22).digest()  # the key beyond the address
+        msg = bytes([0x12, 25, 0x00]) + rest + bytes([first[0] >> 6, 0x00])
+        ad = bytes([3 + len(msg), 0xFF, 0x4C, 0x00]) + msg
+        payload = addr.to_bytes(6, "little") + ad
+        ll = struct.pack("<I", 0x8E89BED6) + bytes([0x02 | 0x40, len(payload)]) + payload + b"\x55\x55\x55"
+        ch = int(heard.channel[k]) if int(heard.channel[k]) in _RF_CHANNEL else 37
+        r = max(-127, min(0, int(round(float(heard.rssi_dbm[k])))))
+        n = int(heard.n_samples[k])
+        for j in range(n):
+            t = epoch_unix_s + float(heard.t_s[k]) + slot_s * (j + 0.5) / (n + 1)
+            recs.append((t, struct.pack("<BbbBIH", _RF_CHANNEL[ch], r, -128, 0, 0x8E89BED6, _BLE_FLAGS) + ll))
+    recs.sort(key=lambda x: x[0])
+    return pcap_bytes(recs, linktype=256)
+
+
 def through_sensor(heard: SlotBatch, slot_s: float, epoch_unix_s: float) -> SlotBatch:
     """``heard`` as the real sensor reports it: addresses, whole-dBm means, counts and channels from
-    the parser and the per-slot aggregator; positions and vehicles from the world's slots."""
+    the parser and the per-slot aggregator; positions and vehicles from the world's slots. Wi-Fi
+    and BLE slots each through their own capture (one link type per file)."""
     if len(heard) == 0:
         return heard
-    frames, _ = parse_capture_bytes(frames_for(heard, slot_s, epoch_unix_s))
-    frames = type(frames)(frames.t_s - epoch_unix_s, *(getattr(frames, f) for f in
-                                                        ("address", "seq", "rssi_dbm", "channel", "fingerprint",
-                                                         "antennas_dbm")))
+    from dataclasses import replace
+
+    from uavloc_gcs.radios import is_ble
+
+    ble = is_ble(heard)
+    parts = []
+    for sel, build in ((~ble, frames_for), (ble, ble_frames_for)):
+        if np.any(sel):
+            f, _ = parse_capture_bytes(build(heard.take(sel), slot_s, epoch_unix_s))
+            parts.append(replace(f, t_s=f.t_s - epoch_unix_s))
+    frames = parts[0] if len(parts) == 1 else type(parts[0]).concat(parts)
     e = slot_entries(frames, slot_s)
     slot_of = np.round(heard.t_s / slot_s).astype(np.int64)
     row = {(int(s), int(a)): i for i, (s, a) in enumerate(zip(slot_of, heard.address & 0xFFFFFFFFFFFF))}
@@ -66,4 +107,4 @@ def through_sensor(heard: SlotBatch, slot_s: float, epoch_unix_s: float) -> Slot
                                   radio=e.radio)
 
 
-__all__ = ["frames_for", "through_sensor"]
+__all__ = ["ble_frames_for", "frames_for", "through_sensor"]

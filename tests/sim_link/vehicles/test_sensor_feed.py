@@ -108,3 +108,26 @@ def test_fake_vehicles_onboard_rssi_via_sense():
     sensor_fp = {fingerprint_elements(b"".join(_elements(int(f))))[0] for f in world.fingerprints[:2]}
     assert set(slots.fingerprint.tolist()) <= sensor_fp
     assert np.allclose(slots.rssi_dbm, np.round(slots.rssi_dbm), atol=0.01)
+
+
+def test_beacons_go_through_the_ble_sniffer_path_and_stay_ble():
+    """The world's Find My beacons reach the ground as the sensor reads them from a BLE sniffer
+    (link type 256), with their radio, channel, address and whole-dBm RSSI: not as Wi-Fi probe
+    requests on a 'channel 37' (which the ground would judge by the Wi-Fi link budget)."""
+    from sim_link.world import World
+    from uavloc_gcs.examples import scenario_path
+    from uavloc_gcs.radios import is_ble
+    from uavloc_gcs.scenario import load_scenario
+
+    sc = load_scenario(scenario_path("field")).replace(emission={"findmy_share": 1.0})
+    w = World(sc, seed=3, people=3, motion="static")
+    p = w.positions(0.0)[0]
+    t = np.arange(0.0, 120.0, sc.channel.slot_s)
+    heard = w.hear_track(1, t, np.column_stack([p[0] + 20 + 0 * t, p[1] + 0 * t, 30 + 0 * t]))
+    out = through_sensor(heard, sc.channel.slot_s, 1.7e9)
+    b_in, b_out = is_ble(heard), is_ble(out)
+    assert b_in.sum() >= 10 and b_out.sum() == b_in.sum() and (~b_out).sum() == (~b_in).sum()
+    assert set(out.address[b_out]) == set(heard.address[b_in])
+    assert set(out.channel[b_out]) <= {37, 38, 39}
+    assert np.array_equal(np.sort(out.rssi_dbm[b_out]), np.sort(np.round(heard.rssi_dbm[b_in])))
+    assert np.all(out.fingerprint[b_out] != 0)  # the Find My key, rebuilt by the sensor
