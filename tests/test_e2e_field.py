@@ -93,3 +93,51 @@ def test_a_search_with_a_pod_target_flies_the_scan_planned_for_it(tmp_path):
     cov = out.coverage
     assert cov is not None and not cov.nothing_flown
     assert "Achieved probability of detection" in out.statement
+
+
+BLE_FIELD = """
+[channel]
+path_loss_exponent = 2.0
+reference_power_dbm = -40.05
+receiver_sensitivity_dbm = -90.0
+environment = "urban"
+[emission]
+model = "probe-bursts"
+findmy_share = 1.0
+[search]
+look_height_m = 30.0
+max_orbit_looks = 1
+time_limit_s = 1500.0
+"""
+
+
+def test_a_search_with_beacons_reports_them_as_ble_and_claims_only_what_is_true(tmp_path):
+    """Issue 39 through the daemon: phones that send Find My beacons, fake vehicles whose sensor
+    reads them as a BLE sniffer would; the beacons reach the store as BLE, the people heard only
+    by them are reported with their radio, and every located claim is within reach of the truth."""
+    from sim_link.world import World
+    from uavloc_gcs.radios import is_ble
+
+    sc = small_scenario("ardupilot", seed=5, extra=BLE_FIELD)
+    sc = sc.replace(simulation={"people": 2, "motion": "static"})
+    result = _search(sc, tmp_path)
+    out = result.outcome
+    assert sorted(out.vehicles_home + out.vehicles_returning) == [1, 2], out.statement
+    with StoreReader(tmp_path / "search.sqlite") as rd:
+        slots = rd.slots()
+    ble = is_ble(slots)
+    assert ble.any(), "no beacon reached the store as BLE"
+    assert set(np.unique(slots.channel[ble])) <= {37, 38, 39}
+    world = World(sc, seed=sc.simulation.seed)
+    assert np.all(world.person_of(np.unique(slots.address[ble])) >= 0)
+    rows = list(csv.DictReader((tmp_path / "people.csv").open()))
+    radios = {r["radio"] for r in rows if r["state"] != "never heard"}
+    assert "ble" in radios, rows
+    assert "heard by Bluetooth LE beacons alone" in out.statement
+    assert "heard by Bluetooth LE beacons alone" in (tmp_path / "results.txt").read_text()
+    for p in out.people:
+        if p.located:
+            i = int(world.person_of([p.emitter_id])[0])
+            truth = world.positions(p.t_ref_s)[i]
+            err = math.hypot(p.east_m - truth[0], p.north_m - truth[1])
+            assert err <= TRUTH_MARGIN * sc.people.required_accuracy_m, (p, err)

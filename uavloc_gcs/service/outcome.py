@@ -259,6 +259,17 @@ def coverage_statement(summary, lost: Sequence[int] = (), not_started: Sequence[
     return text, left
 
 
+def radio_note(people: Sequence[PersonResult]) -> str:
+    """A sentence when some people were heard by BLE beacons (issue 39): they are identities, not
+    phones; "" otherwise."""
+    n_ble = sum(getattr(p, "radio", "wifi") == "ble" for p in people)
+    if not n_ble:
+        return ""
+    return (f" {n_ble} of these {len(people)} were heard by Bluetooth LE beacons alone: each is one beacon key, "
+            "so one phone can be counted once for its Wi-Fi and once for each 15-minute key it was heard under "
+            "(nothing in the frames links them).")
+
+
 def statement_for(people: Sequence[PersonResult], required_m: float, lost: Sequence[int],
                   not_home: Sequence[int], returning: Sequence[int] = (), coverage=None, *,
                   lost_in_air: Sequence = (), fleet: bool = True) -> str:
@@ -282,11 +293,7 @@ def statement_for(people: Sequence[PersonResult], required_m: float, lost: Seque
         why = "; ".join(f"{p.name if p.label else f'person {p.emitter_id}'}: {p.reason or 'not located'}"
                         for p in missing)
         text = f"{len(people) - len(missing)} of {len(people)} people located within {required_m:g} m; not located: {why}."
-    radios = {getattr(p, "radio", "wifi") for p in people}
-    if len(radios) > 1:
-        n_ble = sum(getattr(p, "radio", "wifi") == "ble" for p in people)
-        text += (f" {n_ble} of them were heard by their Bluetooth LE beacons alone: a phone heard by both radios "
-                 "is counted once per radio (its Wi-Fi bursts and its beacons share nothing to link them by).")
+    text += radio_note(people)
     if not fleet:
         return text
     said = {x.vehicle for x in lost_in_air}

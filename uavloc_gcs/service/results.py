@@ -297,7 +297,10 @@ def results_table(people: Sequence[PersonResult], required_accuracy_m: float,
             row += f"  ({p.reason})"
         lines.append(row)
     n_ok = sum(p.located for p in people)
-    lines.append(f"{n_ok} of {len(people)} people located within {required_accuracy_m:g} m (95 %).")
+    from .outcome import radio_note  # noqa: PLC0415
+
+    lines.append(f"{n_ok} of {len(people)} people located within {required_accuracy_m:g} m (95 %)."
+                 + radio_note([p for p in people if p.state != "never heard"]))
     if isinstance(epoch_unix_s, MissionClock) and epoch_unix_s.simulated:
         lines.append(f"Times: {epoch_unix_s.label}.")
     if coverage is not None:
