@@ -240,7 +240,7 @@ ELICITED_INFO_MARGIN = 1.0
 
 
 def elicited_dwell_s(sc, radius_m: float, spread_m: float, *, draws: int = 300, seed: int = 0,
-                     speed_m_s: float | None = None) -> float:
+                     speed_m_s: float | None = None, cap: bool = True) -> float:
     """Seconds on the circle for the frames an on-board access point elicits to place the person
     within ``people.required_accuracy_m`` (95 %): per frame the phone is asked for, the Fisher
     information about its horizontal position, averaged over the circle and where the person may
@@ -264,7 +264,7 @@ def elicited_dwell_s(sc, radius_m: float, spread_m: float, *, draws: int = 300, 
                   [np.mean(w * rel[..., 0] * rel[..., 1]), np.mean(w * rel[..., 1] ** 2)]])
     lo = float(np.min(np.linalg.eigvalsh(j)))
     if lo <= 0:
-        return MAX_DWELL_S
+        return MAX_DWELL_S if cap else math.inf
     target = sc.people.required_accuracy_m / 2.45
     frames = ELICITED_INFO_MARGIN / (lo * target * target)
     rate = sc.emission.elicitation_rate_hz
@@ -274,7 +274,7 @@ def elicited_dwell_s(sc, radius_m: float, spread_m: float, *, draws: int = 300, 
 
         rho = math.exp(-float(speed_m_s) / rate / ENVIRONMENTS[env].decorrelation_m)
         frames /= max((1.0 - rho) / (1.0 + rho), 1e-6)
-    return float(min(frames / rate, MAX_DWELL_S))
+    return float(min(frames / rate, MAX_DWELL_S) if cap else frames / rate)
 
 
 _QUICK_CACHE: dict = {}
@@ -288,15 +288,15 @@ def _quickest_elicited_orbit(sc, form: str, spread: float, r0: float, v0: float)
     key = (_heard_key(sc), 5.0 * round(spread / 5.0), form, repr(sc.people))
     hit = _QUICK_CACHE.get(key)
     if hit is None:
-        best = (elicited_dwell_s(sc, r0, spread, speed_m_s=v0), r0, v0)
+        best = (elicited_dwell_s(sc, r0, spread, speed_m_s=v0, cap=False), r0, v0)
         if getattr(sc.channel, "environment", None) is not None:
             rng_h = max(float(sc.horizontal_range_m), MIN_RADIUS_M + 1.0)
             for r in np.linspace(MIN_RADIUS_M, 1.5 * rng_h, 30):
                 v = orbit_speed_m_s(form, float(r), sc.fleet.speed_m_s)
-                d = elicited_dwell_s(sc, float(r), spread, speed_m_s=v)
-                if d < best[0] - 1e-9:
+                d = elicited_dwell_s(sc, float(r), spread, speed_m_s=v, cap=False)
+                if d < best[0] - 1e-9:  # (uncapped: a circle that needs less, even past the cap)
                     best = (d, float(r), v)
-        hit = _QUICK_CACHE[key] = (best[1], best[2], best[0])
+        hit = _QUICK_CACHE[key] = (best[1], best[2], float(min(best[0], MAX_DWELL_S)))
     return hit
 
 
