@@ -30,9 +30,11 @@ apart and nearly share it: summed as if independent they overstated what they sa
 with 4 of 4 elicited looks had 1 outside its 95 % circle, docs/measurements/field-world.md). Under
 the air-to-ground channel each unit's log-likelihood is therefore weighted by what it adds to the
 one before it from the same vehicle: with rho = exp(-d / decorrelation_m) (d: the distance between
-the two places the vehicle heard them; the channel's Gudmundson correlation), an AR(1) chain of n
-such units carries the information of n (1 - rho) / (1 + rho) independent ones, so each weighs
-(1 - rho) / (1 + rho) (:func:`unit_weights`; a composite likelihood). Units far apart weigh 1.
+the two places the vehicle heard them; the channel's Gudmundson correlation), a chain of n units
+whose shadowing (variance s2) is an AR(1) and whose fading (f2) is their own carries the
+information of n (s2 + f2) / (s2 (1 + rho) / (1 - rho) + f2) independent ones; each weighs that
+share (:func:`unit_weights`, line-of-sight variances; a composite likelihood). Units far apart
+weigh 1.
 """
 
 from __future__ import annotations
@@ -215,6 +217,14 @@ class A2GBursts:
         """The distance over which a path's shadowing decorrelates (unit_weights)."""
         return float(self.channel.environment.decorrelation_m)
 
+    @property
+    def shared_and_own_db2(self) -> tuple[float, float]:
+        """(shadowing variance, fading variance) [dB^2] of a unit in line of sight: the part a unit
+        shares with its neighbours and the part that is its own (unit_weights)."""
+        from ..a2g import LOS
+
+        return float(self.channel.shadow_db[LOS]) ** 2, float(self.channel.fast_db[LOS]) ** 2
+
 
 @functools.lru_cache(maxsize=64)
 def _a2g_reach_m(model: A2GBursts, height_m: float) -> float:
@@ -327,10 +337,19 @@ def missed_beacons(heard: Sequence[Burst], interval_s: float, tracks: dict, *, l
 WEIGH_UNITS = True
 
 
-def unit_weights(bursts: Sequence[Burst], decorrelation_m: float | None) -> np.ndarray:
-    """Each unit's weight in the summed log-likelihood (module docstring): (1 - rho) / (1 + rho),
-    rho = exp(-d / decorrelation_m), d the distance from where the same vehicle heard (or listened
-    for) its previous unit; 1 for a vehicle's first unit and without a decorrelation distance."""
+def unit_weight(rho: float, shared_db2: float = 1.0, own_db2: float = 0.0) -> float:
+    """What one unit adds to a chain whose shared part correlates as ``rho`` (unit_weights)."""
+    return (shared_db2 + own_db2) / (shared_db2 * (1.0 + rho) / max(1.0 - rho, 1e-12) + own_db2)
+
+
+def unit_weights(bursts: Sequence[Burst], decorrelation_m: float | None,
+                 shared_and_own_db2: tuple[float, float] = (1.0, 0.0)) -> np.ndarray:
+    """Each unit's weight in the summed log-likelihood (module docstring), rho = exp(-d /
+    decorrelation_m), d the distance from where the same vehicle heard (or listened for) its
+    previous unit; 1 for a vehicle's first unit and without a decorrelation distance. A unit's
+    error is a shared part (shadowing, variance s2, correlated as rho) and its own (fading, f2): the
+    chain's information per unit is that of (s2 + f2) / (s2 (1 + rho) / (1 - rho) + f2) independent
+    units (the long-run variance of an AR(1) plus white noise); with no own part, (1 - rho) / (1 + rho)."""
     w = np.ones(len(bursts))
     if not (WEIGH_UNITS and decorrelation_m) or len(bursts) < 2:
         return w
@@ -341,7 +360,7 @@ def unit_weights(bursts: Sequence[Burst], decorrelation_m: float | None) -> np.n
         prev = last.get(b.vehicle)
         if prev is not None:
             rho = math.exp(-float(np.linalg.norm(here - prev)) / float(decorrelation_m))
-            w[int(i)] = (1.0 - rho) / (1.0 + rho)
+            w[int(i)] = unit_weight(rho, *shared_and_own_db2)
         last[b.vehicle] = here
     return w
 
@@ -568,7 +587,8 @@ class BurstGridEstimator:
         still = np.zeros((len(self._nodes),) + x.shape, np.float32)
         walk = np.zeros_like(still) if vmax > 0 else None
         eps = float(self.outlier_share)
-        weights = unit_weights(bursts, getattr(self.model, "decorrelation_m", None))
+        weights = unit_weights(bursts, getattr(self.model, "decorrelation_m", None),
+                               getattr(self.model, "shared_and_own_db2", (1.0, 0.0)))
         for b, wb in zip(bursts, weights):
             if wb <= 0.0:
                 continue

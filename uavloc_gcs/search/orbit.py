@@ -252,7 +252,7 @@ def elicited_dwell_s(sc, radius_m: float, spread_m: float, *, draws: int = 300, 
     heard a few metres apart share their shadowing and the estimator weighs each by what it adds
     (estimation.burst_grid.unit_weights): with the vehicle at ``speed_m_s`` on the circle, the
     frames needed are divided by that weight, (1 - rho) / (1 + rho), rho = exp(-speed / rate /
-    decorrelation_m)."""
+    decorrelation_m), times the line-of-sight fading's own share (burst_grid.unit_weight)."""
     from ..estimation.model import ChannelModel
 
     rel, rho, ph = _circle_geometry(sc, radius_m, spread_m, draws, seed)
@@ -270,10 +270,13 @@ def elicited_dwell_s(sc, radius_m: float, spread_m: float, *, draws: int = 300, 
     rate = sc.emission.elicitation_rate_hz
     env = getattr(sc.channel, "environment", None)
     if env is not None and speed_m_s is not None and speed_m_s > 0:
-        from ..a2g import ENVIRONMENTS
+        from ..a2g import ENVIRONMENTS, fading_law
+        from ..estimation.burst_grid import unit_weight
 
-        rho = math.exp(-float(speed_m_s) / rate / ENVIRONMENTS[env].decorrelation_m)
-        frames /= max((1.0 - rho) / (1.0 + rho), 1e-6)
+        e = ENVIRONMENTS[env]
+        fade = fading_law(e.rician_k_los_db).std_db
+        rho = math.exp(-float(speed_m_s) / rate / e.decorrelation_m)
+        frames /= max(unit_weight(rho, e.shadow_los_db ** 2, float(fade) ** 2), 1e-6)
     return float(min(frames / rate, MAX_DWELL_S) if cap else frames / rate)
 
 
