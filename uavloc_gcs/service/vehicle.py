@@ -64,6 +64,9 @@ class Telemetry:
     messages: int = 0
 
 
+BOOT_CLOCK_SLACK_MS = 1000  # a boot clock this far behind the newest one seen is a reboot, not reordering
+
+
 class VehicleAgent:
     """Telemetry and RSSI of one MAVLink system on one link, with the search's actions."""
 
@@ -96,6 +99,7 @@ class VehicleAgent:
         self.upload_opaque_id = 0  # the plan id of our last upload's MISSION_ACK (0: not given)
         self._acked_wall_s: float | None = None  # when our last upload was acknowledged
         self._time_anchor: tuple[float, int] | None = None  # (unix s, time_boot_ms) of the first SYSTEM_TIME
+        self._last_boot_ms: int | None = None  # the newest boot clock seen: a reboot restarts it
         self.texts: deque[tuple[float, str]] = deque(maxlen=20)  # (daemon wall s, STATUSTEXT), newest last
         self.airborne_wall_s = -math.inf  # when it was last seen armed and off the ground (daemon wall s)
         # after a swap (sorties): not ready to arm while it reports less remaining than a fresh pack
@@ -168,7 +172,8 @@ class VehicleAgent:
                 self._on_mission_seq(self.vehicle, t)
         elif kind == "SYSTEM_TIME":
             if msg.time_unix_usec > 0:
-                if self._time_anchor is None or msg.time_boot_ms < self._time_anchor[1]:  # first, or rebooted
+                self._rebooted(int(msg.time_boot_ms))
+                if self._time_anchor is None:  # the first, or the first since a reboot
                     self._time_anchor = (msg.time_unix_usec / 1e6, int(msg.time_boot_ms))
                 self._clock(int(msg.time_boot_ms))
         elif kind == "STATUSTEXT":
@@ -204,11 +209,23 @@ class VehicleAgent:
         its boot clock. PX4 SIH under a speed-up sends time_unix_usec at the host's (wall) rate but
         time_boot_ms at the simulation's: re-reading the UNIX time would slow the mission clock
         down by the speed-up (measured 10.2 s of UNIX time for 49 s of boot time at 5x)."""
+        self._rebooted(time_boot_ms)
         if self._time_anchor is None:
             return
         unix0, boot0 = self._time_anchor
         self.tel.unix_s = unix0 + (time_boot_ms - boot0) / 1000.0
         self.tel.unix_wall_s = self.tel.wall_s
+
+    def _rebooted(self, time_boot_ms: int) -> None:
+        """A boot clock that went back (a reboot: a battery swap powers the autopilot off) drops the
+        anchor: until the vehicle's next SYSTEM_TIME its clock is the last one read, extrapolated
+        (Daemon.now_s). Kept, the old anchor dated every position after a swap back by the first
+        sortie's boot time (the fake PX4's mission clock went from 192 s back to 26 s), and on
+        PX4, which sends SYSTEM_TIME only when asked, for the rest of the search."""
+        last = self._last_boot_ms
+        if last is not None and time_boot_ms + BOOT_CLOCK_SLACK_MS < last:
+            self._time_anchor = None
+        self._last_boot_ms = time_boot_ms
 
     def _new_mission_started(self, state: int | None, wall_s: float) -> bool:
         """Whether a MISSION_CURRENT received after our upload was acknowledged describes our mission.

@@ -106,7 +106,9 @@ def test_a_vehicle_home_from_its_first_sortie_flies_its_second_after_the_teams_s
             fleet.swap_pack(1)
             await _until(lambda: task.done() or v.sortie == 2 and fake.armed and not fake.landed, "the second sortie")
             assert not task.done(), task.exception()
-            await _until(lambda: task.done() or v.phase == "scanning" and v.packs_flown == 2,
+            # (the vehicle is seen scanning while its start exchange may still be retried after a
+            # "Mission start denied": wait for that exchange too, whose end is the start's event)
+            await _until(lambda: task.done() or v.phase == "scanning" and v.packs_flown == 2 and v.job is None,
                          "vehicle 1 scanning its second sortie, on its second pack")
             assert v.packs_left == 0 and not v.sorties
             assert fake.battery.charge > 0.9  # it flies the fresh pack
@@ -126,6 +128,11 @@ def test_a_vehicle_home_from_its_first_sortie_flies_its_second_after_the_teams_s
         scans = [e for e in rd.events("upload") if "scan mission" in e.text]
     assert len(scans) == 2, "each sortie is its own scan mission"
     assert d.vehicles[1].odd_moves == []
+    with StoreReader(tmp_path / "s.sqlite") as rd:
+        ts = [e.t_s for e in rd.events()]
+    # the swap reboots the autopilot: the mission clock must not go back with its boot clock
+    # (it went from 192 s back to 26 s)
+    assert all(b >= a - 2.0 for a, b in zip(ts, ts[1:])), ts
 
 
 def test_a_pack_that_is_not_fresh_is_never_launched_whatever_the_operator_says(tmp_path):

@@ -162,3 +162,23 @@ def test_rssi_of_both_message_versions_arrives_with_its_sensor_columns_on_either
         assert b.fingerprint.tolist() == [0xDEADBEEF, 5] and b.channel.tolist() == [6, 11]
         assert b.n_samples.tolist() == [3, 1]
     assert got[2].address.tolist() == [7] and got[2].fingerprint.tolist() == [0] and got[2].channel.tolist() == [0]
+
+
+def test_a_reboot_never_takes_the_mission_clock_back():
+    """A battery swap reboots the autopilot: its boot clock starts again. Positions after it must
+    not be dated by the old anchor (the fake PX4's mission clock went from 192 s back to 26 s after
+    a swap); the next SYSTEM_TIME anchors the clock again."""
+    link, clock = _Link(), [100.0]
+    a = _agent(link, clock)
+    link.feed(mav.MAVLink_system_time_message(1_800_000_000_000_000, 5_000))
+    link.feed(mav.MAVLink_global_position_int_message(195_000, 0, 0, 0, 0, 0, 0, 0, 0))
+    assert a.tel.unix_s == 1_800_000_190.0
+    clock[0] = 130.0  # the swap, then the rebooted autopilot's first position
+    link.feed(mav.MAVLink_global_position_int_message(2_000, 0, 0, 0, 0, 0, 0, 0, 0))
+    assert a.tel.unix_s == 1_800_000_190.0  # not 1_799_999_997: the last reading, extrapolated by the daemon
+    link.feed(mav.MAVLink_system_time_message(1_800_000_230_000_000, 8_000))
+    assert a.tel.unix_s == 1_800_000_230.0
+    link.feed(mav.MAVLink_global_position_int_message(9_000, 0, 0, 0, 0, 0, 0, 0, 0))
+    assert a.tel.unix_s == 1_800_000_231.0
+    link.feed(mav.MAVLink_global_position_int_message(8_800, 0, 0, 0, 0, 0, 0, 0, 0))  # reordered, not a reboot
+    assert a.tel.unix_s == 1_800_000_230.8
