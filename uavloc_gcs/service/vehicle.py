@@ -100,6 +100,7 @@ class VehicleAgent:
         self._acked_wall_s: float | None = None  # when our last upload was acknowledged
         self._time_anchor: tuple[float, int] | None = None  # (unix s, time_boot_ms) of the first SYSTEM_TIME
         self._last_boot_ms: int | None = None  # the newest boot clock seen: a reboot restarts it
+        self._anchor_provisional = False  # the anchor carried over a reboot, until the next SYSTEM_TIME
         self.texts: deque[tuple[float, str]] = deque(maxlen=20)  # (daemon wall s, STATUSTEXT), newest last
         self.airborne_wall_s = -math.inf  # when it was last seen armed and off the ground (daemon wall s)
         # after a swap (sorties): not ready to arm while it reports less remaining than a fresh pack
@@ -173,8 +174,9 @@ class VehicleAgent:
         elif kind == "SYSTEM_TIME":
             if msg.time_unix_usec > 0:
                 self._rebooted(int(msg.time_boot_ms))
-                if self._time_anchor is None:  # the first, or the first since a reboot
+                if self._time_anchor is None or self._anchor_provisional:  # the first, or the first since a reboot
                     self._time_anchor = (msg.time_unix_usec / 1e6, int(msg.time_boot_ms))
+                    self._anchor_provisional = False
                 self._clock(int(msg.time_boot_ms))
         elif kind == "STATUSTEXT":
             text = str(msg.text).rstrip("\x00")
@@ -217,14 +219,18 @@ class VehicleAgent:
         self.tel.unix_wall_s = self.tel.wall_s
 
     def _rebooted(self, time_boot_ms: int) -> None:
-        """A boot clock that went back (a reboot: a battery swap powers the autopilot off) drops the
-        anchor: until the vehicle's next SYSTEM_TIME its clock is the last one read, extrapolated
-        (Daemon.now_s). Kept, the old anchor dated every position after a swap back by the first
-        sortie's boot time (the fake PX4's mission clock went from 192 s back to 26 s), and on
-        PX4, which sends SYSTEM_TIME only when asked, for the rest of the search."""
+        """A boot clock that went back (a reboot: a battery swap powers the autopilot off) moves the
+        anchor: the clock goes on from its last reading with the new boot clock until the vehicle's
+        next SYSTEM_TIME anchors it again. Kept, the old anchor dated every position after a swap
+        back by the first sortie's boot time (the fake PX4's mission clock went from 192 s back to
+        26 s), and on PX4, which sends SYSTEM_TIME only when asked, for the rest of the search."""
         last = self._last_boot_ms
-        if last is not None and time_boot_ms + BOOT_CLOCK_SLACK_MS < last:
-            self._time_anchor = None
+        if last is not None and time_boot_ms + BOOT_CLOCK_SLACK_MS < last and self._time_anchor is not None:
+            # go on from the last reading (the reboot's own seconds are not known: at most a few
+            # seconds early) until the vehicle's next SYSTEM_TIME anchors it again
+            self._time_anchor = (self.tel.unix_s if self.tel.unix_s is not None else self._time_anchor[0],
+                                 time_boot_ms)
+            self._anchor_provisional = True
         self._last_boot_ms = time_boot_ms
 
     def _new_mission_started(self, state: int | None, wall_s: float) -> bool:

@@ -175,7 +175,9 @@ def test_a_reboot_never_takes_the_mission_clock_back():
     assert a.tel.unix_s == 1_800_000_190.0
     clock[0] = 130.0  # the swap, then the rebooted autopilot's first position
     link.feed(mav.MAVLink_global_position_int_message(2_000, 0, 0, 0, 0, 0, 0, 0, 0))
-    assert a.tel.unix_s == 1_800_000_190.0  # not 1_799_999_997: the last reading, extrapolated by the daemon
+    assert a.tel.unix_s == 1_800_000_190.0  # not 1_799_999_997: on from the last reading
+    link.feed(mav.MAVLink_global_position_int_message(4_500, 0, 0, 0, 0, 0, 0, 0, 0))
+    assert a.tel.unix_s == 1_800_000_192.5  # with the new boot clock
     link.feed(mav.MAVLink_system_time_message(1_800_000_230_000_000, 8_000))
     assert a.tel.unix_s == 1_800_000_230.0
     link.feed(mav.MAVLink_global_position_int_message(9_000, 0, 0, 0, 0, 0, 0, 0, 0))
