@@ -529,7 +529,7 @@ class SearchPolicy:
         """The scenario as the person's radio sees it: uavloc_gcs.radios.ble_view for an identity
         heard only in BLE beacons (its looks and estimates use the BLE link budget and rate)."""
         p = self._people.get(int(emitter_id))
-        if p is None or not p.batches or self.scenario.emission.findmy_share <= 0:
+        if p is None or not p.batches:  # (a real sensor hears beacons whatever the simulation's share)
             return self.scenario
         return ble_view(self.scenario) if radio_of(p.batches[0]) == BLE else self.scenario
 
