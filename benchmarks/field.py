@@ -72,24 +72,23 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="people who cannot move (simulation.motion = static, people.max_speed_m_s = 0)")
 
 
-def _packs(text: str) -> tuple[int, ...]:
+def _numbers(text: str, cast, lo: float, hi: float, what: str, rule: str) -> tuple:
+    """A comma list of numbers in [lo, hi] (an argparse type): one sentence naming the rule if not."""
     try:
-        out = tuple(int(x) for x in text.split(",") if x.strip())
+        out = tuple(cast(x) for x in text.split(",") if x.strip())
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected whole numbers of packs separated by commas, got {text!r}") from None
-    if not out or any(not 1 <= n <= 10 for n in out):
-        raise argparse.ArgumentTypeError(f"packs per vehicle must be 1 to 10, got {text!r}")
+        raise argparse.ArgumentTypeError(f"expected {what} separated by commas, got {text!r}") from None
+    if not out or any(not lo <= n <= hi for n in out):
+        raise argparse.ArgumentTypeError(f"{rule}, got {text!r}")
     return out
+
+
+def _packs(text: str) -> tuple[int, ...]:
+    return _numbers(text, int, 1, 10, "whole numbers of packs", "packs per vehicle must be 1 to 10")
 
 
 def _shares(text: str) -> tuple[float, ...]:
-    try:
-        out = tuple(float(x) for x in text.split(",") if x.strip())
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected shares between 0 and 1 separated by commas, got {text!r}") from None
-    if not out or any(not 0.0 <= x <= 1.0 for x in out):
-        raise argparse.ArgumentTypeError(f"a share of phones is between 0 and 1, got {text!r}")
-    return out
+    return _numbers(text, float, 0.0, 1.0, "shares between 0 and 1", "a share of phones is between 0 and 1")
 
 
 def _plans(text: str) -> tuple[str, ...]:
