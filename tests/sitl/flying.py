@@ -29,6 +29,7 @@ class Watch:
         self.texts: list[str] = []
         self.reached: list[int] = []
         self.seqs: list[int] = []
+        self.new_mission_seen = True  # see mark_upload
         self._sub = link.subscribe(None, source_system=system, callback=self._on)
 
     def _on(self, msg) -> None:
@@ -41,8 +42,16 @@ class Watch:
             self.texts.append(str(msg.text).rstrip("\x00"))
         elif kind == "MISSION_ITEM_REACHED":
             self.reached.append(msg.seq)
-        elif kind == "MISSION_CURRENT" and (not self.seqs or self.seqs[-1] != msg.seq):
-            self.seqs.append(msg.seq)
+        elif kind == "MISSION_CURRENT":
+            if not self.new_mission_seen:
+                self.new_mission_seen = describes_a_new_mission(msg)
+            if not self.seqs or self.seqs[-1] != msg.seq:
+                self.seqs.append(msg.seq)
+
+    def mark_upload(self) -> None:
+        """From now on, :attr:`mission_seq` is None until a MISSION_CURRENT describes a mission
+        started since (:func:`describes_a_new_mission`)."""
+        self.new_mission_seen = False
 
     def close(self) -> None:
         self._sub.close()
@@ -87,7 +96,7 @@ class Watch:
     @property
     def mission_seq(self) -> int | None:
         cur = self.last.get("MISSION_CURRENT")
-        return cur.seq if cur else None
+        return cur.seq if cur and self.new_mission_seen else None
 
     @property
     def mission_state(self) -> int | None:
@@ -110,6 +119,20 @@ class Watch:
 
 
 
+def describes_a_new_mission(msg) -> bool:
+    """Whether a MISSION_CURRENT received after an upload describes the new mission: the daemon's
+    rule (uavloc_gcs.service.vehicle.VehicleAgent._new_mission_started) without its clock. A PX4
+    that has flown a mission keeps reporting that mission's last item and state COMPLETE until the
+    next mission starts; taken as news, sortie 1's RTL item 8 ended sortie 2 (RTL item 6) the
+    moment it was started (CI, 2026-11-29: the vehicle took off and came straight home). A vehicle
+    that reports no states (UNKNOWN) is taken at its word."""
+    from uavloc_gcs.dialect import mavlink  # noqa: PLC0415
+
+    return getattr(msg, "mission_state", mavlink.MISSION_STATE_UNKNOWN) in (
+        mavlink.MISSION_STATE_UNKNOWN, mavlink.MISSION_STATE_NOT_STARTED, mavlink.MISSION_STATE_ACTIVE,
+        mavlink.MISSION_STATE_PAUSED)
+
+
 MISSION_STREAMS = {"GLOBAL_POSITION_INT": 10.0, "MISSION_CURRENT": 4.0, "SYSTEM_TIME": 1.0, "EXTENDED_SYS_STATE": 1.0}
 
 
@@ -130,6 +153,7 @@ async def fly_to_its_return(link, system: int, flavour, wire, on_position, *, wh
                                                                                "HEARTBEAT")), 30)
         sub = link.subscribe("GLOBAL_POSITION_INT", source_system=system, callback=lambda m: on_position(m, watch))
         try:
+            watch.mark_upload()
             await upload_mission(link, system, 1, wire, verify=True, autopilot=flavour)
             await start_mission_from(link, system, 1, flavour, flavour.first_mission_seq, armed=watch.armed,
                                      mode=watch.mode)

@@ -113,6 +113,7 @@ async def fly(sitl, kind: str, radius_m: float, speed_m_s: float, out: Path | No
         plan, geo = build(home, radius_m, speed_m_s, ring_points=ring_points, turns=2)
         wire = to_wire(plan, kind)
         stored_note = "verified"
+        watch.mark_upload()
         try:
             await upload_mission(link, system, 1, wire, verify=True, autopilot=flavour)
         except Exception as exc:  # refused or stored differently: record it, fly the ring alone

@@ -56,3 +56,35 @@ def test_start_hear_and_stop(kind, sitl):
     assert not proc.alive()
     with pytest.raises(ProcessLookupError):
         os.killpg(pgid, 0)  # the whole process group is gone
+
+
+def test_a_finished_mission_is_not_taken_for_the_new_one_until_it_starts():
+    """The reproduction of CI's PX4 sortie failure (2026-11-29): after a new upload a PX4 keeps
+    reporting the last mission's RTL item with state COMPLETE; the helper that waits for a
+    mission's end reads no item until a report of the new mission."""
+    from uavloc_gcs.dialect import mavlink
+
+    from .flying import Watch
+
+    class Link:  # the one thing Watch asks of a link: a subscription whose callback it is given
+        def subscribe(self, kind, *, source_system, callback):
+            self.callback = callback
+            return self
+
+        def close(self):
+            pass
+
+    def current(seq, state):
+        return mavlink.MAVLink_mission_current_message(seq, 9, state)
+
+    link = Link()
+    watch = Watch(link, 1)
+    link.callback(current(8, mavlink.MISSION_STATE_COMPLETE))
+    assert watch.mission_seq == 8  # no upload yet: the report is what it is
+    watch.mark_upload()
+    link.callback(current(8, mavlink.MISSION_STATE_COMPLETE))
+    assert watch.mission_seq is None  # sortie 1's RTL item is no news about sortie 2
+    link.callback(current(1, mavlink.MISSION_STATE_ACTIVE))
+    assert watch.mission_seq == 1
+    link.callback(current(6, mavlink.MISSION_STATE_COMPLETE))
+    assert watch.mission_seq == 6  # the new mission's own end counts
