@@ -40,6 +40,7 @@ from .vehiclelife import VehicleLife as _Vehicle
 
 log = logging.getLogger(__name__)
 
+WAITING_FOR_PACK = "waiting for pack"  # a vehicle's phase on the ground until its pack is fresh
 PACK_POLL_S = 2.0  # wall seconds between two asks of a waiting vehicle's battery
 # A vehicle home from its looks with at least this much left flies on without a swap: a swap
 # takes a pack and battery_swap_s, and the planner plans with the charge it reports.
@@ -107,7 +108,7 @@ class PackSwaps:
             return
         if not v.sorties and (pct is None or pct >= SWAP_BELOW_PCT):
             return  # flies its looks on what it has
-        v.waiting, v.phase = "a fresh pack", "waiting for pack"
+        v.waiting, v.phase = "a fresh pack", WAITING_FOR_PACK
         a.pack_floor_pct = FRESH_REMAINING_PCT
         left = "" if pct is None else f" with {pct:.0f} % left"
         nxt = f"sortie {v.sortie + 1} of its scan" if v.sorties else "its looks"

@@ -305,3 +305,48 @@ def test_web_keep_serves_the_final_result_as_the_files_say_until_ctrl_c(tmp_path
         if proc.poll() is None:
             proc.kill()
             proc.wait()
+
+
+def test_the_operator_says_a_waiting_vehicle_has_a_fresh_pack_and_nothing_else(store):
+    """POST /api/vehicles/{id}/pack-fresh (issue 38 item 2): recorded in the store as `uavloc
+    pack-fresh` records it, only for a vehicle the map shows waiting for a pack, only with the
+    page's command header and from the page's own origin; every refusal one sentence."""
+    from uavloc_gcs.service.store import PACK_FRESH_REQUEST, StoreReader
+
+    snap = StatusSnapshot(20.0, [VehicleStatus(1, "waiting for pack", "LAND", 12.0),
+                                 VehicleStatus(2, "localizing", "AUTO", 80.0)], [], 3, 15.0, 1)
+    hdr = {"X-Uavloc-Command": "pack-fresh"}
+
+    def requests():
+        with StoreReader(store.path) as rd:
+            return [e.vehicle for e in rd.events(PACK_FRESH_REQUEST)]
+
+    async def go():
+        feed = MapFeed(SC, store.path, snapshot=lambda: snap)
+        server = await _serve(feed)
+        try:
+            async with aiohttp.ClientSession() as http:
+                async def post(vid, headers):
+                    async with http.post(server.url + f"api/vehicles/{vid}/pack-fresh", headers=headers) as r:
+                        return r.status, (await r.json())["text"]
+
+                # a form or a script of another site: refused before anything is read
+                status, text = await post(1, {})
+                assert status == 403 and "X-Uavloc-Command" in text
+                status, text = await post(1, {**hdr, "Origin": "http://evil.example"})
+                assert status == 403 and "evil.example" in text
+                status, text = await post(2, hdr)
+                assert status == 409 and text == "vehicle 2 does not wait for a pack (it is localizing); nothing done"
+                status, text = await post(7, hdr)
+                assert status == 404 and "no vehicle 7" in text and "[1, 2]" in text
+                assert requests() == []
+                status, text = await post(1, {**hdr, "Origin": server.url.rstrip("/")})
+                assert status == 202 and text.startswith("vehicle 1: fresh pack recorded")
+                assert requests() == [1]
+                feed.finished = True
+                status, text = await post(1, hdr)
+                assert status == 409 and "ended" in text and requests() == [1]
+        finally:
+            await server.stop()
+
+    _run(asyncio.wait_for(go(), 30))

@@ -4,6 +4,9 @@ Routes: ``/`` the page, ``/static/*`` its script and style (package data, nothin
 the internet), ``/api/state`` everything as JSON, ``/api/stream`` server-sent events (``state``
 once, then ``delta`` whenever the store or the daemon moved on), ``/tiles/{z}/{x}/{y}`` a
 background map from an offline XYZ folder or an MBTiles file when one is configured.
+``POST /api/vehicles/{id}/pack-fresh``: the operator says a vehicle waiting for a pack has a fresh
+one (issue 38; what ``uavloc pack-fresh`` does, through the store: service/swaps.py checks the
+vehicle's own report before it is launched).
 
 Bound to 127.0.0.1 by default. Any other address needs a token: the printed URL carries it
 (``?token=...``); the page keeps it in a cookie for its script and stream.
@@ -25,7 +28,9 @@ from pathlib import Path
 
 from aiohttp import web
 
-from ...errors import ConfigError
+from ...errors import ConfigError, UavlocError
+from ..store import request_pack_fresh
+from ..swaps import WAITING_FOR_PACK
 from .feed import MapFeed
 
 log = logging.getLogger(__name__)
@@ -33,6 +38,9 @@ log = logging.getLogger(__name__)
 DEFAULT_PORT = 8765
 _STATIC = {"app.js": "text/javascript", "style.css": "text/css", "index.html": "text/html"}
 _COOKIE = "uavloc_token"
+# The header the page's script sends with a command: a page of another site cannot send it without
+# a CORS preflight this server never answers, so a form or image elsewhere cannot launch a vehicle.
+COMMAND_HEADER = "X-Uavloc-Command"
 
 
 @dataclass(frozen=True)
@@ -159,6 +167,7 @@ class MapServer:
         app.router.add_get("/api/state", self._state)
         app.router.add_get("/api/stream", self._stream)
         app.router.add_get("/tiles/{z}/{x}/{y}", self._tile)
+        app.router.add_post("/api/vehicles/{vehicle}/pack-fresh", self._pack_fresh)
         # an open event stream held Ctrl-C of `uavloc demo` for 124 s (aiohttp waits up to its
         # shutdown timeout, 60 s, for handlers); stop() ends the streams, this bounds the rest
         self._runner = web.AppRunner(app, access_log=None, handle_signals=False, shutdown_timeout=2.0)
@@ -241,6 +250,38 @@ class MapServer:
 
     async def _state(self, request: web.Request) -> web.Response:
         return web.json_response({**self.feed.state(), "config": self._config()}, dumps=_dumps)
+
+    async def _pack_fresh(self, request: web.Request) -> web.Response:
+        """The operator's "fresh pack" for a vehicle the map shows waiting for one: recorded in the
+        store as ``uavloc pack-fresh`` records it; the daemon takes it at its next poll and still
+        refuses a pack the vehicle reports as not fresh. One sentence back, also when refused."""
+        def no(status: int, text: str) -> web.Response:
+            return web.json_response({"ok": False, "text": text}, status=status)
+
+        if request.headers.get(COMMAND_HEADER) != "pack-fresh":
+            return no(403, f"a command needs the {COMMAND_HEADER} header the live map's page sends")
+        origin = request.headers.get("Origin")
+        if origin is not None and origin.split("://", 1)[-1] != request.host:
+            return no(403, f"a command from another site ({origin}) is refused")
+        try:
+            vid = int(request.match_info["vehicle"])
+        except ValueError:
+            return no(404, f"no vehicle {request.match_info['vehicle']!r}")
+        if self.feed.finished:
+            return no(409, "the search has ended; no vehicle waits for a pack")
+        shown = {v["id"]: v for v in self.feed.state().get("vehicles", [])}
+        if vid not in shown:
+            return no(404, f"there is no vehicle {vid} in this search (vehicles {sorted(shown)})")
+        if shown[vid].get("phase") != WAITING_FOR_PACK:
+            return no(409, f"vehicle {vid} does not wait for a pack (it is {shown[vid].get('phase') or 'not reporting'}); "
+                           "nothing done")
+        try:
+            await asyncio.to_thread(request_pack_fresh, self.feed.store_path, vid)
+        except (UavlocError, sqlite3.Error) as exc:
+            return no(503, f"the request for vehicle {vid} was not recorded: {exc}")
+        log.info("live map: the operator says vehicle %d has a fresh pack", vid)
+        return web.json_response({"ok": True, "text": f"vehicle {vid}: fresh pack recorded; it is launched once it "
+                                                      "reports nothing that says otherwise"}, status=202)
 
     async def _stream(self, request: web.Request) -> web.StreamResponse:
         resp = web.StreamResponse(headers={"Content-Type": "text/event-stream", "Cache-Control": "no-cache",

@@ -248,6 +248,26 @@
     tbody.appendChild(tr);
     return tr;
   }
+  // The operator's word that a waiting vehicle has a fresh pack (issue 38): two clicks within 5 s
+  // (the first asks), then a POST the server records as `uavloc pack-fresh` does; the daemon still
+  // refuses a pack the vehicle itself reports as not fresh. The server's sentence is shown under it.
+  const asking = {}, said = {};
+  function freshButton(vid) {
+    const b = document.createElement("button");
+    b.className = "fresh"; b.setAttribute("data-vehicle", vid);
+    const sure = asking[vid] && asking[vid] > Date.now();
+    b.textContent = sure ? "sure? click again" : "fresh pack fitted";
+    b.onclick = async () => {
+      if (!(asking[vid] && asking[vid] > Date.now())) { asking[vid] = Date.now() + 5000; panels(); return; }
+      delete asking[vid];
+      try {
+        const r = await fetch(`api/vehicles/${vid}/pack-fresh`, { method: "POST", headers: { "X-Uavloc-Command": "pack-fresh" } });
+        said[vid] = (await r.json()).text;
+      } catch (e) { said[vid] = `not sent: ${e}`; }
+      panels();
+    };
+    return b;
+  }
   function panels() {
     document.getElementById("title").textContent = `uavloc · ${S.static.name}`;
     const clock = utc(S.clock_utc);
@@ -269,8 +289,11 @@
     for (const v of S.vehicles) {
       const sw = document.createElement("span");
       sw.textContent = `UAV${v.id}`; sw.style.color = v.color; sw.className = "state";
-      row(vb, [sw, v.mode || "?", ok(v.battery_pct) ? `${v.battery_pct}%` : "-",
-               (v.note ? "LOST IN THE AIR " : v.lost ? "LOST " : "") + (v.phase || "") + (ok(v.mission_seq) && ok(v.mission_total) ? ` (${v.mission_seq}/${v.mission_total})` : "")]);
+      const doing = document.createElement("span");
+      doing.textContent = (v.note ? "LOST IN THE AIR " : v.lost ? "LOST " : "") + (v.phase || "") + (ok(v.mission_seq) && ok(v.mission_total) ? ` (${v.mission_seq}/${v.mission_total})` : "");
+      if (v.phase === "waiting for pack" && !S.finished) doing.appendChild(freshButton(v.id));
+      if (said[v.id]) { const m = document.createElement("div"); m.className = "said"; m.textContent = said[v.id]; doing.appendChild(m); }
+      row(vb, [sw, v.mode || "?", ok(v.battery_pct) ? `${v.battery_pct}%` : "-", doing], { "data-vehicle": v.id });
     }
     const pb = document.querySelector("#people tbody");
     pb.textContent = "";
