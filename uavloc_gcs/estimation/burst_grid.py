@@ -35,6 +35,17 @@ whose shadowing (variance s2) is an AR(1) and whose fading (f2) is their own car
 information of n (s2 + f2) / (s2 (1 + rho) / (1 - rho) + f2) independent ones; each weighs that
 share (:func:`unit_weights`, line-of-sight variances; a composite likelihood). Units far apart
 weigh 1.
+
+That share is the chain's information about a quantity every unit sees alike (a transmit offset, a
+range common to all). What places the person is how the units' ranges change with the bearing from
+the person, and on an orbit the bearing turns by some 30 degrees between two beacons: the shadowing's
+AR(1) has there about a quarter of the power it has at frequency zero, so the zero-frequency share
+undervalued an orbit's units about threefold (one orbit's beacons: truth 2-8 m away inside 15-33 m
+circles). With a reference point (the coarser grid's posterior mean) each unit weighs what the
+chain carries at its own frequency, the bearing's turn from the previous unit of its vehicle:
+(s2 + f2) / (S(omega) + f2), S(omega) = s2 (1 - rho^2) / (1 - 2 rho cos omega + rho^2) (a Whittle
+approximation), never above 1. A straight pass far from the person turns the bearing little and
+weighs as before (``BEARING_WEIGHTS``; False: the zero-frequency share everywhere).
 """
 
 from __future__ import annotations
@@ -335,21 +346,31 @@ def missed_beacons(heard: Sequence[Burst], interval_s: float, tracks: dict, *, l
 
 # False: every unit weighs 1 (the estimator before issue 39; a named variant for comparison)
 WEIGH_UNITS = True
+LOGLIK_FLOOR = -1e30  # a table's log-likelihood floor: finite in float32, summed over thousands of units too
+# False: every unit weighs the chain's zero-frequency share (the estimator before 2026-11-29)
+BEARING_WEIGHTS = True
 
 
-def unit_weight(rho: float, shared_db2: float = 1.0, own_db2: float = 0.0) -> float:
-    """What one unit adds to a chain whose shared part correlates as ``rho`` (unit_weights)."""
-    return (shared_db2 + own_db2) / (shared_db2 * (1.0 + rho) / max(1.0 - rho, 1e-12) + own_db2)
+def unit_weight(rho: float, shared_db2: float = 1.0, own_db2: float = 0.0, omega: float = 0.0) -> float:
+    """What one unit adds to a chain whose shared part correlates as ``rho`` (unit_weights), at the
+    frequency ``omega`` [rad per unit] of what is estimated; at most 1."""
+    # 1 - 2 rho cos(omega) + rho^2, written so that rho -> 1 at omega = 0 (the same place again) is
+    # the zero-frequency limit, an unbounded spectrum: a unit heard where the last one was adds nothing
+    den = (1.0 - rho) ** 2 + 2.0 * rho * (1.0 - math.cos(omega))
+    spectrum = shared_db2 * (1.0 - rho) * (1.0 + rho) / den if den > 1e-15 else math.inf
+    return min(1.0, (shared_db2 + own_db2) / (spectrum + own_db2))
 
 
 def unit_weights(bursts: Sequence[Burst], decorrelation_m: float | None,
-                 shared_and_own_db2: tuple[float, float] = (1.0, 0.0)) -> np.ndarray:
+                 shared_and_own_db2: tuple[float, float] = (1.0, 0.0), about_xy_m=None) -> np.ndarray:
     """Each unit's weight in the summed log-likelihood (module docstring), rho = exp(-d /
     decorrelation_m), d the distance from where the same vehicle heard (or listened for) its
     previous unit; 1 for a vehicle's first unit and without a decorrelation distance. A unit's
     error is a shared part (shadowing, variance s2, correlated as rho) and its own (fading, f2): the
     chain's information per unit is that of (s2 + f2) / (s2 (1 + rho) / (1 - rho) + f2) independent
-    units (the long-run variance of an AR(1) plus white noise); with no own part, (1 - rho) / (1 + rho)."""
+    units (the long-run variance of an AR(1) plus white noise); with no own part, (1 - rho) / (1 + rho).
+    ``about_xy_m``: a reference position of the person; each unit then weighs the chain's share at
+    the turn of the bearing from there since the vehicle's previous unit (module docstring)."""
     w = np.ones(len(bursts))
     if not (WEIGH_UNITS and decorrelation_m) or len(bursts) < 2:
         return w
@@ -360,7 +381,12 @@ def unit_weights(bursts: Sequence[Burst], decorrelation_m: float | None,
         prev = last.get(b.vehicle)
         if prev is not None:
             rho = math.exp(-float(np.linalg.norm(here - prev)) / float(decorrelation_m))
-            w[int(i)] = unit_weight(rho, *shared_and_own_db2)
+            omega = 0.0
+            if about_xy_m is not None and BEARING_WEIGHTS:
+                a = math.atan2(here[1] - about_xy_m[1], here[0] - about_xy_m[0])
+                b0 = math.atan2(prev[1] - about_xy_m[1], prev[0] - about_xy_m[0])
+                omega = abs((a - b0 + math.pi) % (2.0 * math.pi) - math.pi)
+            w[int(i)] = unit_weight(rho, *shared_and_own_db2, omega=omega)
         last[b.vehicle] = here
     return w
 
@@ -400,6 +426,10 @@ def burst_table(model: BurstModel, burst: Burst, frames_pmf: np.ndarray, extent_
         ll = model.silent_loglik(frames_pmf, h[None, :], z, tx)
     else:
         ll = model.heard_loglik(np.asarray(burst.rssi_dbm), np.asarray(burst.counts), frames_pmf, h[None, :], z, tx)
+    # float32 holds down to -3.4e38: the models' floor of log 0 (-1e300) became -inf there, and two
+    # -inf neighbours interpolated to NaN ("the bursts leave no place for the person on the grid",
+    # an elicited look of `uavloc bench low_orbit --elicitation 2 --runs 12`, run 7)
+    ll = np.maximum(ll, LOGLIK_FLOOR)
     return BurstTable(TABLE_STEP_M, np.broadcast_to(ll, (len(nodes_db), n)).astype(np.float32))
 
 
@@ -536,7 +566,8 @@ class BurstGridEstimator:
         post = None
         first = grid
         for _ in range(MAX_LEVELS + 2):
-            post = self._on(grid, bursts, t_ref_s, vmax, p_static)
+            # each unit's weight at its bearing's turn about the coarser grid's mean (unit_weights)
+            post = self._on(grid, bursts, t_ref_s, vmax, p_static, None if post is None else post.mean_xy_m)
             if grid is not first and _edge_mass(post.p) > EDGE_MASS:
                 grid = _grown(grid, first)  # the support was undersampled: the mass runs off this grid
                 continue
@@ -581,14 +612,15 @@ class BurstGridEstimator:
         n = np.maximum(np.ceil(span / cell).astype(int), 1)
         return Grid(float(lo[0]), float(lo[1]), cell, int(n[0]), int(n[1]))
 
-    def _loglik(self, grid: Grid, bursts: Sequence[Burst], t_ref_s: float, vmax: float) -> tuple[np.ndarray, np.ndarray]:
+    def _loglik(self, grid: Grid, bursts: Sequence[Burst], t_ref_s: float, vmax: float,
+                about_xy_m=None) -> tuple[np.ndarray, np.ndarray]:
         """(static, walking) log-likelihood sums over (tx node, ny, nx); walking None when vmax 0."""
         x, y = grid.centres()
         still = np.zeros((len(self._nodes),) + x.shape, np.float32)
         walk = np.zeros_like(still) if vmax > 0 else None
         eps = float(self.outlier_share)
         weights = unit_weights(bursts, getattr(self.model, "decorrelation_m", None),
-                               getattr(self.model, "shared_and_own_db2", (1.0, 0.0)))
+                               getattr(self.model, "shared_and_own_db2", (1.0, 0.0)), about_xy_m)
         for b, wb in zip(bursts, weights):
             if wb <= 0.0:
                 continue
@@ -608,8 +640,9 @@ class BurstGridEstimator:
                 walk += m + np.log(np.maximum(blurred, 1e-300))
         return still, walk
 
-    def _on(self, grid: Grid, bursts: Sequence[Burst], t_ref_s: float, vmax: float, p_static: float) -> GridPosterior:
-        still, walk = self._loglik(grid, bursts, t_ref_s, vmax)
+    def _on(self, grid: Grid, bursts: Sequence[Burst], t_ref_s: float, vmax: float, p_static: float,
+            about_xy_m=None) -> GridPosterior:
+        still, walk = self._loglik(grid, bursts, t_ref_s, vmax, about_xy_m)
         prior = self._area_prior(grid)
         lw = self._log_w[:, None, None]
         branches = []

@@ -251,8 +251,9 @@ def elicited_dwell_s(sc, radius_m: float, spread_m: float, *, draws: int = 300, 
     emitter, 400 samples/s, would need about a second). Under the air-to-ground channel frames
     heard a few metres apart share their shadowing and the estimator weighs each by what it adds
     (estimation.burst_grid.unit_weights): with the vehicle at ``speed_m_s`` on the circle, the
-    frames needed are divided by that weight, (1 - rho) / (1 + rho), rho = exp(-speed / rate /
-    decorrelation_m), times the line-of-sight fading's own share (burst_grid.unit_weight)."""
+    frames needed are divided by that weight: rho = exp(-speed / rate / decorrelation_m), at the
+    bearing's turn about the centre between two frames, with the line-of-sight fading's own share
+    (burst_grid.unit_weight)."""
     from ..estimation.model import ChannelModel
 
     rel, rho, ph = _circle_geometry(sc, radius_m, spread_m, draws, seed)
@@ -271,12 +272,14 @@ def elicited_dwell_s(sc, radius_m: float, spread_m: float, *, draws: int = 300, 
     env = getattr(sc.channel, "environment", None)
     if env is not None and speed_m_s is not None and speed_m_s > 0:
         from ..a2g import ENVIRONMENTS, fading_law
-        from ..estimation.burst_grid import unit_weight
+        from ..estimation.burst_grid import BEARING_WEIGHTS, unit_weight
 
         e = ENVIRONMENTS[env]
         fade = fading_law(e.rician_k_los_db).std_db
-        rho = math.exp(-float(speed_m_s) / rate / e.decorrelation_m)
-        frames /= max(unit_weight(rho, e.shadow_los_db ** 2, float(fade) ** 2), 1e-6)
+        step = float(speed_m_s) / rate
+        rho = math.exp(-step / e.decorrelation_m)
+        omega = min(step / max(float(radius_m), 1e-6), math.pi) if BEARING_WEIGHTS else 0.0
+        frames /= max(unit_weight(rho, e.shadow_los_db ** 2, float(fade) ** 2, omega=omega), 1e-6)
     return float(min(frames / rate, MAX_DWELL_S) if cap else frames / rate)
 
 

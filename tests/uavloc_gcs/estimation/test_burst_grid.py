@@ -107,6 +107,37 @@ def test_units_heard_close_together_weigh_what_they_add():
     assert np.all(unit_weights(b, None) == 1.0)  # the log-distance channel: i.i.d. frames
 
 
+def test_units_on_an_orbit_weigh_what_they_say_about_where_the_person_is():
+    """On an orbit the bearing from the person turns between two beacons, where the shadowing's
+    AR(1) has less power than at frequency zero: each unit weighs the chain's share at that turn
+    (Whittle), more than the zero-frequency share, never more than 1; a straight pass far from the
+    reference turns the bearing little and weighs about as before; without a reference, as before."""
+    from uavloc_gcs.estimation import burst_grid
+    from uavloc_gcs.estimation.burst_grid import Burst, unit_weight, unit_weights
+
+    s2, f2 = 16.0, 6.0
+    rho = np.exp(-16.0 / 50.0)
+    assert unit_weight(rho, s2, f2) == pytest.approx((s2 + f2) / (s2 * (1 + rho) / (1 - rho) + f2))
+    assert unit_weight(rho, s2, f2, omega=0.53) > 2.5 * unit_weight(rho, s2, f2)
+    assert unit_weight(0.2, s2, f2, omega=np.pi) == 1.0  # capped: no unit counts for more than one
+    assert unit_weight(1.0, s2, f2) == pytest.approx(0.0, abs=1e-9)  # the same place again adds nothing
+    ring = [Burst(2.0 * k, 1, (30.0 * np.cos(k * 16 / 30), 30.0 * np.sin(k * 16 / 30), 30.0), (-80.0,), (1,))
+            for k in range(12)]
+    flat = unit_weights(ring, 50.0, (s2, f2))
+    about = unit_weights(ring, 50.0, (s2, f2), about_xy_m=(0.0, 0.0))
+    assert flat[0] == about[0] == 1.0
+    assert np.allclose(about[1:], unit_weight(rho, s2, f2, omega=16 / 30), rtol=0.01)
+    assert np.all(about[1:] > 2.5 * flat[1:])
+    far = [Burst(2.0 * k, 1, (16.0 * k, 0.0, 30.0), (-80.0,), (1,)) for k in range(12)]
+    w_far = unit_weights(far, 50.0, (s2, f2), about_xy_m=(90.0, 2000.0))
+    assert np.allclose(w_far[1:], unit_weights(far, 50.0, (s2, f2))[1:], rtol=0.02)
+    burst_grid.BEARING_WEIGHTS = False
+    try:
+        assert np.allclose(unit_weights(ring, 50.0, (s2, f2), about_xy_m=(0.0, 0.0)), flat)
+    finally:
+        burst_grid.BEARING_WEIGHTS = True
+
+
 def test_beacons_heard_from_one_place_say_what_one_beacon_says():
     """A vehicle hovering hears the same shadowing again and again: fifty beacons from one place
     must not make a circle that one beacon does not (they did, summed as independent)."""
@@ -125,3 +156,18 @@ def test_beacons_heard_from_one_place_say_what_one_beacon_says():
     r1 = est.posterior(one, 0.0)
     r50 = est.posterior(many, 100.0)
     assert r50.radius_about(r50.mean_xy_m) >= 0.95 * r1.radius_about(r1.mean_xy_m)
+
+
+def test_a_table_where_a_burst_is_impossible_stays_finite():
+    """The models floor log 0 at -1e300, which float32 makes -inf; two -inf neighbours interpolated
+    to NaN and the person had "no place on the grid" (an elicited look, bench low_orbit run 7)."""
+    from uavloc_gcs.estimation.burst_grid import Burst, burst_table
+
+    class Impossible:  # heard nowhere nearer than 20 m
+        def heard_loglik(self, rssi, counts, pmf, h, z, tx):
+            return np.where(h < 20.0, -1e300, -1.0 - 0.01 * h) + 0.0 * tx
+
+    b = Burst(0.0, 1, (0.0, 0.0, 30.0), (-60.0,), (1,))
+    t = burst_table(Impossible(), b, np.array([0.0, 1.0]), 100.0, np.array([-1.0, 0.0, 1.0]))
+    v = t.at(np.array([0.0, 3.3, 19.0, 50.0]))
+    assert np.all(np.isfinite(v)) and np.all(v[:, :2] < -1e29) and np.allclose(v[:, 3], -1.5, atol=0.05)
