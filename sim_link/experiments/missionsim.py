@@ -419,6 +419,7 @@ def simulate_mission(
         raise ValueError(f"unknown method {method!r}; expected one of {', '.join(METHODS)}")
     model_motion, optimizer = METHODS[method]
     # the scan the scenario asks for: planned for its POD target (at the speed chosen for it), else [scan]'s
+    given = scenario
     scenario, scan = scan_for(scenario)
     policy = SearchPolicy(scenario, model_motion=model_motion, optimizer=optimizer,
                           local_search=scenario.planner.local_search, seed=seed, time_limit_s=time_limit_s,
@@ -437,7 +438,9 @@ def simulate_mission(
         from uavloc_gcs.search.pod_plan import scan_pod_plan
         from uavloc_gcs.sorties import scan_sorties
 
-        pp = scan_pod_plan(scenario)
+        # the plan scan_for chose, asked of the scenario as given (the flown one, with the chosen
+        # speed, is another key: it planned the scan a second time, 80 s, and could choose another)
+        pp = scan_pod_plan(given)
         sorties = pp.sorties if pp is not None and pp.sorties else scan_sorties(scenario, scan)
         for vs, sp in zip(scan.vehicles, sorties):
             paths = [np.vstack([home, s.waypoints_xy_m, home]) for s in sp.sorties]
