@@ -275,6 +275,9 @@ def _kml_value(v) -> str:
     return ";".join(map(str, v)) if isinstance(v, list) else str(v)
 
 
+BY_MINUTES = (15, 30, 60)  # the times results.txt counts the people located by
+
+
 def results_table(people: Sequence[PersonResult], required_accuracy_m: float,
                   truth_xy_m: Mapping[int, Sequence[float]] | None = None, *,
                   epoch_unix_s: float | None = None, coverage=None, notes: Sequence[str] = ()) -> str:
@@ -301,6 +304,11 @@ def results_table(people: Sequence[PersonResult], required_accuracy_m: float,
 
     lines.append(f"{n_ok} of {len(people)} people located within {required_accuracy_m:g} m (95 %)."
                  + radio_note([p for p in people if p.state != "never heard"]))
+    if n_ok:  # time is the figure (issue 38 item 4): located by 15, 30 and 60 minutes of mission time
+        by = [sum(p.located and math.isfinite(p.fix_time_s) and p.fix_time_s <= m * 60.0 for p in people)
+              for m in BY_MINUTES]
+        lines.append(f"Located by {' / '.join(str(m) for m in BY_MINUTES)} min of mission time: "
+                     f"{' / '.join(str(n) for n in by)} of {len(people)}.")
     if isinstance(epoch_unix_s, MissionClock) and epoch_unix_s.simulated:
         lines.append(f"Times: {epoch_unix_s.label}.")
     if coverage is not None:

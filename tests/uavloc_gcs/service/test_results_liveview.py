@@ -4,6 +4,7 @@ import csv
 import io
 import json
 import math
+from dataclasses import replace
 
 import numpy as np
 from lxml import etree
@@ -57,6 +58,10 @@ def test_table_reports_truth_error_and_who_is_not_located():
     text = results_table(PEOPLE, 15.0, {1: (303.0, 204.0), 2: (100.0, 50.0), 3: (0.0, 0.0)})
     assert "5.0 m" in text and "heard from one leg only" in text
     assert "1 of 3 people located within 15 m" in text
+    assert "Located by 15 / 30 / 60 min of mission time: 1 / 1 / 1 of 3." in text  # fixed at 60 s
+    late = [PEOPLE[0], replace(PEOPLE[0], emitter_id=4, fix_time_s=1900.0), PEOPLE[1]]
+    assert "Located by 15 / 30 / 60 min of mission time: 1 / 1 / 2 of 3." in results_table(late, 15.0)
+    assert "Located by" not in results_table(PEOPLE[1:], 15.0)  # nobody located: the line above says it
 
 
 def test_write_results_makes_every_file(tmp_path):
