@@ -133,6 +133,13 @@ def describes_a_new_mission(msg) -> bool:
         mavlink.MISSION_STATE_PAUSED)
 
 
+def seq_or_before(watch: "Watch") -> int:
+    """The item the vehicle reports for the new mission, -1 before it reports one (on the ground
+    before the start; a track's rows are then never taken for any item of it)."""
+    seq = watch.mission_seq
+    return -1 if seq is None else int(seq)
+
+
 MISSION_STREAMS = {"GLOBAL_POSITION_INT": 10.0, "MISSION_CURRENT": 4.0, "SYSTEM_TIME": 1.0, "EXTENDED_SYS_STATE": 1.0}
 
 

@@ -19,7 +19,7 @@ from uavloc_gcs.scenario import loads_scenario
 from uavloc_gcs.search.orbit import ORBIT_FORM, OrbitLook, look_mission, orbit_speed_m_s
 
 from . import harness
-from .flying import fly_to_its_return
+from .flying import fly_to_its_return, seq_or_before as _seq
 
 ALT_M = 30.0  # the look's height (the default look floor)
 TRANSIT_M = 50.0  # the shipped forms' transit altitude: a 20 m descent and climb, about 25 s of flight
@@ -103,7 +103,7 @@ async def _fly(sitl, kind: str, wire, looks) -> list[tuple]:
         hb = await link.wait_heartbeat(sitl.sysid, timeout_s=30)
         flown_wall = await fly_to_its_return(
             link, hb.get_srcSystem(), flavour_for(hb.autopilot), wire,
-            lambda msg, w: rows.append((msg.time_boot_ms / 1000.0, msg.lat / 1e7, msg.lon / 1e7, w.mission_seq,
+            lambda msg, w: rows.append((msg.time_boot_ms / 1000.0, msg.lat / 1e7, msg.lon / 1e7, _seq(w),
                                         msg.relative_alt / 1000.0)),
             what="the orbit's end", timeout_s=400)
     print(f"{kind}: mission to the orbit's end in {flown_wall:.0f} wall s")

@@ -19,7 +19,7 @@ from uavloc_gcs.scenario import loads_scenario
 from uavloc_gcs.search import pod, pod_plan
 
 from . import harness
-from .flying import fly_to_its_return
+from .flying import fly_to_its_return, seq_or_before as _seq
 
 ALT_M = 30.0
 
@@ -106,6 +106,6 @@ async def _fly(sitl, sc, kind):
         flown_wall = await fly_to_its_return(
             link, system, flavour, wire,
             lambda msg, w: rows.append((msg.time_boot_ms / 1000.0, msg.lat / 1e7, msg.lon / 1e7,
-                                        msg.relative_alt / 1000.0, w.mission_seq)),
+                                        msg.relative_alt / 1000.0, _seq(w))),
             what="the scan's end", timeout_s=600)
     return rows, flown_wall, limits, (flown_sc, plan, pp, wire)
