@@ -12,6 +12,7 @@ import subprocess
 import sys
 import threading
 import time
+from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
@@ -34,6 +35,38 @@ pytestmark = [pytest.mark.skipif(
 FLAGS = ("--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
          "--disable-background-networking", "--disable-component-update", "--disable-sync",
          "--disable-dev-shm-usage", "--window-size=1400,900")
+
+
+@contextmanager
+def _served(feed, profile: Path):
+    """A live-map server for ``feed`` on its own event loop in a thread, and a headless Chromium;
+    yields (server, driver); stops both (pass or fail)."""
+    import asyncio
+
+    from uavloc_gcs.service.web import MapServer, WebOptions
+
+    loop = asyncio.new_event_loop()
+    started = threading.Event()
+    box: dict = {}
+
+    async def serve():
+        box["server"] = await MapServer(feed, WebOptions(port=0, period_s=0.2)).start()
+        started.set()
+
+    thread = threading.Thread(target=lambda: (loop.run_until_complete(serve()), loop.run_forever()), daemon=True)
+    thread.start()
+    driver = None
+    try:
+        assert started.wait(30), "the map server started"
+        driver = _browser(profile)
+        yield box["server"], driver
+    finally:
+        if driver is not None:
+            driver.quit()
+        if "server" in box:
+            asyncio.run_coroutine_threadsafe(box["server"].stop(), loop).result(30)
+        loop.call_soon_threadsafe(loop.stop)
+        thread.join(10)
 
 
 def _browser(profile: Path):

@@ -6,15 +6,13 @@ vehicle waiting: no search is needed to press a button."""
 
 from __future__ import annotations
 
-import asyncio
 import os
-import threading
 
 from tests.e2e_helpers import small_scenario
-from tests.uavloc_gcs.service.test_web_browser import _browser, _wait, pytestmark  # noqa: F401
+from tests.uavloc_gcs.service.test_web_browser import _served, _wait, pytestmark  # noqa: F401
 from uavloc_gcs.service.liveview import StatusSnapshot, VehicleStatus
 from uavloc_gcs.service.store import PACK_FRESH_REQUEST, Store, StoreReader
-from uavloc_gcs.service.web import MapFeed, MapServer, WebOptions
+from uavloc_gcs.service.web import MapFeed
 
 
 def test_the_fresh_pack_button_asks_once_and_records_the_operators_word(tmp_path):
@@ -24,49 +22,31 @@ def test_the_fresh_pack_button_asks_once_and_records_the_operators_word(tmp_path
     store.flush()
     snap = StatusSnapshot(20.0, [VehicleStatus(1, "waiting for pack", "LAND", 12.0),
                                  VehicleStatus(2, "localizing", "AUTO", 80.0)], [], 0, 15.0, 1)
-    loop = asyncio.new_event_loop()
-    started = threading.Event()
-    box: dict = {}
-
-    async def serve():
-        box["server"] = await MapServer(MapFeed(sc, store.path, snapshot=lambda: snap),
-                                        WebOptions(port=0, period_s=0.2)).start()
-        started.set()
-
     def requests():
         with StoreReader(store.path) as rd:
             return [e.vehicle for e in rd.events(PACK_FRESH_REQUEST)]
 
-    thread = threading.Thread(target=lambda: (loop.run_until_complete(serve()), loop.run_forever()), daemon=True)
-    thread.start()
-    driver = None
     try:
-        assert started.wait(30), "the map server started"
-        driver = _browser(tmp_path / "chromium-profile")
-        driver.get(box["server"].url)
+        with _served(MapFeed(sc, store.path, snapshot=lambda: snap), tmp_path / "chromium-profile") as (server, driver):
+            driver.get(server.url)
 
-        def buttons():
-            return driver.execute_script(
-                "return Array.from(document.querySelectorAll('#vehicles button.fresh'))"
-                ".map(b => [b.getAttribute('data-vehicle'), b.textContent])")
+            def buttons():
+                return driver.execute_script(
+                    "return Array.from(document.querySelectorAll('#vehicles button.fresh'))"
+                    ".map(b => [b.getAttribute('data-vehicle'), b.textContent])")
 
-        assert _wait("the fresh-pack button", buttons, 60) == [["1", "fresh pack fitted"]]  # not vehicle 2's row
-        click = "document.querySelector('#vehicles button.fresh[data-vehicle=\"1\"]').click()"
-        driver.execute_script(click)
-        assert _wait("the button asking to be sure", lambda: buttons() == [["1", "sure? click again"]], 10)
-        assert requests() == []  # one click records nothing
-        if os.environ.get("UAVLOC_WEB_SCREENSHOT"):
-            driver.save_screenshot(os.environ["UAVLOC_WEB_SCREENSHOT"])
-        driver.execute_script(click)
-        said = _wait("the server's sentence under the button", lambda: driver.execute_script(
-            "const s = document.querySelector('#vehicles tr[data-vehicle=\"1\"] .said'); return s && s.textContent"), 20)
-        assert said.startswith("vehicle 1: fresh pack recorded"), said
-        assert requests() == [1]
+            assert _wait("the fresh-pack button", buttons, 60) == [["1", "fresh pack fitted"]]  # not vehicle 2's row
+            click = "document.querySelector('#vehicles button.fresh[data-vehicle=\"1\"]').click()"
+            driver.execute_script(click)
+            assert _wait("the button asking to be sure", lambda: buttons() == [["1", "sure? click again"]], 10)
+            assert requests() == []  # one click records nothing
+            if os.environ.get("UAVLOC_WEB_SCREENSHOT"):
+                driver.save_screenshot(os.environ["UAVLOC_WEB_SCREENSHOT"])
+            driver.execute_script(click)
+            said = _wait("the server's sentence under the button", lambda: driver.execute_script(
+                "const s = document.querySelector('#vehicles tr[data-vehicle=\"1\"] .said'); return s && s.textContent"),
+                20)
+            assert said.startswith("vehicle 1: fresh pack recorded"), said
+            assert requests() == [1]
     finally:
-        if driver is not None:
-            driver.quit()
-        if "server" in box:
-            asyncio.run_coroutine_threadsafe(box["server"].stop(), loop).result(30)
-        loop.call_soon_threadsafe(loop.stop)
-        thread.join(10)
         store.close()

@@ -4,16 +4,14 @@ server alone, fed a store with a short track: no search is needed to draw the gr
 
 from __future__ import annotations
 
-import asyncio
 import os
 import shutil
-import threading
 
-from tests.uavloc_gcs.service.test_web_browser import _browser, _shown, _wait, pytestmark  # noqa: F401
+from tests.uavloc_gcs.service.test_web_browser import _served, _shown, _wait, pytestmark  # noqa: F401
 from uavloc_gcs.examples import scenario_path
 from uavloc_gcs.scenario import load_scenario
 from uavloc_gcs.service.store import Store, TelemetryRow
-from uavloc_gcs.service.web import MapFeed, MapServer, WebOptions
+from uavloc_gcs.service.web import MapFeed
 
 
 def test_the_live_map_draws_the_terrain_contours_under_the_area(tmp_path):
@@ -27,42 +25,24 @@ def test_the_live_map_draws_the_terrain_contours_under_the_area(tmp_path):
     store.add_telemetry(rows)
     store.flush()
 
-    loop = asyncio.new_event_loop()
-    started = threading.Event()
-    box: dict = {}
-
-    async def serve():
-        box["server"] = await MapServer(MapFeed(sc, store.path), WebOptions(port=0, period_s=0.2)).start()
-        started.set()
-
-    thread = threading.Thread(target=lambda: (loop.run_until_complete(serve()), loop.run_forever()), daemon=True)
-    thread.start()
-    driver = None
     try:
-        assert started.wait(30), "the map server started"
-        driver = _browser(tmp_path / "chromium-profile")
-        driver.get(box["server"].url)
-        lines = _wait("contour lines on the map", lambda: _shown(driver, "svg g.terrain .contour"), 60)
-        levels = sorted({float(c["data-level"]) for c in lines})
-        # the Ammonoosuc flank rises some 400 m across the area: several round levels
-        assert len(levels) >= 4 and levels[-1] - levels[0] >= 200.0, levels
-        assert all(lv % 10 == 0 for lv in levels), levels
-        labels = _shown(driver, "svg g.terrain text.clabel")  # each line says its height
-        assert {float(t["data-level"]) for t in labels} == set(levels)
-        text = driver.execute_script("return Array.from(document.querySelectorAll('svg text.clabel'))"
-                                     ".map(t => t.textContent)")
-        assert f"{round(levels[0])} m" in text, text
-        assert _shown(driver, "svg polygon.area") and _shown(driver, "svg polyline.track")
-        shot = tmp_path / "live_map_terrain.png"
-        driver.save_screenshot(str(shot))
-        assert shot.read_bytes()[:4] == b"\x89PNG"
-        if os.environ.get("UAVLOC_WEB_SCREENSHOT"):
-            shutil.copy(shot, os.environ["UAVLOC_WEB_SCREENSHOT"])
+        with _served(MapFeed(sc, store.path), tmp_path / "chromium-profile") as (server, driver):
+            driver.get(server.url)
+            lines = _wait("contour lines on the map", lambda: _shown(driver, "svg g.terrain .contour"), 60)
+            levels = sorted({float(c["data-level"]) for c in lines})
+            # the Ammonoosuc flank rises some 400 m across the area: several round levels
+            assert len(levels) >= 4 and levels[-1] - levels[0] >= 200.0, levels
+            assert all(lv % 10 == 0 for lv in levels), levels
+            labels = _shown(driver, "svg g.terrain text.clabel")  # each line says its height
+            assert {float(t["data-level"]) for t in labels} == set(levels)
+            text = driver.execute_script("return Array.from(document.querySelectorAll('svg text.clabel'))"
+                                         ".map(t => t.textContent)")
+            assert f"{round(levels[0])} m" in text, text
+            assert _shown(driver, "svg polygon.area") and _shown(driver, "svg polyline.track")
+            shot = tmp_path / "live_map_terrain.png"
+            driver.save_screenshot(str(shot))
+            assert shot.read_bytes()[:4] == b"\x89PNG"
+            if os.environ.get("UAVLOC_WEB_SCREENSHOT"):
+                shutil.copy(shot, os.environ["UAVLOC_WEB_SCREENSHOT"])
     finally:
-        if driver is not None:
-            driver.quit()
-        if "server" in box:
-            asyncio.run_coroutine_threadsafe(box["server"].stop(), loop).result(30)
-        loop.call_soon_threadsafe(loop.stop)
-        thread.join(10)
         store.close()
