@@ -58,6 +58,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--elicitation", type=number(float, min=0.0, max=1000.0), default=None, metavar="HZ",
                         help="an on-board access point that makes phones in range answer at HZ frames a second "
                              "(emission.elicitation_rate_hz; default: the scenario's)")
+    parser.add_argument("--mimicry", type=number(float, min=0.0, max=1.0), default=None, metavar="SHARE",
+                        help="share of phones that know a network the access point offers and join it "
+                             "(emission.mimicry_share; default: the scenario's)")
+    parser.add_argument("--join", choices=("scan", "in-reach"), default=None,
+                        help="when a phone starts answering the access point: at its next burst within reach "
+                             "(scan) or on entering reach (in-reach, the model before issue 39's two mechanisms) "
+                             "(emission.elicitation_join; default: the scenario's)")
     parser.add_argument("--packs", type=_packs, default=(1,), metavar="N[,N...]",
                         help="packs per vehicle (fleet.batteries) of uavloc's and the lawnmower's rows, a comma list, "
                              "e.g. 1,3 (default 1; the paper's plan flies one)")
@@ -111,8 +118,15 @@ def label(plan: str, packs: int, findmy: float | None = None) -> str:
 def overrides(args: argparse.Namespace) -> dict:
     """The scenario sections ``--elicitation`` and ``--trapped`` replace."""
     out: dict = {}
+    emission = {}
     if getattr(args, "elicitation", None) is not None:
-        out["emission"] = {"elicitation_rate_hz": float(args.elicitation)}
+        emission["elicitation_rate_hz"] = float(args.elicitation)
+    if getattr(args, "mimicry", None) is not None:
+        emission["mimicry_share"] = float(args.mimicry)
+    if getattr(args, "join", None) is not None:
+        emission["elicitation_join"] = args.join
+    if emission:
+        out["emission"] = emission
     if getattr(args, "look_height", None) is not None:
         out["search"] = {"look_height_m": float(args.look_height)}
     if getattr(args, "trapped", False):
@@ -221,6 +235,7 @@ def table(rows: list[dict], runs: int) -> list[str]:
 
 def main(args: argparse.Namespace) -> int:
     from uavloc_gcs.examples import scenario_path
+    from uavloc_gcs.scenario import load_scenario
 
     scenario_file = str(scenario_path(args.scenario))
     seeds = [args.seed + k for k in range(args.runs)]
@@ -234,7 +249,12 @@ def main(args: argparse.Namespace) -> int:
         for row in pool.map(_fly, jobs):
             rows.append(row)
             bar.step(f"{row['label']} world {row['seed']}")
-    extra = "".join([f", access point {args.elicitation:g} Hz" if args.elicitation is not None else "",
+    ap = ""
+    if args.elicitation:
+        em = load_scenario(scenario_file).replace(**changes).emission
+        ap = (f", access point {args.elicitation:g} Hz joined by {100 * em.mimicry_share:.0f} % of the phones "
+              + ("at a burst within reach" if em.elicitation_join == "scan" else "on entering reach"))
+    extra = "".join([ap,
                      f", looks at {args.look_height:g} m" if getattr(args, "look_height", None) is not None else "",
                      ", trapped (static) people" if args.trapped else ""])
     print(f"the search for real phones on '{args.scenario}'{extra}: {args.people} people, {args.runs} paired world(s) "

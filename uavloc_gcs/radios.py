@@ -57,7 +57,8 @@ def _ble_view(sc):
     return sc.replace(
         channel={"reference_power_dbm": ch.reference_power_dbm + em.ble_power_offset_db,
                  "receiver_sensitivity_dbm": ch.ble_receiver_sensitivity_dbm},
-        emission={"elicitation_rate_hz": 1.0 / em.ble_interval_s, "findmy_share": 0.0},
+        emission={"elicitation_rate_hz": 1.0 / em.ble_interval_s, "findmy_share": 0.0,
+                  "mimicry_share": 1.0, "elicitation_join": "in-reach"},
         search={"look_height_m": look_floor_m(sc)})
 
 

@@ -143,8 +143,9 @@ class EmissionSpec:
     """How phones transmit (SPEC 1.1). ``continuous`` is the paper's world: every phone sends
     ``channel.samples_per_slot`` frames per slot, forever, under one address. ``probe-bursts`` is the
     field world: Wi-Fi probe-request bursts at random intervals under changing random addresses.
-    ``elicitation_rate_hz`` > 0 models an on-board access point that makes phones in range answer at
-    that rate.
+    ``elicitation_rate_hz`` > 0 models an on-board access point that mimics networks phones know:
+    the ``mimicry_share`` of phones join it at their next probe burst within its reach and then
+    answer at that rate while in reach.
 
     Burst parameters (used by ``probe-bursts`` only; defaults are the fit to public captures, see
     sim_link/world/emission.py and docs/science/world.md): every phone has a quantile u ~ U(0, 1)
@@ -159,6 +160,18 @@ class EmissionSpec:
 
     model: Literal["continuous", "probe-bursts"] = "continuous"
     elicitation_rate_hz: float = 0.0
+    # Known-network mimicry (Wi2SAR, MobiCom '26): the on-board access point offers networks phones
+    # know; a phone joins at its next scan (a probe burst) sent within the access point's reach,
+    # then sends frames at elicitation_rate_hz while it stays within reach; leaving it drops the
+    # association (a new scan in reach joins again). The share of phones that know a network the
+    # vehicle offers: 1 is Wi2SAR's trials (every phone was discovered); no population share is
+    # published, so a field result states the share it assumes (a team that knows a missing
+    # person's home network has 1; phones of unknown people fewer).
+    mimicry_share: float = 1.0
+    # "scan" (the above: a phone associates at a burst sent within reach) or "in-reach": every
+    # phone of the share answers from the moment it is within reach (the model before issue 39's
+    # two mechanisms; also how the BLE view, uavloc_gcs/radios.py, models a beacon's advertising).
+    elicitation_join: Literal["scan", "in-reach"] = "scan"
     # The same numbers as sim_link/world/emission.py's fitted constants (a test keeps them equal).
     burst_gap_median_min_s: float = 20.0
     burst_gap_median_max_s: float = 135.0
@@ -739,6 +752,10 @@ def _check_emission(sc: Scenario) -> None:
                "and [channel] environment", sc, "emission.findmy_share")
     _check(em.elicitation_rate_hz >= 0, f"must not be negative, got {em.elicitation_rate_hz} Hz", sc,
            "emission.elicitation_rate_hz")
+    _check(em.elicitation_join in ("scan", "in-reach"), f"is \"scan\" or \"in-reach\", got {em.elicitation_join!r}",
+           sc, "emission.elicitation_join")
+    _check(0.0 <= em.mimicry_share <= 1.0, f"is a share of the phones, between 0 and 1, got {em.mimicry_share}", sc,
+           "emission.mimicry_share")
     _check(em.elicitation_rate_hz <= 1000, f"{em.elicitation_rate_hz} Hz is more than any phone answers "
            "(at most 1000)", sc, "emission.elicitation_rate_hz")
     for key in ("burst_gap_median_min_s", "burst_gap_median_max_s", "burst_gap_p90_min_s", "burst_gap_p90_max_s",

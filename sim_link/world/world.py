@@ -46,6 +46,9 @@ from .people import Tracks, constant_velocity_tracks, make_tracks
 # spawn keys of the independent random streams derived from the seed
 _PEOPLE, _IDS, _TX, _VEHICLE, _TRAITS, _BURSTS, _ELICIT = 0, 1, 2, 3, 4, 5, 6
 _BLE = 10  # (7..9: sim_link/world/beacons.py)
+_JOIN = 11  # which phones join the mimicked network (emission.mimicry_share)
+# an association lapses when a vehicle's hearing calls are further apart than this [s]
+_ASSOCIATION_TIMEOUT_S = 10.0
 
 
 class World:
@@ -83,6 +86,8 @@ class World:
         self.tx_offset_db = spread * self._rng(_TX).standard_normal(n) if spread > 0 else np.zeros(n)
         self._vehicles: dict[int, ShadowingState] = {}
         self._elicit_rngs: dict[int, np.random.Generator] = {}
+        # per vehicle, the phones associated with its access point at the end of its last call
+        self._joined: dict[int, np.ndarray] = {}
         ch = scenario.channel
         self.sensitivity_dbm = ch.receiver_sensitivity_dbm
         self.listen_channels = np.array(ch.listen_channel_list, dtype=int)
@@ -92,6 +97,9 @@ class World:
         if self.emission_model == "probe-bursts":
             self.emission = ProbeBursts(BurstParams.from_scenario(scenario), n, self._rng(_TRAITS),
                                         lambda i: self._rng(_BURSTS, i))
+        # the phones that know a network the on-board access point offers (their own stream: the
+        # bursts are drawn exactly as without an access point)
+        self.joins = self._rng(_JOIN).random(n) < scenario.emission.mimicry_share
         # Bluetooth LE beacons of a share of the phones (emission.findmy_share, issue 39): their own
         # link budget (uavloc_gcs.radios.ble_view), path memory and random streams, so the Wi-Fi
         # world is drawn exactly as without them (paired comparisons)
@@ -253,11 +261,13 @@ class World:
         odometer = np.cumsum(np.concatenate([[state.odometer_m], steps]))[1:]  # (N,) distance flown
         frames = self.emission.frames(float(t[0]), float(t[-1]) + slot_s)
         slot = np.searchsorted(t, frames.t_s, side="right") - 1
-        inside = (slot >= 0) & (frames.t_s < t[np.maximum(slot, 0)] + slot_s)
-        inside &= np.isin(frames.channel, self.listen_channels)
+        sent = (slot >= 0) & (frames.t_s < t[np.maximum(slot, 0)] + slot_s)
+        # a scan (a burst on any channel) is when a phone finds the access point's network
+        scans = (frames.person[sent], slot[sent])
+        inside = sent & np.isin(frames.channel, self.listen_channels)
         frames, slot = frames.take(inside), slot[inside]
         if self.elicitation_rate_hz > 0:
-            frames, slot = self._add_elicited(vehicle, t, xyz, frames, slot)
+            frames, slot = self._add_elicited(vehicle, state, t, xyz, frames, slot, scans)
         state.last_t_s, state.last_xyz_m, state.odometer_m = float(t[-1]), xyz[-1].copy(), float(odometer[-1])
         wifi = self._frames_heard(vehicle, state, t, xyz, odometer, frames, slot)
         if self.beacons is None:
@@ -344,10 +354,13 @@ class World:
         it is the 50 % hearing range of :meth:`hearing_range_m`."""
         return self.hearing_range_m()
 
-    def _add_elicited(self, vehicle: int, t: np.ndarray, xyz: np.ndarray, frames: Frames, slot: np.ndarray):
-        """Elicited frames: a Poisson stream at ``elicitation_rate_hz`` from every phone within
-        :meth:`elicitation_range_m` of the vehicle, under the phone's per-network address, on the
-        access point's channel (the first listened channel)."""
+    def _add_elicited(self, vehicle: int, state: ShadowingState, t: np.ndarray, xyz: np.ndarray, frames: Frames,
+                      slot: np.ndarray, scans: tuple[np.ndarray, np.ndarray]):
+        """Elicited frames: a Poisson stream at ``elicitation_rate_hz`` from every phone associated
+        with the vehicle's access point, under the phone's per-network address, on the access
+        point's channel (the first listened channel). A phone that knows the network (``joins``,
+        the ``emission.mimicry_share``) associates at a scan (one of its bursts) sent within
+        :meth:`elicitation_range_m` and stays associated while it remains within it."""
         rng = self._elicit_rngs.get(vehicle)
         if rng is None:
             rng = self._elicit_rngs[vehicle] = self._rng(_ELICIT, vehicle)
@@ -355,7 +368,16 @@ class World:
         people = self.tracks.positions(t)  # (N, S, 2)
         dz = xyz[:, 2:3] if self.dem is None else xyz[:, 2:3] - self.ground_above_launch_m(people)
         d3 = np.sqrt(np.sum((people - xyz[:, None, :2]) ** 2, axis=2) + dz ** 2)
-        count = rng.poisson(self.elicitation_rate_hz * slot_s, size=d3.shape) * (d3 <= self.elicitation_range_m())
+        reach = d3 <= self.elicitation_range_m()
+        before = self._joined.get(vehicle)
+        if before is None or t[0] - state.last_t_s > _ASSOCIATION_TIMEOUT_S:
+            before = np.zeros(len(self), dtype=bool)
+        if self.scenario.emission.elicitation_join == "in-reach":
+            joined = reach & self.joins[None, :]
+        else:
+            joined = associated(reach, scans, self.joins, before)
+        self._joined[vehicle] = joined[-1]
+        count = rng.poisson(self.elicitation_rate_hz * slot_s, size=d3.shape) * joined
         k, person = np.nonzero(count)
         reps = count[k, person]
         k, person = np.repeat(k, reps), np.repeat(person, reps)
@@ -376,6 +398,27 @@ class World:
 
     def _rng(self, *key: int) -> np.random.Generator:
         return np.random.default_rng(np.random.SeedSequence(self.seed, spawn_key=key))
+
+
+def associated(reach: np.ndarray, scans: tuple[np.ndarray, np.ndarray], joins: np.ndarray,
+               before: np.ndarray) -> np.ndarray:
+    """Which phones are associated with an access point in each slot, (N, S) bool.
+
+    ``reach`` (N, S): the phone is within the access point's reach; ``scans``: (person, slot) of
+    the phone's bursts; ``joins`` (S,): the phone knows the network; ``before`` (S,): associated at
+    the end of the previous slots. A phone associates at a scan within reach (if it joins) and stays
+    associated until the first slot out of reach."""
+    n = len(reach)
+    seed = np.zeros_like(reach)
+    person, slot = scans
+    seed[slot, person] = True
+    seed &= reach & joins[None, :]
+    seed[0] |= before & reach[0]
+    run_start = reach.copy()
+    run_start[1:] &= ~reach[:-1]
+    c = np.cumsum(seed, axis=0)
+    base = np.maximum.accumulate(np.where(run_start, c - seed, 0), axis=0)
+    return reach & (c - base > 0)
 
 
 def _unique_ids(n: int, rng: np.random.Generator) -> np.ndarray:

@@ -46,6 +46,9 @@ def test_an_access_point_and_trapped_people_are_options_of_the_worlds():
     sc = load_scenario(scenario_path("field")).replace(**ch)
     assert sc.emission.elicitation_rate_hz == 2.0 and sc.people.max_speed_m_s == 0.0
     assert sc.simulation.motion == "static"
+    em = load_scenario(scenario_path("field")).replace(
+        **field.overrides(p.parse_args(["--elicitation", "2", "--mimicry", "0.5", "--join", "in-reach"]))).emission
+    assert (em.elicitation_rate_hz, em.mimicry_share, em.elicitation_join) == (2.0, 0.5, "in-reach")
 
 
 def test_packs_and_plans_options_are_checked_in_one_sentence():

@@ -129,6 +129,8 @@ def test_polygon_is_counter_clockwise_and_launch_defaults_to_first_corner():
     [
         ("[emission]\nmodel = 'beacons'\n", "emission.model", "expected one of"),
         ("[emission]\nelicitation_rate_hz = -1\n", "emission.elicitation_rate_hz", "must not be negative"),
+        ("[emission]\nmimicry_share = 1.5\n", "emission.mimicry_share", "between 0 and 1"),
+        ("[emission]\nelicitation_join = \"always\"\n", "emission.elicitation_join", "in-reach"),
         ("[emission]\nburst_gap_median_min_s = 0\n", "emission.burst_gap_median_min_s", "must be positive"),
         ("[emission]\nburst_gap_median_max_s = -5\n", "emission.burst_gap_median_max_s", "must be positive"),
         ("[emission]\nburst_gap_median_max_s = 10\n", "emission.burst_gap_median_max_s", "is below"),

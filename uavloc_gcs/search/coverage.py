@@ -65,10 +65,10 @@ class _Windows:
     last 30-90 min), so classes end weighted by their active share (:meth:`weights`)."""
 
     def __init__(self, sc):
-        from .pod import BurstTiming, _active_tables  # noqa: PLC0415
+        from .pod import BurstTiming, _active_tables, elicited_stream  # noqa: PLC0415
 
         self.bt = BurstTiming.from_scenario(sc)
-        self.continuous = self.bt.continuous or sc.emission.elicitation_rate_hz > 0
+        self.continuous = self.bt.continuous or elicited_stream(sc)
         self.slot_s = sc.channel.slot_s
         self.classes = 1 if self.continuous else len(self.bt.quantiles)
         if not self.continuous:
@@ -104,14 +104,14 @@ class _Hearing:
     not (the paper's gate)."""
 
     def __init__(self, sc):
-        from .pod import _hearing  # noqa: PLC0415
+        from .pod import _hearing, elicited_stream  # noqa: PLC0415
 
         h = _hearing(sc)
         self.d = np.asarray(h.d_grid, float)
         self.p = np.asarray(h.table, float) @ (np.asarray(h.weights, float) / np.sum(h.weights))
         self.reach_m = float(h.max_range_m)
         self.two_d = h.z_grid is not None  # air-to-ground: over (horizontal distance, height)
-        if sc.emission.model == "continuous" or sc.emission.elicitation_rate_hz > 0:
+        if sc.emission.model == "continuous" or elicited_stream(sc):
             self.p = (self.p > 0.5).astype(float)
             if not self.two_d:
                 inside = self.d[self.p > 0]

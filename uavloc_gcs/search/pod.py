@@ -418,7 +418,7 @@ def _hearing_table(sc) -> _Hearing:
     step = 2.0
     d = np.arange(0.0, 5000.0 + step, step)
     cols, weights, rates = [], [], []
-    elicit = em.model != "continuous" and em.elicitation_rate_hz > 0 and channel.receiver_sensitivity_dbm is not None
+    elicit = elicited_stream(sc)
     a2g = A2GChannel.from_scenario(sc)
     if a2g is not None:  # tables over (horizontal distance, height): the elevation decides line of sight
         types = [_frames_nodes(sc, m) for m in med]
@@ -439,6 +439,19 @@ def _hearing_table(sc) -> _Hearing:
     keep = d <= max_range + step
     el = np.column_stack(rates)[keep].astype(np.float32) if elicit else None
     return _Hearing(d[keep], table[keep], np.asarray(weights), max_range, el)
+
+
+def elicited_stream(sc) -> bool:
+    """Whether the POD counts elicited frames as detections: only for a stream every phone sends
+    from the moment it is within reach (``emission.elicitation_join = "in-reach"``, every phone:
+    what a beacon's advertising is, ``radios.ble_view``). A mimicked network (``"scan"``) is joined
+    at one of the phone's bursts sent within reach, a burst the POD already counts, and only by
+    the ``emission.mimicry_share`` of phones: the stream that follows places a phone already
+    detected, so the POD counts bursts only (it may understate what the access point adds, never
+    overstate it)."""
+    em = sc.emission
+    return (em.model != "continuous" and em.elicitation_rate_hz > 0 and sc.channel.receiver_sensitivity_dbm is not None
+            and em.elicitation_join == "in-reach" and em.mimicry_share >= 1.0)
 
 
 def elicitation_range_m(sc) -> float:

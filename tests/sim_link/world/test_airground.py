@@ -191,9 +191,11 @@ def test_air_to_ground_world_is_deterministic_in_pieces(field):
 
 def test_without_an_environment_the_field_world_is_as_before_issue_41(field):
     """Golden numbers from the code before the air-to-ground channel (commit dda46b4): field.toml's
-    log-distance channel of then, elicitation on, one vehicle's slant flight."""
+    log-distance channel of then, elicitation on (as it was then: every phone answers within reach,
+    the named variant ``elicitation_join = "in-reach"``), one vehicle's slant flight."""
     sc = field.replace(channel={"environment": None, "path_loss_exponent": 2.3, "reference_power_dbm": -40.0},
-                       simulation={"tx_power_spread_db": 3.0}, emission={"elicitation_rate_hz": 0.5})
+                       simulation={"tx_power_spread_db": 3.0},
+                       emission={"elicitation_rate_hz": 0.5, "elicitation_join": "in-reach"})
     w = World(sc, seed=7, people=12)
     t = np.arange(0.0, 300.0, 0.025)
     s = w.hear_track(1, t, np.column_stack([3.5 * t, 250.0 + 0.2 * t, np.full_like(t, 100.0)]))

@@ -230,20 +230,47 @@ def test_burst_world_is_deterministic_and_slot_by_slot_equals_at_once(field, cor
     assert not np.array_equal(other.address[:5], whole.address[:5])
 
 
-def test_elicitation_adds_a_stream_while_the_vehicle_is_in_range(logdistance):
+def test_elicitation_adds_a_stream_from_the_first_scan_in_reach(logdistance):
+    """Known-network mimicry: the phone joins at its first burst sent within reach, then answers at
+    the rate asked; before it, nothing under its network address."""
     rate = 4.0
     sc = logdistance.replace(emission={"elicitation_rate_hz": rate}, simulation={"tx_power_spread_db": 0.0})
     # a phone that randomizes its probes' addresses, so that only the elicited frames carry its
     # network address (a stable phone probes under that address too): the first seed that draws one
     seed = next(k for k in range(1, 50) if World.with_people(sc, [[500.0, 300.0]], seed=k).emission.randomizes[0])
-    world, heard, t = _hover(sc, 0.0, 600.0, seed=seed)
+    world, heard, t = _hover(sc, 0.0, 1800.0, seed=seed)
+    first_scan = float(world.emission.frames(0.0, 1800.0).t_s[0])
+    assert first_scan < 1500.0  # the drawn phone scans within the hover (else the test says nothing)
     net = world.emission.network_address[0]
     el = heard.take(heard.address == net)
+    assert el.t_s.min() >= first_scan - sc.channel.slot_s
     p_heard = norm.cdf((-40.0 - 23.0 * 2.0 - sc.channel.receiver_sensitivity_dbm) / 4.0)  # 100 m overhead
-    assert el.n_samples.sum() == pytest.approx(rate * 600.0 * p_heard, rel=0.1)
+    assert el.n_samples.sum() == pytest.approx(rate * (1800.0 - first_scan) * p_heard, rel=0.1)
     assert np.all(el.channel == 1)
     far, heard_far, _ = _hover(sc, 1500.0, 600.0)
     assert np.sum(heard_far.address == far.emission.network_address[0]) == 0
+    # a phone that knows none of the offered networks never answers
+    none = logdistance.replace(emission={"elicitation_rate_hz": rate, "mimicry_share": 0.0})
+    world0, heard0, _ = _hover(none, 0.0, 1800.0, seed=seed)
+    assert not world0.joins[0] and np.sum(heard0.address == world0.emission.network_address[0]) == 0
+    # the named variant before the two mechanisms: the stream starts on entering reach
+    now = logdistance.replace(emission={"elicitation_rate_hz": rate, "elicitation_join": "in-reach"},
+                              simulation={"tx_power_spread_db": 0.0})
+    world1, heard1, _ = _hover(now, 0.0, 600.0, seed=seed)
+    assert np.sum(heard1.address == world1.emission.network_address[0]) > 0.9 * rate * 600.0 * p_heard
+
+
+def test_association_starts_at_a_scan_in_reach_and_ends_out_of_reach():
+    from sim_link.world.world import associated
+
+    reach = np.array([[1, 1, 1], [1, 1, 0], [1, 1, 1], [0, 1, 1], [1, 1, 1], [1, 1, 1]], dtype=bool)
+    # phone 0 scans at slot 1 and (out of reach) nowhere else: joined 1..2, dropped at 3, not back;
+    # phone 1 scans at slot 4 but does not know the network; phone 2 was joined before, leaves at 1,
+    # scans again at 5
+    scans = (np.array([0, 1, 2]), np.array([1, 4, 5]))
+    got = associated(reach, scans, np.array([True, False, True]), np.array([False, False, True]))
+    want = np.array([[0, 0, 1], [1, 0, 0], [1, 0, 0], [0, 0, 0], [0, 0, 0], [0, 0, 1]], dtype=bool)
+    assert np.array_equal(got, want)
 
 
 def test_paper_scan_hears_few_people_in_the_burst_world(paper):
