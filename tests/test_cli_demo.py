@@ -21,6 +21,9 @@ def test_demo_runs_to_the_end_and_writes_its_results(tmp_path):
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert "true error" in proc.stdout  # the results table, next to the simulated truth
     assert "All vehicles are home" in proc.stdout
+    # the statement is said once, after the table (issue 40 item 3: it was printed twice)
+    assert proc.stdout.count("All vehicles are home") == 1
+    assert "the search has ended; the results follow" in proc.stdout
     for name in ("people.csv", "people.geojson", "people.kml", "result.png", "search.sqlite", "uav1.tlog"):
         assert (out / name).stat().st_size > 0, name
     assert "live map:" not in proc.stdout  # --no-web keeps it headless

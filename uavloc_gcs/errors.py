@@ -63,7 +63,14 @@ class FileFormatError(UavlocError):
 
 
 class InfeasibleError(UavlocError):
-    """The requested scenario or plan cannot be satisfied (energy budget, unreachable target, ...)."""
+    """The requested scenario or plan cannot be satisfied (energy budget, unreachable target, ...).
+    ``target_id``: the one target to blame, if any; ``why``: the reason in that target's own terms
+    (for a person's row, which already says who and where)."""
+
+    def __init__(self, message: str, *, target_id=None, why: str | None = None):
+        super().__init__(message)
+        self.target_id = target_id
+        self.why = why
 
 
 class LinkError(UavlocError):

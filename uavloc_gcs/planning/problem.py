@@ -266,12 +266,14 @@ def check_reachable(problem: RoutingProblem) -> None:
             best = int(np.argmin(need[i] - max_len))
             v = problem.vehicles[best]
             packs = f" (and {v.pack_energy_j:.0f} J in each of {v.spare_packs} spare packs)" if v.spare_packs else ""
+            look = f" with its {t.service_s:.0f} s look" if t.service_s > 0 else ""
+            detail = (f"the best vehicle {v.id} needs {need[i, best]:.1f} m = {need[i, best] * e_per_m:.0f} J there "
+                      f"and home{look}, it has {v.energy_j:.0f} J{packs}")
             raise InfeasibleError(
                 f"target {t.id} at ({t.xy_m[0]:.1f}, {t.xy_m[1]:.1f}) m, radius {t.radius_m:.1f} m "
-                f"is out of reach: the best vehicle {v.id} needs "
-                f"{need[i, best]:.1f} m = {need[i, best] * e_per_m:.0f} J there and home"
-                f"{f' with its {t.service_s:.0f} s look' if t.service_s > 0 else ''}, "
-                f"it has {v.energy_j:.0f} J{packs}")
+                f"is out of reach: {detail}",
+                target_id=t.id,
+                why=f"a look at ({t.xy_m[0]:.0f}, {t.xy_m[1]:.0f}) m, radius then {t.radius_m:.0f} m: {detail}")
 
 
 def _home_visit_length_m(problem: RoutingProblem) -> np.ndarray:

@@ -723,13 +723,14 @@ class SearchPolicy:
                     for t in problem.targets:
                         if not self._defer_for_pack(problem, f"target {t.id} ", spare):
                             self._people[int(t.id)].gave_up = (
-                                f"no vehicle has the energy for a look that could locate it, even on a fresh pack ({exc})")
+                                f"no vehicle has the energy for a look that could locate it, even on a fresh pack "
+                                f"({getattr(exc, 'why', None) or exc})")
                     targets, result = [], None
                     break
                 if spare and self._defer_for_pack(problem, str(exc), spare):
                     targets = self._targets(t_s, flyable, None)
                     continue
-                if not self._drop_unreachable(problem, str(exc)):
+                if not self._drop_unreachable(problem, exc):
                     # no single person to blame (a vehicle cannot even get home): nobody can be
                     # looked at with the energy left, which a replan a tick later will not change
                     self._give_up_all(problem, str(exc))
@@ -909,12 +910,14 @@ class SearchPolicy:
                 return True
         return False
 
-    def _drop_unreachable(self, problem, message: str) -> bool:
-        """Give up the target named in an InfeasibleError; False if no target can be blamed."""
+    def _drop_unreachable(self, problem, exc: InfeasibleError) -> bool:
+        """Give up the target an InfeasibleError blames; False if it blames none. The person's
+        reason says why in its own terms (the row names the person; no internal id)."""
+        message = str(exc)
         for t in problem.targets:
-            if f"target {t.id} " in message:
+            if getattr(exc, "target_id", None) == t.id or f"target {t.id} " in message:
                 p = self._people[int(t.id)]
-                p.gave_up = f"no vehicle has the energy for a look that could locate it ({message})"
+                p.gave_up = f"no vehicle has the energy for a look that could locate it ({exc.why or message})"
                 log.info("emitter %s given up: %s", t.id, message)
                 return True
         return False

@@ -170,13 +170,14 @@ class Daemon(FleetPreparation, VehicleCommands, PackSwaps):
         return self.epoch_unix_s
 
     # -- events ----------------------------------------------------------------------------------
-    def _event(self, kind: str, text: str, vehicle: int | None = None) -> None:
+    def _event(self, kind: str, text: str, vehicle: int | None = None, *, view_text: str | None = None) -> None:
+        """Log and store an event and show it on the console view (``view_text`` instead, if given)."""
         t = self.now_s()
         log.info("%s: %s", kind, text)
         if self.store is not None:
             self.store.add_event(kind, text, t_s=t, vehicle=vehicle)
         if self.view is not None:
-            self.view.event(text, t)
+            self.view.event(text if view_text is None else view_text, t)
 
     # -- entry point -------------------------------------------------------------------------------
     async def run(self) -> SearchOutcome:
@@ -572,7 +573,10 @@ class Daemon(FleetPreparation, VehicleCommands, PackSwaps):
         if partial:
             text = f"{partial} {text}"
         text = " ".join([*(x.sentence() for x in in_air), text])  # a vehicle lost in the air is said first
-        self._event("end", text)
+        # the statement is said once on the console: after the table when a report follows it
+        # (service.run.run_search), here otherwise
+        follows = not partial and getattr(self.view, "report_follows", False)
+        self._event("end", text, view_text="the search has ended; the results follow" if follows else None)
         if not partial:  # a search stopped before its end can be resumed
             self.store.set_meta("finished", True)
         self.store.flush()

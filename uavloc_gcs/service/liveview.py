@@ -155,6 +155,7 @@ class LiveView:
         self._last_draw = -math.inf
         self._drawn_lines = 0
         self.labels = None  # a service.labels.PersonLabels: people shown as "P01 #17"
+        self.report_follows = False  # the final statement is printed after the results table
         self.frame = None  # the scenario's geo.LocalFrame: located people shown with lat/lon
 
     def update(self, snapshot: StatusSnapshot, *, force: bool = False) -> None:

@@ -292,7 +292,8 @@ def statement_for(people: Sequence[PersonResult], required_m: float, lost: Seque
     else:
         why = "; ".join(f"{p.name if p.label else f'person {p.emitter_id}'}: {p.reason or 'not located'}"
                         for p in missing)
-        text = f"{len(people) - len(missing)} of {len(people)} people located within {required_m:g} m; not located: {why}."
+        text = (f"{len(people) - len(missing)} of {len(people)} people heard located within {required_m:g} m; "
+                f"not located: {why}.")
     text += radio_note(people)
     if not fleet:
         return text

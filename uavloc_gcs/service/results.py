@@ -302,8 +302,10 @@ def results_table(people: Sequence[PersonResult], required_accuracy_m: float,
     n_ok = sum(p.located for p in people)
     from .outcome import radio_note  # noqa: PLC0415
 
-    lines.append(f"{n_ok} of {len(people)} people located within {required_accuracy_m:g} m (95 %)."
-                 + radio_note([p for p in people if p.state != "never heard"]))
+    heard = [p for p in people if p.state != "never heard"]
+    never = len(people) - len(heard)  # rows only a simulation has: its people no vehicle heard
+    lines.append(f"{n_ok} of {len(people)} people located within {required_accuracy_m:g} m (95 %)"
+                 + (f"; {len(heard)} heard, {never} never heard." if never else ".") + radio_note(heard))
     if n_ok:  # time is the figure (issue 38 item 4): located by 15, 30 and 60 minutes of mission time
         by = [sum(p.located and math.isfinite(p.fix_time_s) and p.fix_time_s <= m * 60.0 for p in people)
               for m in BY_MINUTES]

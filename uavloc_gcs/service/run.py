@@ -122,6 +122,7 @@ def run_search(scenario: Scenario, connections: Sequence[tuple[int, str]], optio
     if view is not None:
         view.labels = labels
         view.frame = scenario.frame
+        view.report_follows = on_result is not None  # the statement is printed once, after the table
     daemon = Daemon(scenario, connections, options, view=view)
     if on_daemon is not None:
         on_daemon(daemon)

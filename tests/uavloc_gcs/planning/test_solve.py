@@ -113,8 +113,29 @@ def test_unreachable_target_names_it_and_the_numbers():
     p = RoutingProblem((VehicleState("uav1", (0.0, 0.0), (0.0, 0.0), 5000.0),),
                        (Target("near", (50.0, 0.0), (0.0, 0.0), 10.0), Target("far", (2000.0, 0.0), (0.0, 0.0), 10.0)),
                        25.0)
-    with pytest.raises(InfeasibleError, match=r"target far .*radius 10\.0 m.*uav1.*3980\.0 m.*5000 J"):
+    with pytest.raises(InfeasibleError, match=r"target far .*radius 10\.0 m.*uav1.*3980\.0 m.*5000 J") as err:
         solve(p)
+    # the reason in the target's own terms, for a person's row (which says who): no id in it
+    assert err.value.target_id == "far" and "far" not in err.value.why
+    assert err.value.why.startswith("a look at (2000, 0) m, radius then 10 m: the best vehicle uav1 needs 3980.0 m")
+
+
+def test_a_person_given_up_for_energy_is_told_why_without_an_internal_id():
+    """The field demo's rows read "(target 6995899769478 at (955.6, 430.2) m, radius 86.2 m is out
+    of reach ...)" beside "P01 #06:5c:dc:1e:e2:86" (issue 40 item 3)."""
+    from types import SimpleNamespace
+
+    from uavloc_gcs.search.policy import SearchPolicy
+
+    p = RoutingProblem((VehicleState(2, (0.0, 0.0), (0.0, 0.0), 5000.0),),
+                       (Target(6995899769478, (2000.0, 0.0), (0.0, 0.0), 86.2),), 25.0)
+    with pytest.raises(InfeasibleError) as err:
+        solve(p)
+    person = SimpleNamespace(gave_up="")
+    me = SimpleNamespace(_people={6995899769478: person})
+    assert SearchPolicy._drop_unreachable(me, p, err.value)
+    assert "6995899769478" not in person.gave_up
+    assert person.gave_up.startswith("no vehicle has the energy for a look that could locate it (a look at (2000, 0) m")
 
 
 def test_vehicle_that_cannot_get_home():

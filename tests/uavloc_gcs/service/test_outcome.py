@@ -22,7 +22,7 @@ def test_statement_everyone_found_and_home():
 
 def test_statement_names_who_is_not_located_and_why_and_where_the_fleet_is():
     text = statement_for([_p(1, True), _p(2, False, "given up: not heard on 2 looks")], 15, [3], [], [2])
-    assert text.startswith("1 of 2 people located within 15 m; not located: person 2: given up: not heard on 2 looks.")
+    assert text.startswith("1 of 2 people heard located within 15 m; not located: person 2: given up: not heard on 2 looks.")
     assert "Lost contact with vehicle(s) 3." in text and "Vehicle(s) 2 returning home (RTL)" in text
     assert "All vehicles are home" not in text
 
