@@ -68,17 +68,20 @@ def main(argv=None) -> int:
     ap.add_argument("--people", type=int, default=400)
     ap.add_argument("--seeds", type=int, default=5)
     ap.add_argument("--elicitation", type=float, default=0.0, help="emission.elicitation_rate_hz [Hz]")
+    ap.add_argument("--join", choices=("scan", "in-reach"), default="scan",
+                    help="emission.elicitation_join: a phone joins at a burst within reach (scan, default) or "
+                         "answers from the moment it is within reach (in-reach)")
     ap.add_argument("--cases", default="steady,cold", help="steady, cold or both (default)")
     ap.add_argument("--altitude", default="100", help="flight height(s) above the phones [m], comma-separated")
     args = ap.parse_args(argv)
     sc = _strip(load_scenario("examples/field.toml"))
     if args.elicitation:
-        sc = sc.replace(emission={"elicitation_rate_hz": args.elicitation})
+        sc = sc.replace(emission={"elicitation_rate_hz": args.elicitation, "elicitation_join": args.join})
     slot = sc.channel.slot_s
     alts = [float(a) for a in args.altitude.split(",")]
     print(f"{args.people} static phones x {args.seeds} worlds, field.toml ({sc.channel.environment or 'log-distance'}"
           f" channel), one vehicle at 25 m/s, {', '.join(f'{a:g}' for a in alts)} m"
-          + (f", elicitation {args.elicitation:g} Hz" if args.elicitation else ""))
+          + (f", elicitation {args.elicitation:g} Hz ({args.join})" if args.elicitation else ""))
     print(f"{'case':<40} {'POD1 model':>10} {'heard>=1':>14} {'POD2 model':>10} {'heard>=2':>14}")
     for alt, (start_name, t0) in ((a, c) for a in alts for c in (("steady", 3 * 3600.0), ("cold", 0.0))):
         if start_name not in args.cases.split(","):

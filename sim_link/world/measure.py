@@ -102,6 +102,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--emission", choices=["continuous", "probe-bursts"], help="override emission.model")
     ap.add_argument("--speed", type=float, help="override fleet.speed_m_s [m/s] (energy budget lifted)")
     ap.add_argument("--elicitation", type=float, help="override emission.elicitation_rate_hz [Hz]")
+    ap.add_argument("--join", choices=("scan", "in-reach"), default="scan",
+                    help="emission.elicitation_join with --elicitation (default scan)")
     ap.add_argument("--people", type=int, default=50)
     ap.add_argument("--seeds", type=int, default=20)
     args = ap.parse_args(argv)
@@ -111,7 +113,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.emission:
         sc = sc.replace(emission={"model": args.emission})
     if args.elicitation is not None:
-        sc = sc.replace(emission={"elicitation_rate_hz": args.elicitation})
+        sc = sc.replace(emission={"elicitation_rate_hz": args.elicitation, "elicitation_join": args.join})
     if args.speed:
         sc = sc.replace(fleet={"speed_m_s": args.speed, "energy_budget_j": 1e9})
     runs = [scan_coverage(World(sc, seed=s, people=args.people)) for s in range(1, args.seeds + 1)]

@@ -217,6 +217,16 @@ def mean_p_heard(sc, radius_m: float, spread_m: float, *, draws: int = 300, seed
 _DWELL_CACHE: dict = {}
 
 
+JOIN_P = 0.6  # a look at a phone that joins the access point at a burst waits for one with this probability
+# (0.7 takes 415 s in the field world, 0.75 past MAX_DWELL_S: the population includes phones in long silences)
+
+
+def join_wait_s(sc) -> float:
+    """Seconds within reach of the access point in which the phone sends a burst (and so joins a
+    mimicked network, ``emission.elicitation_join = "scan"``) with probability JOIN_P."""
+    return dwell_s(sc, 1.0, 1, JOIN_P)
+
+
 def dwell_s(sc, p_heard: float, k: int = ORBIT_BURSTS, p: float = ORBIT_P) -> float:
     """Seconds on the circle to hear ``k`` bursts with probability ``p``: the window in which the
     phone sends k bursts with probability p (pod.BurstTiming.window_for), stretched by the share
@@ -318,6 +328,8 @@ def plan_orbit(sc, centre_xy_m, spread_m: float, autopilot: str | None = None,
     v = orbit_speed_m_s(form, r, sc.fleet.speed_m_s)
     if elicited(sc):
         r, v, dwell = _quickest_elicited_orbit(sc, form, spread, r, v)
+        if sc.emission.elicitation_join == "scan":  # the phone joins at its next burst: wait for it too
+            dwell = min(dwell + join_wait_s(sc), MAX_DWELL_S)
     else:
         dwell = dwell_s(sc, mean_p_heard(sc, r, spread), k, p)
     alt = sc.search.look_height_m  # None: the survey altitude, no descent (heights.changes_height)

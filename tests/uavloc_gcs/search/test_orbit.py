@@ -107,9 +107,14 @@ def test_elicited_phones_get_orbits_as_long_as_the_frames_the_accuracy_needs(fie
     (before issue 39 it made the look four times shorter, and its estimate overconfident)."""
     from uavloc_gcs.search import SearchPolicy
 
-    ap = field.replace(emission={"elicitation_rate_hz": 2.0}, search={"look_height_m": 30.0},
-                       people={"required_accuracy_m": 30.0})
+    ap = field.replace(emission={"elicitation_rate_hz": 2.0, "elicitation_join": "in-reach"},
+                       search={"look_height_m": 30.0}, people={"required_accuracy_m": 30.0})
     assert orbit.elicited(ap) and not orbit.elicited(field)
+    # a mimicked network is joined at the phone's next burst: the look waits for one as well
+    scan = orbit.plan_orbit(ap.replace(emission={"elicitation_join": "scan"}), (0.0, 0.0), 5.0)
+    wait = orbit.join_wait_s(ap)
+    assert 30.0 < wait < orbit.MAX_DWELL_S
+    assert scan.dwell_s == pytest.approx(min(orbit.plan_orbit(ap, (0.0, 0.0), 5.0).dwell_s + wait, orbit.MAX_DWELL_S))
     o2 = orbit.plan_orbit(ap, (0.0, 0.0), 5.0)
     # at least a whole turn, about a hundred frames (a fly-by at 25 m/s hears about 20)
     assert o2.dwell_s * o2.speed_m_s >= 2 * np.pi * o2.radius_m and o2.dwell_s * 2.0 > 80
