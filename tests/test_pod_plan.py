@@ -61,6 +61,14 @@ def test_reachable_target_is_met_in_the_least_time(small):
     assert all(v.energy_j <= small.usable_energy_j for v in res.plan.vehicles)
     assert res.scenario.fleet.speed_m_s == res.chosen.speed_m_s
     assert "POD1" in res.table() and "Chosen:" in res.summary()
+    # the lanes said are the lanes flown, as preview.png's subtitle says them (issue 40 item 3:
+    # "258 m lanes" in the summary beside "lanes 213 m apart" in the picture)
+    from uavloc_gcs.render.scan_plot import scan_figure
+
+    flown = f"lanes {res.plan.lane_spacing_m:.0f} m apart"
+    assert f"Chosen: {flown}" in res.summary()
+    fig = scan_figure(res.scenario, res.plan)
+    assert flown in " ".join(t.get_text() for a in fig.axes for t in a.texts)
 
 
 @pytest.mark.slow

@@ -83,7 +83,7 @@ class PodPlan:
         limit = self.scenario.search.time_limit_s
         within = "" if limit is None else f" within the search's {sortie_mod.minutes(limit)} (search.time_limit_s)"
         text = (f"The {f.vehicles} vehicles' {packs} cannot reach POD {self.target:g}{within}: the best scan "
-                f"({c.spacing_m:.0f} m lanes at {c.speed_m_s:g} m/s, {c.passes} pass{'es' if c.passes > 1 else ''}, "
+                f"({self.lanes_text()} at {c.speed_m_s:g} m/s, {c.passes} pass{'es' if c.passes > 1 else ''}, "
                 f"{_mmss(c.time_s)}{self._packs_words(c)}) reaches POD {c.pod1:.2f} for one heard burst and "
                 f"{c.pod2:.2f} for two, {short:.2f} short of the target")
         a = self.advice
@@ -92,6 +92,16 @@ class PodPlan:
         elif a is not None:
             text += f"; not even {a.scenario.fleet.batteries} packs per vehicle would reach it"
         return text + " (use --best-effort to plan it anyway)."
+
+    def lanes_text(self) -> str:
+        """The chosen scan's lanes as flown: "lanes 128 m apart" (the option's spacing is the widest
+        allowed; the area's width is split into whole lanes, so the flown ones are as close or closer,
+        as preview.png says)."""
+        flown = float(getattr(self.plan, "lane_spacing_m", self.chosen.spacing_m))
+        text = f"lanes {flown:.0f} m apart"
+        if abs(flown - self.chosen.spacing_m) >= 1.0:
+            text += f" (at most {self.chosen.spacing_m:.0f} m, narrowed to whole lanes across the area)"
+        return text
 
     def _packs_words(self, o: "PodOption") -> str:
         if self.scenario.fleet.batteries == 1:
@@ -123,7 +133,7 @@ class PodPlan:
                    _mmss(o.time_s), f"{o.energy_j / 1000:.1f}", f"{100 * o.energy_j / usable:.0f}"]
             rows.append(row + ([o.packs] if self.scenario.fleet.batteries > 1 else []))
         packs = self.scenario.fleet.batteries > 1
-        return format_table(["", "spacing m", "speed m/s", "passes", "POD1", "POD2", "time m:s", "kJ/vehicle",
+        return format_table(["", "max spacing m", "speed m/s", "passes", "POD1", "POD2", "time m:s", "kJ/vehicle",
                              "% of a pack" if packs else "% budget"] + (["packs"] if packs else []), rows)
 
     def write(self, out_dir) -> list[str]:
@@ -156,7 +166,7 @@ class PodPlan:
                 f"{self.burst_radius_m:.0f} m on the ground).")
         rows = "Best scan per speed (POD on a coarse grid; * = chosen, the shortest search that reaches the target"
         rows += ")" if self.met else "; none does, * = the highest POD)"
-        tail = (f"Chosen: {c.spacing_m:.0f} m lanes at {c.speed_m_s:g} m/s, {c.passes} pass{'es' if c.passes > 1 else ''}: "
+        tail = (f"Chosen: {self.lanes_text()} at {c.speed_m_s:g} m/s, {c.passes} pass{'es' if c.passes > 1 else ''}: "
                 f"POD {self.grid.overall(1):.3f} for one heard burst and {self.grid.overall(2):.3f} for two over the "
                 f"area ({int(self.grid.inside.sum())} cells of {self.grid.cell_m:.0f} m), search time {_mmss(c.time_s)}.")
         lines = [head, rows, self.table(), tail]

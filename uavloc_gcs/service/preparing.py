@@ -247,7 +247,7 @@ class FleetPreparation:
         plan = self._scan_plan if pp is not None else plan_scan(self.sc)
         if pp is not None:
             c = pp.chosen
-            self._event("plan", f"scan planned for POD {pp.target:g}: {c.spacing_m:.0f} m lanes at {c.speed_m_s:g} m/s, "
+            self._event("plan", f"scan planned for POD {pp.target:g}: {pp.lanes_text()} at {c.speed_m_s:g} m/s, "
                         f"{c.passes} pass{'es' if c.passes > 1 else ''}, POD {pp.grid.overall(1):.2f} for one heard burst "
                         f"and {pp.grid.overall(2):.2f} for two" + ("" if pp.met else " (best the energy allows)"))
         from .. import geofence  # noqa: PLC0415
