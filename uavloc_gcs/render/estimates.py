@@ -131,10 +131,17 @@ def result_figure(people, *, area_xy_m: np.ndarray, tracks_xy_m: Mapping[int, np
     maps.add_scale_bar(ax)
     maps.add_north_arrow(ax)
     maps.add_legend(ax)
-    if est:
-        maps.place_labels(ax, np.array([[p.east_m, p.north_m] for p in est]),
-                          [person_label(p) for p in est],
-                          [STATE_COLORS.get(p.state, "#222222") for p in est], avoid_xy=truth)
+    # people without a position (never heard, or heard without a fix) are labelled at their true
+    # position when simulated, with their state: every row of the table has its name on the map
+    placed = {id(p) for p in est}
+    unplaced = [p for p in people if id(p) not in placed and truth_xy_m and p.emitter_id in truth_xy_m]
+    anchors = ([[p.east_m, p.north_m] for p in est]
+               + [list(np.asarray(truth_xy_m[p.emitter_id][:2], float)) for p in unplaced])
+    if anchors:
+        maps.place_labels(ax, np.array(anchors, dtype=float),
+                          [person_label(p) for p in est] + [f"{p.label or f'#{p.emitter_id}'} ({p.state})"
+                                                             for p in unplaced],
+                          [STATE_COLORS.get(p.state, "#222222") for p in [*est, *unplaced]], avoid_xy=truth)
     return fig
 
 

@@ -80,3 +80,23 @@ def test_a_95_circle_wider_than_the_area_is_an_outline_and_leaves_the_pod_raster
     tinted = [c.get_radius() for c in circles if c.get_facecolor()[3] > 0]
     assert 120.0 in tinted and all(r <= WIDE_CIRCLE_FRACTION * 1120 for r in tinted)
     assert any(c.get_radius() == 19600.0 and c.get_edgecolor()[3] > 0 for c in circles)  # still drawn
+
+
+def test_a_person_without_a_position_is_labelled_at_the_truth_with_its_state():
+    """The field demo's result.png showed two never-heard phones as unlabelled crosses beside a table
+    that names them (issue 40 item 3): every row's name is on the map when the truth is known."""
+    import math
+    from types import SimpleNamespace as P
+
+    from uavloc_gcs.render.estimates import result_figure
+
+    area = np.array([[0, 0], [1120, 0], [1120, 640], [0, 640]], float)
+    people = [P(emitter_id=1, label="P01", state="given up", east_m=600, north_m=300, radius95_m=90.0),
+              P(emitter_id=2, label="P02", state="never heard", east_m=math.nan, north_m=math.nan, radius95_m=math.nan)]
+    truth = {1: np.array([620.0, 310.0]), 2: np.array([200.0, 500.0])}
+    ax = result_figure(people, area_xy_m=area, tracks_xy_m={}, truth_xy_m=truth).axes[0]
+    texts = [t.get_text() for t in ax.texts]
+    assert "P01" in texts and "P02 (never heard)" in texts
+    # without the truth (a real search) a person without a position has no place on the map
+    ax = result_figure(people, area_xy_m=area, tracks_xy_m={}).axes[0]
+    assert not any(t.get_text().startswith("P02") for t in ax.texts)
