@@ -557,6 +557,10 @@ class BurstGridEstimator:
         return t
 
     def posterior(self, bursts: Sequence[Burst], t_ref_s: float) -> GridPosterior:
+        # a unit no place explains (more frames than a burst sends: a burst and an access point's
+        # answers heard as one run) is left out: its table is at the floor everywhere, which in
+        # float32 would swamp every other unit and leave the whole area as the posterior
+        bursts = [b for b in bursts if b.silent or float(self._table(b).loglik.max()) > 0.5 * LOGLIK_FLOOR]
         heard = [b for b in bursts if not b.silent]
         if not heard:
             raise EstimationError("no heard burst to estimate from")

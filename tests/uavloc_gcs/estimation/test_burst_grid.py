@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from sim_link.world import World
-from uavloc_gcs.estimation.burst_grid import (A2GBursts, BurstGridEstimator, GridSpec, LogDistanceBursts,
+from uavloc_gcs.estimation.burst_grid import (A2GBursts, Burst, BurstGridEstimator, GridSpec, LogDistanceBursts,
                                               bursts_from_slots)
 from uavloc_gcs.observations import SlotBatch
 from uavloc_gcs.scenario import load_scenario
@@ -171,3 +171,27 @@ def test_a_table_where_a_burst_is_impossible_stays_finite():
     t = burst_table(Impossible(), b, np.array([0.0, 1.0]), 100.0, np.array([-1.0, 0.0, 1.0]))
     v = t.at(np.array([0.0, 3.3, 19.0, 50.0]))
     assert np.all(np.isfinite(v)) and np.all(v[:, :2] < -1e29) and np.allclose(v[:, 3], -1.5, atol=0.05)
+
+
+def test_a_unit_no_place_explains_does_not_erase_the_others():
+    """A phone joining a mimicked network does so at a burst, and the burst and the first answers
+    were heard as one run of 84 frames, more than any burst sends: its table was at the floor
+    everywhere, which in float32 swamped every other unit, and the posterior became the whole
+    area (radius 685 m after 240 units; `uavloc bench low_orbit --elicitation 2`, run 7)."""
+    sc = _field()
+    pmf = _pmf(sc)
+    est = BurstGridEstimator(A2GBursts.from_scenario(sc, pmf, _channel_share(sc)), pmf,
+                             area_xy_m=sc.area_xy_m(), area_margin_m=100.0)
+    person = np.array([520.0, 300.0])
+    world = World.with_people(sc, [person], seed=7)
+    t = np.arange(0.0, 900.0, sc.channel.slot_s)
+    ang = 8.0 * t / 30.0
+    xyz = np.column_stack([person[0] + 10 + 30 * np.cos(ang), person[1] + 30 * np.sin(ang), np.full(len(t), 30.0)])
+    bursts = bursts_from_slots(world.hear_track(1, t, xyz))
+    assert len(bursts) >= 3, "too few bursts heard for this check"
+    good = est.posterior(bursts, 900.0)
+    too_many = Burst(450.0, 1, (float(person[0]), float(person[1]) + 30.0, 30.0), (-70.0,) * 42, (2,) * 42)
+    assert sum(too_many.counts) > len(pmf) - 1  # more frames than a burst sends
+    with_it = est.posterior(bursts + [too_many], 900.0)
+    assert with_it.radius_about(with_it.mean_xy_m) == pytest.approx(good.radius_about(good.mean_xy_m), rel=1e-3)
+    assert np.allclose(with_it.mean_xy_m, good.mean_xy_m, atol=0.1)
