@@ -289,18 +289,45 @@ class Burst:
 
 
 def bursts_from_slots(slots: SlotBatch, *, gap_s: float = BURST_GAP_S) -> list[Burst]:
-    """One person's slots grouped, per vehicle, into bursts (a new one after a gap over ``gap_s``)."""
+    """One person's slots grouped, per vehicle, into bursts (a new one after a gap over ``gap_s``).
+
+    A phone that answers an access point does so under one address it keeps (its per-network
+    address) while its probe bursts use addresses of their own: when a person has both, the
+    addresses heard in more than one run (:func:`steady_addresses`) are grouped apart from the
+    others, so a burst and the answers heard during it are two units, not one run of more frames
+    than a burst sends. A phone with one address for everything is grouped as before."""
     out = []
+    steady = steady_addresses(slots, gap_s)
     for v in np.unique(slots.vehicle):
         part = slots.take(slots.vehicle == v).sorted_by_time()
-        t = part.t_s
-        starts = np.concatenate([[0], np.flatnonzero(np.diff(t) > gap_s) + 1, [len(t)]])
-        for a, b in zip(starts[:-1], starts[1:]):
-            w = np.maximum(part.n_samples[a:b].astype(float), 1.0)
-            xyz = np.average(part.xyz_m[a:b], axis=0, weights=w)
-            out.append(Burst(float(t[a]), int(v), tuple(float(c) for c in xyz),
-                             tuple(float(r) for r in part.rssi_dbm[a:b]), tuple(int(c) for c in part.n_samples[a:b])))
+        pieces = [part]
+        if len(steady):
+            keep = np.isin(part.address, steady)
+            if keep.any() and not keep.all():
+                pieces = [part.take(keep), part.take(~keep)]
+        for piece in pieces:
+            t = piece.t_s
+            starts = np.concatenate([[0], np.flatnonzero(np.diff(t) > gap_s) + 1, [len(t)]])
+            for a, b in zip(starts[:-1], starts[1:]):
+                w = np.maximum(piece.n_samples[a:b].astype(float), 1.0)
+                xyz = np.average(piece.xyz_m[a:b], axis=0, weights=w)
+                out.append(Burst(float(t[a]), int(v), tuple(float(c) for c in xyz),
+                                 tuple(float(r) for r in piece.rssi_dbm[a:b]),
+                                 tuple(int(c) for c in piece.n_samples[a:b])))
     return sorted(out, key=lambda b: (b.t_s, b.vehicle))
+
+
+def steady_addresses(slots: SlotBatch, gap_s: float = BURST_GAP_S) -> np.ndarray:
+    """The addresses heard in more than one run of slots (runs: a new one after a gap over
+    ``gap_s``, all vehicles together): an address a phone keeps, not one of a single burst."""
+    if len(slots) == 0:
+        return np.zeros(0, dtype=np.int64)
+    order = np.argsort(slots.t_s, kind="stable")
+    t, address = slots.t_s[order], slots.address[order]
+    run = np.concatenate([[0], np.cumsum(np.diff(t) > gap_s)])
+    pairs = np.unique(np.column_stack([address, run]), axis=0)
+    values, counts = np.unique(pairs[:, 0], return_counts=True)
+    return values[counts > 1]
 
 
 def missed_beacons(heard: Sequence[Burst], interval_s: float, tracks: dict, *, listen_gap_s: float = 1.0,

@@ -195,3 +195,28 @@ def test_a_unit_no_place_explains_does_not_erase_the_others():
     with_it = est.posterior(bursts + [too_many], 900.0)
     assert with_it.radius_about(with_it.mean_xy_m) == pytest.approx(good.radius_about(good.mean_xy_m), rel=1e-3)
     assert np.allclose(with_it.mean_xy_m, good.mean_xy_m, atol=0.1)
+
+
+def test_a_burst_and_the_answers_heard_during_it_are_two_units():
+    """A phone joins a mimicked network at a burst: its probe frames (one address) and its first
+    answers (its network address, kept) overlap in time. Grouped by time alone they made one run
+    of more frames than a burst sends; grouped by the address they keep they are two units. A phone
+    with one address for everything, or bursts only, is grouped as before."""
+    def slots(t, address):
+        n = len(t)
+        return SlotBatch.from_columns(np.asarray(t, float), np.ones(n, int), np.tile([0.0, 0.0, 30.0], (n, 1)),
+                                      np.asarray(address), np.full(n, -70.0), np.ones(n, int),
+                                      address=np.asarray(address))
+
+    net = 7
+    probe = slots(10.0 + 0.025 * np.arange(40), [101] * 40)  # a burst of 40 frames under one address
+    answers = slots([10.3, 10.6, 10.9, 30.0, 30.4, 61.0], [net] * 6)  # the network address, kept
+    units = bursts_from_slots(SlotBatch.concat([probe, answers]))
+    sizes = sorted(len(b.counts) for b in units)
+    assert sizes == [1, 2, 3, 40]  # the burst; the answers during it; two runs of answers later
+    # bursts only (addresses of their own): as grouped by time
+    only = SlotBatch.concat([probe, slots(40.0 + 0.025 * np.arange(5), [102] * 5)])
+    assert [len(b.counts) for b in bursts_from_slots(only)] == [40, 5]
+    # one address for everything (a phone with a global address): as grouped by time
+    same = SlotBatch.concat([slots(probe.t_s, [net] * 40), answers])
+    assert sorted(len(b.counts) for b in bursts_from_slots(same)) == [1, 2, 43]
