@@ -306,17 +306,26 @@ def results_table(people: Sequence[PersonResult], required_accuracy_m: float,
     never = len(people) - len(heard)  # rows only a simulation has: its people no vehicle heard
     lines.append(f"{n_ok} of {len(people)} people located within {required_accuracy_m:g} m (95 %)"
                  + (f"; {len(heard)} heard, {never} never heard." if never else ".") + radio_note(heard))
-    if n_ok:  # time is the figure (issue 38 item 4): located by 15, 30 and 60 minutes of mission time
-        by = [sum(p.located and math.isfinite(p.fix_time_s) and p.fix_time_s <= m * 60.0 for p in people)
-              for m in BY_MINUTES]
-        lines.append(f"Located by {' / '.join(str(m) for m in BY_MINUTES)} min of mission time: "
-                     f"{' / '.join(str(n) for n in by)} of {len(people)}.")
+    by = located_by_text(people)
+    if by:
+        lines.append(by)
     if isinstance(epoch_unix_s, MissionClock) and epoch_unix_s.simulated:
         lines.append(f"Times: {epoch_unix_s.label}.")
     if coverage is not None:
         lines.append(coverage.sentence())
     lines.extend(notes)
     return "\n".join(lines) + "\n"
+
+
+def located_by_text(people: Sequence[PersonResult]) -> str:
+    """Time is the figure (issue 38 item 4): "Located by 15 / 30 / 60 min of mission time: a / b / c
+    of N." ("" when nobody is located: the count before it says so)."""
+    if not any(p.located for p in people):
+        return ""
+    by = [sum(p.located and math.isfinite(p.fix_time_s) and p.fix_time_s <= m * 60.0 for p in people)
+          for m in BY_MINUTES]
+    return (f"Located by {' / '.join(str(m) for m in BY_MINUTES)} min of mission time: "
+            f"{' / '.join(str(n) for n in by)} of {len(people)}.")
 
 
 def write_results(out_dir: str | Path, people: Sequence[PersonResult], *, frame: LocalFrame,
@@ -354,7 +363,7 @@ def write_results(out_dir: str | Path, people: Sequence[PersonResult], *, frame:
     render_result_png(png, people, frame=frame, area_latlon_deg=area_latlon_deg,
                       tracks_latlon_deg=tracks_latlon_deg, truth_xy_m=truth_xy_m, title=name,
                       epoch_unix_s=epoch_unix_s, coverage=coverage, terrain=terrain,
-                      fence_latlon_deg=fence_latlon_deg)
+                      fence_latlon_deg=fence_latlon_deg, notes=notes)
     written.append(png)
     return written
 
@@ -363,9 +372,10 @@ def render_result_png(path: Path, people: Sequence[PersonResult], *, frame: Loca
                       area_latlon_deg: np.ndarray, tracks_latlon_deg: Mapping[int, np.ndarray],
                       truth_xy_m: Mapping[int, Sequence[float]] | None, title: str,
                       epoch_unix_s: float | None = None, coverage=None, terrain=None,
-                      fence_latlon_deg=None) -> None:
+                      fence_latlon_deg=None, notes: Sequence[str] = ()) -> None:
     """The result map in local metres (``render.estimates.result_figure``); ``fence_latlon_deg``:
-    the scenario's geofence, if it gives one."""
+    the scenario's geofence, if it gives one. The caption says what results.txt says under its
+    table: the people located by time, what was searched and ``notes`` (the sorties flown)."""
     from ..render import maps  # noqa: PLC0415
     from ..render.estimates import result_figure  # noqa: PLC0415
 
@@ -376,8 +386,14 @@ def render_result_png(path: Path, people: Sequence[PersonResult], *, frame: Loca
     times = sorted(t for t in times if t)
     if times:
         caption += f"\npositions at {times[0][:19].replace('T', ' ')} to {times[-1][11:19]} {clock_label(epoch_unix_s)}"
+    by = located_by_text(people)
+    if by:
+        caption += "\n" + by
     if coverage is not None:
         caption += "\n" + coverage.sentence()
+    for note in notes:
+        if note:
+            caption += "\n" + note
     fig = result_figure(people, area_xy_m=area, tracks_xy_m=tracks, truth_xy_m=truth_xy_m, title=title,
                         subtitle=caption, coverage=coverage, terrain=terrain,
                         fence_xy_m=(frame.to_local_xy(np.asarray(fence_latlon_deg, dtype=float))

@@ -82,6 +82,27 @@ def test_results_txt_ends_with_the_sorties_flown_when_given(tmp_path):
     assert (tmp_path / "results.txt").read_text().rstrip().splitlines()[-1] == note
 
 
+def test_result_png_says_what_results_txt_says_under_its_table(tmp_path, monkeypatch):
+    """The people located by time and the sorties flown are in the picture's caption too (issue 38
+    item 4: the statement, results.txt, the live map and result.png say them)."""
+    import uavloc_gcs.render.estimates as estimates
+
+    said = {}
+    real = estimates.result_figure
+
+    def spy(people, **kw):
+        said["caption"] = kw.get("subtitle") or ""
+        return real(people, **kw)
+
+    monkeypatch.setattr(estimates, "result_figure", spy)
+    note = "Sorties flown (packs left): vehicle 1 2 (1 left)."
+    write_results(tmp_path, PEOPLE, frame=FRAME, area_latlon_deg=FRAME.to_wgs84_latlon(np.array(
+        [[0, 0], [500, 0], [500, 300]], float)), tracks_latlon_deg={}, required_accuracy_m=15.0, name="t", notes=(note,))
+    text = (tmp_path / "results.txt").read_text()
+    for line in ("Located by 15 / 30 / 60 min of mission time: 1 / 1 / 1 of 3.", note):
+        assert line in text and line in said["caption"]
+
+
 SNAP = StatusSnapshot(12.5, [VehicleStatus(1, "scanning", "AUTO", 88.0, 4, 20), VehicleStatus(2, "lost", lost=True)],
                       [PersonStatusView(1, 7.0, True), PersonStatusView(2, math.nan, False)], 1234, 15.0)
 
