@@ -221,3 +221,35 @@ def test_terminal_view_gives_the_latitude_and_longitude_of_every_located_person(
     lat2, lon2 = FRAME.to_wgs84(300.0, 10.0)
     assert f"{float(lat2):.6f}" not in text  # not located: no coordinates to walk to
     assert f"{float(lat):.6f}" not in "\n".join(render_lines(snap))  # without a frame, as before
+
+
+def test_every_output_says_the_same_people_states_and_radii(tmp_path):
+    """One truth (issue 40 item 3): the table, the CSV, the GeoJSON, the KML and the statement name
+    the same people with the same states and 95 % radii, and count them alike."""
+    import re
+
+    from uavloc_gcs.service.outcome import statement_for
+
+    people = [replace(p, label=f"P{i + 1:02d}") for i, p in enumerate(PEOPLE)]
+    area = FRAME.to_wgs84_latlon(np.array([[0, 0], [500, 0], [500, 300], [0, 300]], float))
+    write_results(tmp_path, people, frame=FRAME, area_latlon_deg=area, tracks_latlon_deg={},
+                  required_accuracy_m=15.0, truth_xy_m={1: (303.0, 204.0), 2: (100.0, 50.0), 3: (0.0, 0.0)}, name="t")
+    table = (tmp_path / "results.txt").read_text()
+    rows = {m.group(1): (m.group(3), m.group(2)) for m in
+            re.finditer(r"^(P\d\d) #\S+\s+(?:\S+\s+\S+\s+)?([\d.]+ m|-)\s+\S+\s+(located|given up|heard|never heard)",
+                         table, re.M)}
+    csv_rows = {r["label"]: (r["state"], f"{float(r['radius95_m']):.1f} m" if r["radius95_m"] else "-")
+                for r in csv.DictReader((tmp_path / "people.csv").open())}
+    gj = json.loads((tmp_path / "people.geojson").read_text())
+    gj_rows = {f["properties"]["label"]: (f["properties"]["state"], f"{f['properties']['radius95_m']:.1f} m")
+               for f in gj["features"] if f["properties"]["kind"] == "estimate"}
+    assert rows == csv_rows and len(rows) == 3
+    assert gj_rows == {k: v for k, v in rows.items() if v[1] != "-"}  # who has a position has a feature
+    kml = (tmp_path / "people.kml").read_text()
+    assert all(k in kml for k, v in rows.items() if v[1] != "-")
+    heard = [p for p in people if p.state != "never heard"]
+    n_ok = sum(v[0] == "located" for v in rows.values())
+    statement = statement_for(heard, 15.0, (), (), ())
+    assert statement.startswith(f"{n_ok} of {len(heard)} people heard located within 15 m")
+    assert f"{n_ok} of {len(rows)} people located within 15 m (95 %); {len(heard)} heard, 1 never heard." in table
+    assert all(p.label in statement for p in heard if p.state != "located")
