@@ -299,6 +299,9 @@ def test_web_keep_serves_the_final_result_as_the_files_say_until_ctrl_c(tmp_path
             assert shown[label]["state"] == row["state"]
             # the page shows 0.1 m and the CSV 0.01 m of the same radius (11.7499 -> 11.7 and 11.75)
             assert abs(shown[label]["radius95_m"] - float(row["radius95_m"])) <= 0.05 + 1e-6
+        # the people located by time, as results.txt says it (nothing when nobody was located)
+        by = [line for line in (out / "results.txt").read_text().splitlines() if line.startswith("Located by")]
+        assert state["located_by"] == (by[0] if by else "")
         proc.send_signal(signal.SIGINT)
         assert proc.wait(timeout=60) == 0
     finally:

@@ -27,7 +27,7 @@ from ...search.targets import inside_area
 from ..labels import PersonLabels
 from ..liveview import StatusSnapshot
 from ..clock import MissionClock, clock_label
-from ..results import person_state, utc_text
+from ..results import located_by_text, person_state, utc_text
 
 _LOOKS = re.compile(r"(looks at )([\d, ]+)")  # the daemon's "vehicle 2 looks at 17, 42"
 _PERSON = re.compile(r"\bperson (\d+)")  # the statement's "person 17: ..."
@@ -301,7 +301,9 @@ class MapFeed:
                 "wall_unix_s": round(time.time(), 1), "vehicles": vehicles, "people": self._people(snap),
                 # what the operator must see first: a vehicle lost in the air (service/lost.py)
                 "alert": " ".join(v["note"] for v in vehicles if v.get("note")),
-                "plan": self._plan(), "coverage": self._coverage()}
+                "plan": self._plan(), "coverage": self._coverage(),
+                # the end's figure, as results.txt and result.png say it (issue 38 item 4)
+                "located_by": located_by_text(self.final) if self.final is not None else ""}
 
     def state(self) -> dict:
         """Everything, for a page that just connected."""

@@ -279,7 +279,8 @@
       `located ${nLoc}/${S.people.length} within ${S.static.required_accuracy_m} m` +
       (ok(S.slots) ? ` · slots ${S.slots}` : "") + (ok(S.replans) ? ` · replans ${S.replans}` : "") +
       (S.coverage ? ` · POD ${fmt(S.coverage.pod_overall, 2)} (target ${fmt(S.coverage.pod_target, 2)})` +
-                    (S.coverage.unsearched_m2 > 0 ? ` · unsearched ${fmt(S.coverage.unsearched_m2 / 1e6, 3)} km²` : "") : "");
+                    (S.coverage.unsearched_m2 > 0 ? ` · unsearched ${fmt(S.coverage.unsearched_m2 / 1e6, 3)} km²` : "") : "") +
+      (S.located_by ? ` · ${S.located_by}` : "");
     document.getElementById("summary").title = S.coverage ? S.coverage.statement : "";
     const alert = document.getElementById("alert");  // a vehicle lost in the air, said first
     alert.textContent = S.alert || "";
