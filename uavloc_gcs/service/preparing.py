@@ -49,9 +49,9 @@ class FleetPreparation:
             if meta.get("finished"):
                 raise ConfigError(f"{self.opt.store_path} holds a search that already finished; "
                                   "start a new one with --fresh or another --out")
-            if self.sc.fleet.batteries > 1:
-                raise ConfigError(f"{self.opt.store_path} holds a search flown in sorties, which a restarted daemon "
-                                  "does not resume yet; start a new one with --fresh or another --out")
+            # sorties (issue 38): each vehicle's sortie, packs and whether it flew on the pack it has
+            # (service/swaps.py PackSwaps._save_sorties), applied once the sorties are planned again
+            self._stored_sorties = {int(k): dict(v) for k, v in (meta.get("sorties") or {}).items()}
             if meta.get("scenario") != self.sc.name:
                 raise UavlocError(f"the store {self.opt.store_path} holds the search '{meta.get('scenario')}', "
                                   f"not '{self.sc.name}'; use another --store or --fresh")
@@ -258,6 +258,7 @@ class FleetPreparation:
         hold_s = max(self.opt.scan_hold_s, HOLD_WALL_S * self._rate.rate)
         from ..terrain_missions import terrain_safe  # noqa: PLC0415 -- over the ground of terrain.dem (none: as is)
 
+        restored: dict[int, int] = {}  # sorties after a restart: vehicle -> the sortie it flies
         if self.sc.fleet.batteries <= 1:
             scans = [terrain_safe(with_hold_before_rtl(m, longest - p.duration_s + hold_s), self.sc,
                                   name=f"uav{p.index + 1}")
@@ -269,6 +270,9 @@ class FleetPreparation:
             for v in self.vehicles.values():
                 v.sorties, v.sortie = list(sorties.get(v.id, [None])[1:]), 1
                 v.packs_left = self.sc.fleet.batteries - 1
+            restored = self._restore_sorties(sorties)  # a restart: where each one was
+            for vid, k in restored.items():
+                wires[vid] = sorties[vid][k - 1]
         to_start = []
 
         async def prepare(v: _Vehicle) -> None:
@@ -280,6 +284,12 @@ class FleetPreparation:
                 purpose, items = previous
                 if same_stored_mission(on_board, items, v.agent.flavour):
                     f = read_life_facts(v.agent)  # read now, after the download's awaits
+                    if purpose == "scan" and f.landed and v.id in restored:
+                        how = await self._resume_landed_sortie(v, items)
+                        if how == "start":
+                            to_start.append(v)
+                        if how is not None:
+                            return
                     if purpose == "scan" and f.landed:
                         if await self._resume_landed_scan(v, items, f):
                             to_start.append(v)

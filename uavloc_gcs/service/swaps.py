@@ -23,7 +23,11 @@ on the facts read then):
 * a vehicle whose packs are spent stays down: the planner gives its looks to the others (it plans
   with the charge each reports), and sorties of its scan it could not fly are reported unsearched.
 
-Not done: a restarted daemon does not resume a search flown in sorties (it refuses to).
+A restarted daemon resumes a search flown in sorties: each vehicle's sortie, packs left and flown
+and whether it flew on the pack it has are kept in the store (:meth:`_save_sorties`, every tick
+they change); the restart plans the sorties again from the scenario, takes each vehicle's up from
+its sortie, and a vehicle found on the ground after a sortie it flew waits for a fresh pack, as
+if the daemon had seen it land (``service/preparing.py``).
 """
 
 from __future__ import annotations
@@ -82,6 +86,75 @@ class PackSwaps:
             out[vid] = [to_wire(terrain_safe(m, self.sc, name=f"uav{p.index + 1} sortie {j + 1}"),
                                 self.sc.fleet.autopilot) for j, m in enumerate(held)]
         return out
+
+    def _sortie_state(self) -> dict:
+        return {str(v.id): {"sortie": v.sortie, "left": len(v.sorties), "packs_left": v.packs_left,
+                            "packs_flown": v.packs_flown, "unflown": v.unflown_sorties,
+                            "pack_counted": bool(v.pack_counted), "scan_done": bool(v.scan_done)}
+                for v in self.vehicles.values()}
+
+    def _save_sorties(self) -> None:
+        """Keep each vehicle's sortie state in the store when it changed (a restart resumes it)."""
+        if self.sc.fleet.batteries <= 1 or self.store is None:
+            return
+        state = self._sortie_state()
+        if state != getattr(self, "_saved_sorties", None):
+            self.store.set_meta("sorties", state)
+            self._saved_sorties = state
+
+    def _restore_sorties(self, sorties: dict) -> dict[int, int]:
+        """After a restart: each vehicle's sortie state as stored, on the sorties planned again
+        (``sorties``: vehicle -> its sorties' wire missions). {vehicle: the sortie it flies}."""
+        stored = getattr(self, "_stored_sorties", None) or {}
+        out = {}
+        for v in self.vehicles.values():
+            st = stored.get(v.id)
+            if st is None:
+                continue
+            planned = sorties.get(v.id) or []
+            k = int(st["sortie"])
+            if not 1 <= k <= len(planned) or len(planned) - k != int(st["left"]) and not st.get("scan_done"):
+                raise UavlocError(f"the stored search flew vehicle {v.id}'s scan in sorties that the scenario no longer "
+                                  f"plans (sortie {k} of {k + int(st['left'])} stored, {len(planned)} planned now); "
+                                  "start a new search with --fresh or another --out")
+            v.sortie, v.sorties = k, list(planned[k:]) if not st.get("scan_done") else []
+            v.packs_left, v.packs_flown = int(st["packs_left"]), int(st["packs_flown"])
+            v.unflown_sorties, v.pack_counted = int(st["unflown"]), bool(st["pack_counted"])
+            out[v.id] = k
+        if out:
+            self._event("resume", "sorties resumed: " + ", ".join(
+                f"vehicle {vid} on sortie {k} ({self.vehicles[vid].packs_left} pack(s) left)" for vid, k in out.items()))
+        return out
+
+    async def _resume_landed_sortie(self, v: _Vehicle, items: list) -> str | None:
+        """After a restart: ``v`` is on the ground, disarmed, with sortie ``v.sortie``'s mission on
+        board. "wait": it flew that sortie on the pack it has (landing was its end, as
+        VehicleLife.observe takes it): it waits for the team's swap. "start": it was given the
+        sortie on a fresh pack and had not taken off: it is started. None: its last sortie, resumed
+        as a scan is (``_resume_landed_scan``). Each sortie flies on a pack of its own, so the
+        sortie was flown when as many packs were flown as its number."""
+        flown = v.packs_flown >= v.sortie
+        if flown and not v.sorties:
+            return None
+        if flown and v.pack_counted:
+            self._adopt(v, "scan", items)
+            v.home, v.phase, v.pack_flown = True, "landed", True
+            self._event("resume", f"vehicle {v.id} is on the ground, disarmed, after sortie {v.sortie} of its scan: "
+                        "it waits for a fresh pack", v.id)
+            return "wait"
+        if flown:  # its pack was swapped and judged fresh; its next sortie was not uploaded yet
+            items = v.sorties.pop(0)
+            v.sortie += 1
+            v.phase, v.home = "uploading scan", False
+            self._event("resume", f"vehicle {v.id} is on the ground on a fresh pack: it flies sortie {v.sortie} "
+                        "of its scan", v.id)
+            await self._upload(v, "scan", items, first_seq=None)
+            return "start"
+        self._adopt(v, "scan", items)
+        v.phase = "uploading scan"
+        self._event("resume", f"vehicle {v.id} is on the ground on a fresh pack with sortie {v.sortie} of its scan "
+                    "on board, not flown: it is started", v.id)
+        return "start"
 
     def _pack_step(self, v: _Vehicle) -> None:
         """After ``v``'s state machine stepped: start waiting for a pack, or say its packs are spent

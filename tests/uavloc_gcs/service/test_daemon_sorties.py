@@ -224,3 +224,79 @@ def test_the_search_ends_at_its_time_limit_with_everyone_home(tmp_path):
     assert out.vehicles_home == (1,) and fake.landed and not fake.armed
     events = _events(tmp_path / "s.sqlite")
     assert any("time limit (1 min, search.time_limit_s) is reached: no more looks" in e for e in events), events
+
+
+def test_a_daemon_restarted_during_a_swap_resumes_the_sorties(tmp_path):
+    """Issue 38 item 2: the daemon dies while vehicle 1 waits on the ground for its swap; a new
+    daemon on the same store takes the search up where it was (sortie 1 flown, one pack left, the
+    vehicle waiting) and flies sortie 2 once the team's fresh pack is in. Before, it refused to
+    resume a search flown in sorties."""
+    sc = _scenario("ardupilot")
+
+    async def go():
+        fleet, d, task = await _fly_first_sortie(sc, tmp_path)
+        try:
+            await _stop(task)  # the daemon dies (its links close), the vehicle stays on the ground
+            (_name, conn), = fleet.endpoints
+            again = Daemon(sc, [(1, conn)], DaemonOptions(store_path=tmp_path / "s.sqlite", resume=True,
+                                                          connect_timeout_s=10.0, lost_timeout_s=5.0),
+                           policy=_SearchGoesOn())
+            task2 = asyncio.ensure_future(again.run())
+            v, fake = again.vehicles[1], fleet.vehicle(1)
+            await _until(lambda: task2.done() or v.phase == "waiting for pack", "vehicle 1 waiting again after the restart")
+            assert not task2.done(), task2.exception()
+            assert (v.sortie, v.packs_left, v.packs_flown, len(v.sorties)) == (1, 1, 1, 1)
+            await asyncio.sleep(1.0)
+            assert not fake.armed  # not launched on the pack it flew sortie 1 on
+            fleet.swap_pack(1)
+            await _until(lambda: task2.done() or v.sortie == 2 and fake.armed and not fake.landed,
+                         "the second sortie, flown by the restarted daemon")
+            assert not task2.done(), task2.exception()
+            await _until(lambda: task2.done() or v.packs_flown == 2 and v.job is None, "sortie 2 under way")
+            assert v.packs_left == 0 and not v.sorties
+            await _stop(task2)
+        finally:
+            if not task.done():
+                task.cancel()
+            await fleet.aclose()
+
+    asyncio.run(asyncio.wait_for(go(), 5 * TIMEOUT_S))
+    events = _events(tmp_path / "s.sqlite")
+    assert any("sorties resumed: vehicle 1 on sortie 1 (1 pack(s) left)" in e for e in events), events
+    assert any("after sortie 1 of its scan: it waits for a fresh pack" in e for e in events), events
+    assert any("started sortie 2 of its scan" in e for e in events), events
+
+
+@pytest.mark.parametrize("packs_flown, pack_counted, sortie, left, want", [
+    (1, True, 1, 1, "wait"),  # sortie 1 flown on the pack it has: the swap is due
+    (1, False, 1, 1, "start"),  # its pack swapped and judged fresh, sortie 2 not uploaded yet: sortie 2
+    (1, False, 2, 0, "start"),  # sortie 2 uploaded on the fresh pack, not flown: started
+    (2, True, 2, 0, None),  # its last sortie flown: resumed as a scan is
+])
+def test_a_restart_finds_a_landed_vehicle_where_its_sorties_say(packs_flown, pack_counted, sortie, left, want):
+    """Which sortie a vehicle found on the ground after a restart flies (a sortie flies on a pack
+    of its own: flown when as many packs were flown as its number)."""
+    from uavloc_gcs.service.swaps import PackSwaps
+
+    said, uploads = [], []
+
+    class Fake(PackSwaps):
+        def _adopt(self, v, purpose, items):
+            v.purpose = purpose
+
+        def _event(self, kind, text, vehicle=None):
+            said.append(text)
+
+        async def _upload(self, v, purpose, items, first_seq=None):
+            uploads.append(items)
+
+    v = SimpleNamespace(id=1, packs_flown=packs_flown, pack_counted=pack_counted, sortie=sortie,
+                        sorties=[["sortie 2"]] * left, phase="landed", home=True, pack_flown=False)
+    got = asyncio.run(Fake()._resume_landed_sortie(v, ["on board"]))
+    assert got == want, said
+    if want == "wait":
+        assert v.pack_flown and v.home and v.sortie == 1 and not uploads
+    elif want == "start" and sortie == 1:
+        assert v.sortie == 2 and uploads == [["sortie 2"]] and not v.sorties
+    elif want == "start":
+        assert v.sortie == 2 and not uploads  # the sortie on board is the one to fly
