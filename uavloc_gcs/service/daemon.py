@@ -304,6 +304,7 @@ class Daemon(FleetPreparation, VehicleCommands, PackSwaps):
             self._anchor_clock()
             for v in self.vehicles.values():
                 self._update_phase(v)
+            self._save_sorties()  # sorties: kept in the store when they change (a restart resumes them)
             if self.view is not None:
                 self.view.update(self.snapshot())
             await asyncio.sleep(self.opt.tick_s)
@@ -321,7 +322,6 @@ class Daemon(FleetPreparation, VehicleCommands, PackSwaps):
                 v.last_heard = None
             self._event(kind, text, v.id)
         self._pack_step(v)  # sorties: home at its reserve, it waits for a fresh pack (service/swaps.py)
-        self._save_sorties()  # (a restart resumes them)
 
     def _last_heard(self, v: _Vehicle) -> LastHeard:
         return last_heard(v.id, v.agent, self.frame, now_s=self.now_s(), wall_now_s=self.wall(),

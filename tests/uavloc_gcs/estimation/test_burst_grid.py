@@ -33,6 +33,13 @@ def _pmf(sc) -> np.ndarray:
     return np.concatenate([[0.0], fp / fp.sum()])
 
 
+def _estimator(sc) -> BurstGridEstimator:
+    """The field world's grid estimator over the area (as bench low_orbit builds it)."""
+    pmf = _pmf(sc)
+    return BurstGridEstimator(A2GBursts.from_scenario(sc, pmf, _channel_share(sc)), pmf,
+                              area_xy_m=sc.area_xy_m(), area_margin_m=100.0)
+
+
 def test_the_field_world_estimates_with_its_own_air_to_ground_channel():
     sc = _field(static=False)
     assert sc.channel.environment is not None  # field.toml names its environment
@@ -63,9 +70,7 @@ def test_a_burst_table_is_the_channels_own_likelihood_over_distance_and_offset()
 
 def test_a_trapped_person_orbited_low_is_inside_a_circle_that_shrinks():
     sc = _field()
-    pmf = _pmf(sc)
-    est = BurstGridEstimator(A2GBursts.from_scenario(sc, pmf, _channel_share(sc)), pmf,
-                             area_xy_m=sc.area_xy_m(), area_margin_m=100.0)
+    est = _estimator(sc)
     person = np.array([520.0, 300.0])
     world = World.with_people(sc, [person], seed=7)
     centre, alt, speed = person + np.array([40.0, -35.0]), 30.0, 8.0  # the scan put them ~50 m off
@@ -179,9 +184,7 @@ def test_a_unit_no_place_explains_does_not_erase_the_others():
     everywhere, which in float32 swamped every other unit, and the posterior became the whole
     area (radius 685 m after 240 units; `uavloc bench low_orbit --elicitation 2`, run 7)."""
     sc = _field()
-    pmf = _pmf(sc)
-    est = BurstGridEstimator(A2GBursts.from_scenario(sc, pmf, _channel_share(sc)), pmf,
-                             area_xy_m=sc.area_xy_m(), area_margin_m=100.0)
+    pmf, est = _pmf(sc), _estimator(sc)
     person = np.array([520.0, 300.0])
     world = World.with_people(sc, [person], seed=7)
     t = np.arange(0.0, 900.0, sc.channel.slot_s)
