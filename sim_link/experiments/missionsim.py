@@ -50,6 +50,9 @@ class PersonResult:
     error_m: float  # believed position at its reference time vs truth at that time
     claimed_radius_m: float  # the method's own error claim (95 % radius or annulus bound)
     reason: str = ""  # the policy's statement about this person at the end ("" where it makes none)
+    # of the bursts the reported person judged as this one holds, the share another phone sent (NaN
+    # where unknown): a fix built from two phones' bursts is not a fix (issue 41 item 4)
+    foreign_share: float = math.nan
 
 
 @dataclass(frozen=True)
@@ -329,31 +332,50 @@ def hear(world: World, vehicles: list[Vehicle], t_from_s: float, t_to_s: float, 
     return SlotBatch.concat(out)
 
 
-def person_results(world: World, statuses: list, t_end_s: float) -> tuple[PersonResult, ...]:
+def person_results(world: World, statuses: list, t_end_s: float, slots_of=None) -> tuple[PersonResult, ...]:
     """Compare what the policy believes (PersonStatus list) with the truth, one row per true person.
 
     In the field world the policy reports people under the first address heard of them, and the
-    linking may split one phone into several reported people: a true person is judged by the one
-    of theirs that is located (the first one if several), else the first reported."""
+    linking may split one phone into several reported people or merge several phones into one.
+    With ``slots_of`` (emitter id -> the slots the policy holds as that person's,
+    ``SearchPolicy.heard_slots``) a reported person is the phone that sent most of their bursts and
+    ``foreign_share`` says how many of them another phone sent; without it, the phone of the first
+    address heard. A true person is judged by the one of theirs that is located (the first one if
+    several), else the first reported."""
+    from uavloc_gcs.estimation.identity import burst_index
+
     owner = world.person_of([s.emitter_id for s in statuses]) if statuses else np.zeros(0, int)
-    by_person: dict[int, object] = {}
-    for s, i in zip(statuses, owner):
+    foreign = [math.nan] * len(statuses)
+    if slots_of is not None:
+        for k, s in enumerate(statuses):
+            slots = slots_of(s.emitter_id)
+            if len(slots) == 0:
+                continue
+            burst = burst_index(slots)
+            _, first = np.unique(burst, return_index=True)  # one address per burst: one phone
+            phones, counts = np.unique(world.person_of(slots.address[first]), return_counts=True)
+            top = counts == counts.max()
+            if not top[phones == owner[k]].any():  # a tie keeps the first address's phone
+                owner[k] = int(phones[np.argmax(counts)])
+            foreign[k] = 1.0 - float(counts.max()) / float(counts.sum())
+    by_person: dict[int, tuple] = {}
+    for k, (s, i) in enumerate(zip(statuses, owner)):
         best = by_person.get(int(i))
-        if best is None or (s.located and not best.located):
-            by_person[int(i)] = s
+        if best is None or (s.located and not best[0].located):
+            by_person[int(i)] = (s, foreign[k])
     out = []
     for i, eid in enumerate(world.emitter_ids):
-        s = by_person.get(i)
+        s, share = by_person.get(i, (None, math.nan))
         if s is None or s.xy_m is None:
             out.append(PersonResult(int(eid), s is not None, False, math.nan, math.nan, math.nan,
-                                    "" if s is None else s.reason))
+                                    "" if s is None else s.reason, share))
             continue
         t_ref = s.t_ref_s if s.t_ref_s is not None else t_end_s
         truth = world.positions(t_ref)[i]
         err = float(np.hypot(s.xy_m[0] - truth[0], s.xy_m[1] - truth[1]))
         claim = float(s.radius95_m)
         out.append(PersonResult(int(eid), True, s.located, math.nan if s.fix_t_s is None else s.fix_t_s, err,
-                                claim, s.reason))
+                                claim, s.reason, share))
     return tuple(out)
 
 
@@ -529,7 +551,7 @@ def simulate_mission(
         method=method, people=len(world), seed=seed, completion_time_s=float(t_end), scan_time_s=float(t_scan),
         planner_runtime_s=policy.planner_runtime_s, estimator_runtime_s=policy.estimator_runtime_s,
         replans=replans, energy_j=tuple(v.total_energy_j for v in vehicles),
-        persons=person_results(world, statuses, t_end), oracle_completion_time_s=t_oracle,
+        persons=person_results(world, statuses, t_end, policy.heard_slots), oracle_completion_time_s=t_oracle,
         error_times_s=np.asarray(err_t), max_error_m=np.asarray(err_v),
         pod_overall=policy.coverage.overall() if getattr(policy, "coverage", None) is not None else math.nan,
         pass_rounds=policy.coverage.pass_rounds if getattr(policy, "coverage", None) is not None else 0)

@@ -62,3 +62,12 @@ def test_packs_and_plans_options_are_checked_in_one_sentence():
     for bad in (["--packs", "0"], ["--packs", "x"], ["--plans", "nope"]):
         with pytest.raises(SystemExit):
             p.parse_args(bad)
+
+
+def test_the_foreign_bursts_of_located_people_are_reported_against_the_goal():
+    rows = [dict(_row("uavloc", 0, 2, 100.0), label="uavloc", foreign=[0.0, 0.25]),
+            dict(_row("uavloc", 1, 1, 100.0), label="uavloc", foreign=[0.01]),
+            dict(_row("paper", 0, 0, 100.0), label="paper", foreign=[])]
+    lines = field.foreign_lines(rows)
+    assert len(lines) == 1  # the paper located nobody: no line
+    assert "uavloc: 8.7 % on average, 1 of 3 above 2 % (worst 25 %" in lines[0]

@@ -170,7 +170,7 @@ class Linking:
 
 def identity_linking(slots: SlotBatch) -> Linking:
     """Every address its own person (what :func:`link` gives when no fingerprint is known)."""
-    burst = _burst_index(slots)
+    burst = burst_index(slots)
     addrs = {int(a): (int(a),) for a in np.unique(slots.address)}
     return Linking(slots.with_emitter_ids(slots.address), burst, addrs, {})
 
@@ -193,7 +193,7 @@ def link(slots: SlotBatch, channel: ChannelModel, *, max_speed_m_s: float, area_
     area = DEFAULT_AREA_M2 if area_m2 is None else float(area_m2)
     if not area > 0:
         raise ValueError(f"area_m2 must be positive, got {area_m2}")
-    burst = _burst_index(slots)
+    burst = burst_index(slots)
     b = _burst_table(slots, burst, channel, tx_margin_db, math.sqrt(area))
     params = (channel, float(max_speed_m_s), area, float(tx_margin_db))
     old = previous._state if previous is not None else None
@@ -215,7 +215,7 @@ def link(slots: SlotBatch, channel: ChannelModel, *, max_speed_m_s: float, area_
 # ---------------------------------------------------------------------------------------------
 
 
-def _burst_index(slots: SlotBatch) -> np.ndarray:
+def burst_index(slots: SlotBatch) -> np.ndarray:
     """(N,) burst number of every slot: slots of one address no more than BURST_GAP_S apart form a
     burst; bursts are numbered by their first slot's time (then address)."""
     n = len(slots)

@@ -636,6 +636,14 @@ class SearchPolicy:
                                                         float(cand.velocity_m_s[1]))))
         return out
 
+    def heard_slots(self, emitter_id: int) -> SlotBatch:
+        """Every slot the policy holds as the person ``emitter_id``'s (linked, when a sensor reports
+        fingerprints); empty for an unknown id. What a bench compares with the truth."""
+        p = self._people.get(int(emitter_id))
+        if p is None or not p.batches:
+            return SlotBatch.empty()
+        return SlotBatch.concat(p.batches)
+
     def pending_ids(self) -> list[int]:
         """Emitters that still need a look (not located, not given up)."""
         return [e for e, p in sorted(self._people.items()) if p.fix_t_s is None and not p.gave_up]

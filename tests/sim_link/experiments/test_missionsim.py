@@ -216,3 +216,36 @@ def test_a_scan_longer_than_a_pack_is_flown_in_sorties_within_the_packs(small):
     assert max(res.energy_j) > 1.02 * usable  # a second pack was flown
     assert all(e <= 3 * usable * 1.02 for e in res.energy_j)
     assert res.completion_time_s >= res.scan_time_s
+
+
+def test_a_reported_person_is_the_phone_that_sent_most_of_their_bursts():
+    """A person linked from two phones' bursts is judged as the phone that sent most of them, and
+    the share the other phone sent is reported (issue 41 item 4): a fix among B's bursts credited
+    to A (the first address heard) would be scored as A's error."""
+    from sim_link.experiments.missionsim import person_results
+    from uavloc_gcs.observations import SlotBatch
+    from uavloc_gcs.search.policy import PersonStatus
+
+    sc = load_scenario(EXAMPLES / "field.toml").replace(simulation={"people": 2, "seed": 3, "motion": "static"},
+                                                        people={"max_speed_m_s": 0.0})
+    world = World(sc, seed=3)
+    frames = world.emission.frames(0.0, 900.0)
+    bursts = {}  # person -> first frame of each of their bursts
+    for k in range(len(frames)):
+        bursts.setdefault(int(frames.person[k]), {}).setdefault(int(frames.burst[k]), k)
+    a = list(bursts[0].values())[:1]  # one burst of phone 0 (heard first)
+    b = list(bursts[1].values())[:3]  # three of phone 1
+    rows = a + b
+    slots = SlotBatch.from_columns(frames.t_s[rows], np.zeros(4), np.zeros((4, 3)),
+                                   np.full(4, frames.address[a[0]]), np.full(4, -70.0), np.ones(4),
+                                   address=frames.address[rows])
+    truth = world.positions(0.0)
+    status = PersonStatus(emitter_id=int(frames.address[a[0]]), estimate=None, located=True, reason="",
+                          xy_m=(float(truth[1, 0]) + 3.0, float(truth[1, 1])), t_ref_s=0.0, fix_t_s=100.0,
+                          radius95_m=10.0)
+    by_first = person_results(world, [status], 0.0)
+    assert by_first[0].located and by_first[0].error_m > 20.0 and math.isnan(by_first[0].foreign_share)
+    judged = person_results(world, [status], 0.0, lambda eid: slots)
+    assert not judged[0].heard and math.isnan(judged[0].foreign_share)
+    assert judged[1].located and judged[1].error_m == pytest.approx(3.0)
+    assert judged[1].foreign_share == pytest.approx(0.25)
