@@ -42,12 +42,12 @@ def scenario_for(base, environment: str):
 def hearing_distances_m(sc, height_m: float) -> tuple[float, float]:
     """(frame, burst) 50 % horizontal hearing distances [m] at ``height_m`` for a phone at nominal power."""
     from uavloc_gcs.a2g import A2GChannel
-    from uavloc_gcs.search import pod
-    from uavloc_gcs.search.policy import frames_prior
+    from uavloc_gcs.search import phones, pod
+    from uavloc_gcs.search.phones import frames_prior
 
     a2g = A2GChannel.from_scenario(sc)
     pmf = np.concatenate([[0.0], np.asarray(frames_prior(sc).p, float)])
-    share = pod._channel_share(sc)
+    share = phones.channel_share(sc)
     if a2g is not None:
         return (a2g.hearing_distance_m(height_m),
                 a2g.hearing_distance_m(height_m, frames=("pmf", pmf), channel_share=share))
@@ -80,13 +80,13 @@ def _bursts_heard(world, heard, t_end: float):
 def range_errors(world, heard, t_end: float, height_m: float) -> np.ndarray:
     """(relative, metres) range error of every burst heard (see the module docstring), (B, 2)."""
     from uavloc_gcs.a2g import A2GChannel
-    from uavloc_gcs.search import pod
-    from uavloc_gcs.search.policy import frames_prior
+    from uavloc_gcs.search import phones
+    from uavloc_gcs.search.phones import frames_prior
 
     sc = world.scenario
     a2g = A2GChannel.from_scenario(sc)
     pmf = np.concatenate([[0.0], np.asarray(frames_prior(sc).p, float)])
-    share = pod._channel_share(sc)
+    share = phones.channel_share(sc)
     grid = np.arange(0.0, 1500.0, 1.0)
     out = []
     for (person, _), rows in _bursts_heard(world, heard, t_end).items():

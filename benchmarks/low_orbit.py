@@ -45,8 +45,7 @@ def main(args: argparse.Namespace) -> int:
     from uavloc_gcs.examples import scenario_path
     from uavloc_gcs.observations import SlotBatch
     from uavloc_gcs.scenario import load_scenario
-    from uavloc_gcs.search.pod import _channel_share
-    from uavloc_gcs.search.policy import frames_prior
+    from uavloc_gcs.search.phones import channel_share, frames_prior
 
     from uavloc_gcs.radios import ble_view, is_ble
 
@@ -59,7 +58,7 @@ def main(args: argparse.Namespace) -> int:
     else:
         fp = np.asarray(frames_prior(sc).p, float)
         pmf = np.concatenate([[0.0], fp / fp.sum()])
-        model = A2GBursts.from_scenario(sc, pmf, _channel_share(sc))
+        model = A2GBursts.from_scenario(sc, pmf, channel_share(sc))
     est = BurstGridEstimator(model, pmf, area_xy_m=sc.area_xy_m(), area_margin_m=100.0)
     need = float(sc.people.required_accuracy_m)
     rng = np.random.default_rng(0)

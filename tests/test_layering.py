@@ -45,3 +45,54 @@ def test_only_the_cli_imports_the_cli():
         if "from ..cli" in text or "from .cli" in text or "uavloc_gcs.cli" in text:
             offenders.append(str(rel))
     assert offenders == []
+
+
+def _package_graph(package: Path) -> dict[str, set[str]]:
+    """module -> the modules of the same package it imports (at the top or inside a function)."""
+    graph = {}
+    for py in package.glob("*.py"):
+        if py.name == "__init__.py":
+            continue
+        deps = set()
+        for node in ast.walk(ast.parse(py.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.ImportFrom) and node.level == 1:
+                if node.module:
+                    deps.add(node.module.split(".")[0])
+                else:
+                    deps.update(a.name for a in node.names)
+        graph[py.stem] = deps & {p.stem for p in package.glob("*.py")}
+    return graph
+
+
+def _cycle(graph: dict[str, set[str]]) -> list[str]:
+    """One import cycle of ``graph`` ([] if none)."""
+    state: dict[str, int] = {}
+    path: list[str] = []
+
+    def visit(m: str) -> list[str]:
+        state[m] = 1
+        path.append(m)
+        for d in sorted(graph.get(m, ())):
+            if state.get(d) == 1:
+                return path[path.index(d):] + [d]
+            if d not in state:
+                found = visit(d)
+                if found:
+                    return found
+        state[m] = 2
+        path.pop()
+        return []
+
+    for m in sorted(graph):
+        if m not in state:
+            found = visit(m)
+            if found:
+                return found
+    return []
+
+
+def test_search_reads_as_a_line_from_the_data_to_the_decisions():
+    """search/ has no import circle (issue 40 item 5): what several modules need sits below them."""
+    graph = _package_graph(ROOT / "uavloc_gcs" / "search")
+    assert _cycle(graph) == []
+    assert _cycle({"a": {"b"}, "b": {"a"}}) == ["a", "b", "a"]  # the check can fail

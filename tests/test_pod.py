@@ -136,10 +136,11 @@ def test_p_burst_heard(field):
 
 def test_core_constants_equal_the_world():
     from sim_link.world import emission
+    from uavloc_gcs.search import phones
 
-    assert pod.PROBE_CHANNEL_SHARES == emission.CHANNEL_WEIGHTS
+    assert phones.PROBE_CHANNEL_SHARES == emission.CHANNEL_WEIGHTS
     assert pod.MIN_QUIET_S == emission.MIN_QUIET_S
-    assert pod.FRAMES_LOG_SIGMA == emission.FRAMES_LOG_SIGMA
+    assert phones.FRAMES_LOG_SIGMA == emission.FRAMES_LOG_SIGMA
 
 
 def test_paper_scan_pod_is_double_coverage():

@@ -12,7 +12,7 @@ phone counts as *detected k times* when at least k of its probe bursts are heard
   process is taken in steady state (the phone is in a long silence with the probability the
   silences' share of time gives).
 - :func:`p_burst_heard`: whether one burst sent at a given geometry is heard: each of its K frames
-  (the scenario's frames-per-burst law, the estimator's :func:`~uavloc_gcs.search.policy.frames_prior`
+  (the scenario's frames-per-burst law, the estimator's :func:`~uavloc_gcs.search.phones.frames_prior`
   per phone) reaches a radio the receiver listens on with the channel share and is heard when its
   RSSI exceeds ``channel.receiver_sensitivity_dbm`` under i.i.d. shadowing (fully shared within a
   burst with ``simulation.correlated_shadowing``), with a per-phone transmit offset
@@ -48,19 +48,13 @@ import numpy as np
 from ..a2g import A2GChannel
 from ..errors import ConfigError
 from . import pod_a2g
+from .phones import ACTIVE_CAP_S, ACTIVE_DT_S, FRAMES_LOG_SIGMA, N_QUANTILES, channel_share, frames_prior
 
-# Share of a probe burst's frames on 2.4 GHz channels 1 / 6 / 11 (the public captures' sniffers; the
-# same numbers as sim_link/world/emission.py CHANNEL_WEIGHTS, a test keeps them equal).
-PROBE_CHANNEL_SHARES = {1: 0.349, 6: 0.254, 11: 0.398}
 MIN_QUIET_S = 1.0  # shortest quiet time after a burst (sim_link/world/emission.py MIN_QUIET_S)
-FRAMES_LOG_SIGMA = 0.41  # burst-to-burst spread of a phone's frame count (policy.FRAMES_LOG_SIGMA)
 
-N_QUANTILES = 16  # phone quantiles u (midpoints) of the gap law
 N_TX = 5  # Gauss-Hermite nodes of the per-phone transmit offset
 N_FRAMES = 4  # per-phone median frames per burst (log-uniform midpoints)
 SILENCE_DRAWS = 48  # steady-state long-silence timelines per phone quantile
-ACTIVE_DT_S = 0.5  # grid of the active (no long silence) renewal process
-ACTIVE_CAP_S = 3600.0  # its tables reach this window; every active phone has sent k <= 4 bursts by then
 WINDOW_CAP_S = 6 * 3600.0  # window_for gives up beyond this (long silences last up to 90 min)
 MERGE_GAPS = 2.0  # looks closer than this many mean gaps (of the phone) are one window
 P_EPS = 1e-3  # a look is a run of samples where the best phone's burst is heard with more than this
@@ -330,19 +324,11 @@ class _Hearing:
         return t
 
 
-def _channel_share(sc) -> float:
-    chans = sc.channel.listen_channel_list
-    total = sum(PROBE_CHANNEL_SHARES.values())
-    return sum(PROBE_CHANNEL_SHARES.get(c, 0.0) for c in chans) / total
-
-
 def _frames_nodes(sc, frames_median):
     """Frame counts K (n,) and weights for one phone of median ``frames_median`` (None: the
     population, the estimator's frames prior)."""
     em = sc.emission
     if frames_median is None:
-        from .policy import frames_prior
-
         p = np.asarray(frames_prior(sc).p, float)
         return np.arange(1, len(p) + 1, dtype=float), p / p.sum()
     z, w = np.polynomial.hermite_e.hermegauss(15)
@@ -362,7 +348,7 @@ def p_burst_heard(sc, horizontal_m, altitude_m, *, tx_offset_db=0.0, frames_medi
     ch = sc.channel
     sens = ch.receiver_sensitivity_dbm
     if sens is None:  # the paper's exact gate
-        share = 1.0 if sc.emission.model == "continuous" else float(_channel_share(sc) > 0)
+        share = 1.0 if sc.emission.model == "continuous" else float(channel_share(sc) > 0)
         out = (d3 <= sc.fleet.comm_range_m) * share
         return out.astype(float)
     if tx_offset_db is None:
@@ -375,13 +361,13 @@ def p_burst_heard(sc, horizontal_m, altitude_m, *, tx_offset_db=0.0, frames_medi
     if a2g is not None:  # the air-to-ground channel: the state by elevation, shadowing per burst
         ks, wk = _frames_nodes(sc, frames_median)
         return pod_a2g.burst_heard(a2g, h, z, tx_offset_db=tx_offset_db, ks=ks, weights=wk,
-                                   channel_share=_channel_share(sc))
+                                   channel_share=channel_share(sc))
     mu = ch.reference_power_dbm - 10.0 * ch.path_loss_exponent * np.log10(
         np.maximum(d3, 1e-3) / ch.reference_distance_m) + tx_offset_db
     q = _ndtr((mu - sens) / ch.shadowing_sigma_db)  # one frame above the sensitivity
     if sc.emission.model == "continuous":  # a slot of samples_per_slot samples
         return 1.0 - (1.0 - q) ** ch.samples_per_slot
-    c = _channel_share(sc)
+    c = channel_share(sc)
     ks, wk = _frames_nodes(sc, frames_median)
     if sc.simulation.correlated_shadowing:  # the frames of a burst share their shadowing
         return q * sum(wi * (1.0 - (1.0 - c) ** k) for k, wi in zip(ks, wk))
@@ -423,7 +409,7 @@ def _hearing_table(sc) -> _Hearing:
     if a2g is not None:  # tables over (horizontal distance, height): the elevation decides line of sight
         types = [_frames_nodes(sc, m) for m in med]
         h, z, table, reach, el, reach_z = pod_a2g.tables(
-            a2g, tx, types, _channel_share(sc), P_EPS, em.elicitation_rate_hz if elicit else 0.0,
+            a2g, tx, types, channel_share(sc), P_EPS, em.elicitation_rate_hz if elicit else 0.0,
             elicitation_range_m(sc))
         weights = np.array([wt * wmm for wt in wtx for wmm in wm])
         return _Hearing(h, table, weights, reach, el, z, reach_z)

@@ -110,14 +110,15 @@ N_MAX = 200  # bursts in one window the tables count (an hour of the most freque
 @lru_cache(maxsize=4)
 def _uneven_tables(bt):
     """Per phone quantile: G1[T, p] = P(>= 1 heard) and H1[T, p] = P(exactly 1 heard) of a window of
-    T seconds (pod.ACTIVE_DT_S grid, the active renewal process in steady state) whose bursts are each
+    T seconds (phones.ACTIVE_DT_S grid, the active renewal process in steady state) whose bursts are each
     heard with probability p (P_LEVELS grid). float32 (N_QUANTILES, T, P)."""
     import math
 
     from scipy.signal import fftconvolve
+    from scipy.special import ndtr as _ndtr
     from scipy.stats import lognorm
 
-    from .pod import ACTIVE_CAP_S, ACTIVE_DT_S, N_QUANTILES, _ndtr
+    from .phones import ACTIVE_CAP_S, ACTIVE_DT_S, N_QUANTILES
 
     dt = ACTIVE_DT_S
     edges = np.arange(0.0, ACTIVE_CAP_S + dt, dt)

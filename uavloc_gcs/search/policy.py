@@ -44,6 +44,7 @@ from ..observations import SlotBatch
 from ..radios import BLE, WIFI, ble_view, radio_of
 from ..scenario import Scenario
 from . import orbit as orb
+from .phones import burst_rates, channel_share, frames_prior
 from . import targets as tg
 
 log = logging.getLogger(__name__)
@@ -103,41 +104,6 @@ GRID_ESTIMATE = True
 GRID_AREA_MARGIN_M = 50.0
 
 
-# Burst-to-burst spread of one phone's frame count (log std), as fitted to the public captures
-# (sim_link/world/emission.py FRAMES_LOG_SIGMA, docs/science/world.md).
-FRAMES_LOG_SIGMA = 0.41
-
-
-def frames_prior(scenario: Scenario):
-    """The frames a phone sends per probe burst, as the scenario's emission keys describe them, for the
-    estimator's hearing counts (estimation.evidence.FramesPrior): a phone's median count log-uniform
-    between ``frames_per_burst_median_min`` and ``_max``, each burst log-normal about it
-    (FRAMES_LOG_SIGMA), at most ``frames_per_burst_max``; every frame on a channel the sensor listens
-    to (probe scans sweep 1/6/11, where the sensor has its radios). Deterministic (a fixed sample)."""
-    from ..estimation.evidence import FramesPrior
-
-    em = scenario.emission
-    rng = np.random.default_rng(0)
-    n = 50_000
-    lo, hi = math.log(em.frames_per_burst_median_min), math.log(em.frames_per_burst_median_max)
-    median = np.exp(rng.uniform(lo, hi, n))
-    k = np.clip(np.rint(median * np.exp(FRAMES_LOG_SIGMA * rng.standard_normal(n))), 1, em.frames_per_burst_max)
-    counts = np.bincount(k.astype(int), minlength=int(em.frames_per_burst_max) + 1)[1:].astype(float)
-    return FramesPrior(counts + 0.5)  # no count impossible
-
-
-def burst_rates(scenario: Scenario):
-    """The burst-rate law of the scenario's phones, for the bursts nobody heard
-    (estimation.evidence.Exposure): a phone's median gap log-uniform between
-    ``burst_gap_median_min_s`` and ``_max_s``, its gaps log-normal with the 90th percentile the
-    scenario gives at either end. The world's rare long silences are left out (about 1 gap in 100)."""
-    from ..estimation.evidence import burst_rate_prior
-
-    em = scenario.emission
-    z90 = 1.2816
-    sigma = (math.log(em.burst_gap_p90_min_s / em.burst_gap_median_min_s) / z90,
-             math.log(em.burst_gap_p90_max_s / em.burst_gap_median_max_s) / z90)
-    return burst_rate_prior((em.burst_gap_median_min_s, em.burst_gap_median_max_s), sigma, log_uniform=True)
 
 
 def _sideways(centre: np.ndarray, radius: float, starts: np.ndarray, unresolved: int) -> tuple[np.ndarray, float]:
@@ -515,9 +481,7 @@ class SearchPolicy:
                 fp = np.asarray(frames_prior(sc).p, float)
                 pmf = np.concatenate([[0.0], fp / fp.sum()])  # K = 0 .. Kmax frames sent
                 # the air-to-ground channel where the scenario names an environment (the world's own)
-                from .pod import _channel_share
-
-                model = A2GBursts.from_scenario(sc, pmf, _channel_share(sc)) or LogDistanceBursts.from_scenario(sc)
+                model = A2GBursts.from_scenario(sc, pmf, channel_share(sc)) or LogDistanceBursts.from_scenario(sc)
             vmax = float(self.model_speed_m_s)
             spec = self._grid[radio] = GridSpec(model, tuple(float(v) for v in pmf), vmax,
                                                 1.0 if vmax <= 0 else float(sc.people.static_share),

@@ -17,8 +17,9 @@ from uavloc_gcs.estimation.burst_grid import (A2GBursts, Burst, BurstGridEstimat
                                               bursts_from_slots)
 from uavloc_gcs.observations import SlotBatch
 from uavloc_gcs.scenario import load_scenario
-from uavloc_gcs.search.pod import _channel_share
-from uavloc_gcs.search.policy import SearchPolicy, frames_prior
+from uavloc_gcs.search.phones import channel_share
+from uavloc_gcs.search.phones import frames_prior
+from uavloc_gcs.search.policy import SearchPolicy
 
 ROOT = Path(__file__).resolve().parents[3]
 
@@ -36,7 +37,7 @@ def _pmf(sc) -> np.ndarray:
 def _estimator(sc) -> BurstGridEstimator:
     """The field world's grid estimator over the area (as bench low_orbit builds it)."""
     pmf = _pmf(sc)
-    return BurstGridEstimator(A2GBursts.from_scenario(sc, pmf, _channel_share(sc)), pmf,
+    return BurstGridEstimator(A2GBursts.from_scenario(sc, pmf, channel_share(sc)), pmf,
                               area_xy_m=sc.area_xy_m(), area_margin_m=100.0)
 
 
@@ -45,7 +46,7 @@ def test_the_field_world_estimates_with_its_own_air_to_ground_channel():
     assert sc.channel.environment is not None  # field.toml names its environment
     spec = SearchPolicy(sc)._grid_spec()
     assert isinstance(spec.model, A2GBursts)
-    assert spec.model.channel_share == pytest.approx(_channel_share(sc))
+    assert spec.model.channel_share == pytest.approx(channel_share(sc))
     paper = load_scenario(ROOT / "examples" / "paper.toml")
     assert A2GBursts.from_scenario(paper, _pmf(sc)) is None  # no environment: not this channel
 
@@ -53,7 +54,7 @@ def test_the_field_world_estimates_with_its_own_air_to_ground_channel():
 def test_a_burst_table_is_the_channels_own_likelihood_over_distance_and_offset():
     sc = _field()
     pmf = _pmf(sc)
-    m = A2GBursts.from_scenario(sc, pmf, _channel_share(sc))
+    m = A2GBursts.from_scenario(sc, pmf, channel_share(sc))
     h = np.array([0.0, 20.0, 60.0, 150.0])
     tx = np.array([-3.0, 0.0, 3.0])[:, None]
     got = m.heard_loglik(np.array([-72.0, -75.0]), np.array([2.0, 1.0]), pmf, h[None, :], 30.0, tx)

@@ -73,7 +73,7 @@ def test_a_burst_phone_missed_by_fly_by_looks_is_not_said_to_be_gone():
 
 
 def test_the_frames_prior_follows_the_scenarios_bursts():
-    from uavloc_gcs.search.policy import frames_prior
+    from uavloc_gcs.search.phones import frames_prior
 
     sc = load_scenario(scenario_path("field"))
     p = np.asarray(frames_prior(sc).p, float)
