@@ -228,3 +228,54 @@ def test_max_orbit_looks_is_checked_and_named():
     with pytest.raises(ConfigError) as err:
         sc.replace(search={"max_orbit_looks": 0})
     assert "search.max_orbit_looks" in str(err.value) and "1 or more" in str(err.value)
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_with_an_access_point_the_estimate_is_the_grid_posterior_and_holds_the_truth(seed):
+    """Phones answering an on-board access point were estimated by the continuous fits of
+    estimation.estimate, which claimed 18-26 m for people 23-32 m away in a whole search (a reported
+    person far from the truth). They are the grid posterior's now, like the bursts of the same
+    phones: three worlds of one phone, a vehicle flying lanes over it at 100 m for 6 min."""
+    from sim_link.world import World
+
+    sc = load_scenario(scenario_path("field")).replace(
+        people={"max_speed_m_s": 0.0}, simulation={"motion": "static"},
+        emission={"elicitation_rate_hz": 2.0, "elicitation_join": "in-reach"})
+    rng = np.random.default_rng(seed)
+    person = np.array([400.0, 300.0]) + rng.uniform(-60.0, 60.0, 2)
+    world = World.with_people(sc, [person], seed=seed)
+    policy = SearchPolicy(sc, seed=seed)
+    lanes = [(250.0, 250.0, 550.0, 250.0), (550.0, 350.0, 250.0, 350.0)]
+    t0 = 0.0
+    for x0, y0, x1, y1 in lanes * 3:  # 300 m legs at 25 m/s, 12 s each, then a turn
+        t = t0 + np.arange(0.0, 12.0, sc.channel.slot_s)
+        f = (t - t0) / 12.0
+        xyz = np.column_stack([x0 + f * (x1 - x0), y0 + f * (y1 - y0), np.full(len(t), sc.fleet.altitude_m)])
+        policy.ingest(world.hear_track(1, t, xyz))
+        policy.ingest_track(1, t, xyz)
+        t0 += 60.0
+    policy.update(t0)
+    people = [p for p in policy.people(t0) if p.xy_m is not None]
+    assert people, "the phone was heard"
+    for p in people:
+        assert getattr(p.estimate, "posterior", None) is not None  # the grid's
+        err = float(np.hypot(p.xy_m[0] - person[0], p.xy_m[1] - person[1]))
+        assert err <= p.radius95_m, (err, p.radius95_m)
+
+
+def test_only_probe_bursts_make_the_vehicles_that_heard_nothing_silent_units():
+    """A phone answers the access point it joined, under the address it keeps: another vehicle
+    listening then is not evidence that the phone is far from it (the world never lets it hear those
+    answers). A probe burst goes to every vehicle: one listening and hearing none of it is."""
+    from uavloc_gcs.search.policy import _Person
+
+    sc = load_scenario(scenario_path("field")).replace(emission={"elicitation_rate_hz": 2.0})
+    policy = SearchPolicy(sc, seed=0)
+    person = np.array([300.0, 200.0])
+    probe = _burst(sc, 10.0, (250.0, 150.0), person, LOCAL | 0x10, 0x55, frames=5)
+    answers = [_burst(sc, t, (260.0, 160.0), person, LOCAL | 0x99, 0x55, frames=8) for t in (20.0, 40.0)]
+    p = _Person(LOCAL | 0x10)
+    p.batches = [SlotBatch.concat([probe] + answers)]
+    t = np.arange(0.0, 60.0, 0.25)
+    policy.ingest_track(2, t, np.column_stack([600.0 + 0 * t, 400.0 + 0 * t, np.full(len(t), 100.0)]))
+    silent = [b.t_s for b in policy._bursts_of(p) if b.silent]
+    assert silent == [pytest.approx(10.0)]
