@@ -9,6 +9,7 @@ from uavloc_gcs.planning import VehicleState
 from uavloc_gcs.scan import plan_scan
 from uavloc_gcs.scenario import load_scenario
 from uavloc_gcs.search import SearchPolicy
+from uavloc_gcs.search import hearing
 from uavloc_gcs.search import policy as pol
 from uavloc_gcs.search import targets as tg
 
@@ -318,7 +319,7 @@ def test_tracks_from_slots_make_silences_only_where_a_phone_was_unheard_for_a_wh
     policy.ingest(SlotBatch.from_columns(t, [1] * len(t), xyz, [78] * len(t78) + [77] * len(t77),
                                          [-80.0] * len(t), [10] * len(t)))
     quiet = policy._silence(policy._people[77]).t_s
-    assert len(quiet) and quiet.min() > 1.2 + pol.SLOT_TRACK_QUIET_S and quiet.max() <= 4.0
+    assert len(quiet) and quiet.min() > 1.2 + hearing.SLOT_TRACK_QUIET_S and quiet.max() <= 4.0
     assert len(policy._silence(policy._people[78]).t_s) == 0  # heard wherever the vehicle listened
 
 
