@@ -12,11 +12,11 @@ replanning, return) on paired worlds with each variant of the rules that place a
   the next radius);
 - ``no-settle``: a person who was mirror-ambiguous is located as soon as the estimator stops
   calling it ambiguous (mirror under 5 %), not when the mirror holds under 1 %
-  (``search.policy.AMBIGUITY_SETTLED_MASS = None``);
+  (``search.judging.AMBIGUITY_SETTLED_MASS = None``);
 - ``radial``: a repeated look is planned about the estimate itself, so a vehicle near home flies
   out to the near edge of its disk and back along one line (``search.policy.SIDEWAYS_LOOK_FRACTION
   = None``; by default it goes beside the person, across that line);
-- ``cap4``: a person is given up after 4 looks (``search.policy.MAX_LOOKS = 4``; by default only
+- ``cap4``: a person is given up after 4 looks (``search.judging.MAX_LOOKS = 4``; by default only
   two looks that heard nothing, or no energy for a look, give a person up);
 - ``edge-reach``: a look may pass at the edge of the range of the predicted position, out of
   hearing of much of the predicted 95 % circle (``estimation.access.REACH_WHOLE_CIRCLE = False``);
@@ -92,9 +92,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 SWITCHES = {
     "no-inside-cut": ("policy", "INSIDE_LOOK_FRACTION", None),
     "no-shrink": ("targets", "LOOK_SHRINK", 1.0),
-    "no-settle": ("policy", "AMBIGUITY_SETTLED_MASS", None),
+    "no-settle": ("judging", "AMBIGUITY_SETTLED_MASS", None),
     "radial": ("policy", "SIDEWAYS_LOOK_FRACTION", None),
-    "cap4": ("policy", "MAX_LOOKS", 4),
+    "cap4": ("judging", "MAX_LOOKS", 4),
     "edge-reach": ("access", "REACH_WHOLE_CIRCLE", False),
     "heard-tracks": ("missionsim", "LISTENING", "heard"),
     "no-silences": ("missionsim", "LISTENING", "none"),
@@ -125,9 +125,9 @@ def _fly(job):
     from sim_link.experiments.paper import REFERENCE, ExperimentConfig, Task, run_task, world_seed
     from uavloc_gcs.estimation import access, estimate
     from uavloc_gcs.scenario import load_scenario
-    from uavloc_gcs.search import policy, targets
+    from uavloc_gcs.search import judging, policy, targets
 
-    modules = {"policy": policy, "targets": targets, "access": access, "missionsim": missionsim, "estimate": estimate}
+    modules = {"policy": policy, "judging": judging, "targets": targets, "access": access, "missionsim": missionsim, "estimate": estimate}
     if not _SHIPPED:
         _SHIPPED.update({(m, name): getattr(modules[m], name) for m, name, _ in SWITCHES.values()})
     for (m, name), value in _SHIPPED.items():

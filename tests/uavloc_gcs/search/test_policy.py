@@ -9,7 +9,7 @@ from uavloc_gcs.planning import VehicleState
 from uavloc_gcs.scan import plan_scan
 from uavloc_gcs.scenario import load_scenario
 from uavloc_gcs.search import SearchPolicy
-from uavloc_gcs.search import hearing
+from uavloc_gcs.search import hearing, judging
 from uavloc_gcs.search import policy as pol
 from uavloc_gcs.search import targets as tg
 
@@ -182,7 +182,7 @@ def test_reported_looks_are_judged_from_when_they_were_flown(small):
     """With look reports (the daemon), a vehicle running late is not taken for a miss: the look
     counts from when it is reported flown; without them, from its planned time (the simulator)."""
     from uavloc_gcs.observations import SlotBatch
-    from uavloc_gcs.search.policy import LOOK_LATE_S
+    from uavloc_gcs.search.judging import LOOK_LATE_S
 
     def fresh(reports):
         policy = SearchPolicy(small, time_limit_s=20.0, max_iter=5)
@@ -226,7 +226,7 @@ def test_a_look_is_judged_only_once_the_looking_vehicles_receiver_has_reported_i
     judged; the person, heard on that very look, was given up "not heard on 2 looks where it was
     predicted". With a receiver that sends keepalives, the look waits for its reports."""
     from uavloc_gcs.observations import SlotBatch
-    from uavloc_gcs.search.policy import LOOK_LATE_S
+    from uavloc_gcs.search.judging import LOOK_LATE_S
 
     def flown():
         policy = SearchPolicy(small, time_limit_s=20.0, max_iter=5)
@@ -515,7 +515,7 @@ def test_a_mirror_ambiguity_is_settled_only_when_the_mirror_holds_almost_nothing
 
     never = _sequence_of_estimates(small, monkeypatch, [_estimate(b, 9.0, a, 0.037)])
     assert never[0].located, never[0].reason
-    monkeypatch.setattr(pol, "AMBIGUITY_SETTLED_MASS", None)
+    monkeypatch.setattr(judging, "AMBIGUITY_SETTLED_MASS", None)
     off = _sequence_of_estimates(small, monkeypatch, seq)
     assert [s.located for s in off] == [False, True, True]
 
