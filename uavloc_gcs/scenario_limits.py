@@ -1,6 +1,6 @@
 """Plausible ranges of a scenario file's values: what no field, fleet or radio can have.
 
-``scenario._resolve`` refuses what is impossible (a negative speed, a range below the altitude);
+``scenario_checks.resolve`` refuses what is impossible (a negative speed, a range below the altitude);
 this refuses what is possible to write but absurd -- ``comm_range_m = 1e9``, ``energy_budget_j =
 1e308`` (issue 40) -- which used to pass and print a 300-digit kJ figure. Each limit says why, with
 its source, and the error names the key and the plausible range. Applied to values read from a
