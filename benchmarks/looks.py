@@ -25,11 +25,11 @@ replanning, return) on paired worlds with each variant of the rules that place a
   whole flight);
 - ``no-silences``: no silences at all (``missionsim.LISTENING = "none"``);
 - ``bounds-not-in-cov``: the hearing constraints move and reweigh candidates but add no
-  information to their covariance (``estimation.estimate.BOUNDS_IN_COVARIANCE = False``);
+  information to their covariance (``estimation.modes.BOUNDS_IN_COVARIANCE = False``);
 - ``no-bounded-mirror``: a candidate the hearing constraints moved gets no mirror starts of its
-  own (``estimation.estimate.MIRROR_AFTER_BOUNDS = False``);
+  own (``estimation.modes.MIRROR_AFTER_BOUNDS = False``);
 - ``bound-cap``: the hearing constraints shrink a candidate's standard deviation by at most 1.5x
-  in any direction (``estimation.estimate.BOUND_SHRINK_MAX = 1.5``; by default no cap);
+  in any direction (``estimation.modes.BOUND_SHRINK_MAX = 1.5``; by default no cap);
 - ``turn-mixture``: a second motion model in which the person turned since the oldest data
   (``estimation.estimate.TURN_MIXTURE = True``; off by default);
 - ``tail-1``, ``tail-4``: the maneuver offsets' prior a multivariate t with 1 or 4 degrees of
@@ -98,9 +98,9 @@ SWITCHES = {
     "edge-reach": ("access", "REACH_WHOLE_CIRCLE", False),
     "heard-tracks": ("missionsim", "LISTENING", "heard"),
     "no-silences": ("missionsim", "LISTENING", "none"),
-    "bounds-not-in-cov": ("estimate", "BOUNDS_IN_COVARIANCE", False),
-    "no-bounded-mirror": ("estimate", "MIRROR_AFTER_BOUNDS", False),
-    "bound-cap": ("estimate", "BOUND_SHRINK_MAX", 1.5),
+    "bounds-not-in-cov": ("modes", "BOUNDS_IN_COVARIANCE", False),
+    "no-bounded-mirror": ("modes", "MIRROR_AFTER_BOUNDS", False),
+    "bound-cap": ("modes", "BOUND_SHRINK_MAX", 1.5),
     "turn-mixture": ("estimate", "TURN_MIXTURE", True),
     "tail-1": ("estimate", "MANEUVER_TAIL_DOF", 1.0),
     "tail-4": ("estimate", "MANEUVER_TAIL_DOF", 4.0),
@@ -123,11 +123,11 @@ def _fly(job):
     variant, scenario_file, people, seed, run = job
     from sim_link.experiments import missionsim
     from sim_link.experiments.paper import REFERENCE, ExperimentConfig, Task, run_task, world_seed
-    from uavloc_gcs.estimation import access, estimate
+    from uavloc_gcs.estimation import access, estimate, modes
     from uavloc_gcs.scenario import load_scenario
     from uavloc_gcs.search import judging, policy, targets
 
-    modules = {"policy": policy, "judging": judging, "targets": targets, "access": access, "missionsim": missionsim, "estimate": estimate}
+    modules = {"policy": policy, "judging": judging, "targets": targets, "access": access, "missionsim": missionsim, "estimate": estimate, "modes": modes}
     if not _SHIPPED:
         _SHIPPED.update({(m, name): getattr(modules[m], name) for m, name, _ in SWITCHES.values()})
     for (m, name), value in _SHIPPED.items():

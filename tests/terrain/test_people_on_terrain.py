@@ -128,7 +128,7 @@ def test_one_pass_across_a_slope_keeps_the_uphill_mirror(mountains, person, max_
     slope falls as one moves out, so its fit slid back across the pass and the uphill solution was
     never fitted; the hearing discs, taken at the heights under the estimate, then cut the radius
     down. Over terrain the estimator also starts where the ground gives the same slant range on
-    the other side (estimate._slant_mirrors), and the discs are taken at their widest. The old
+    the other side (modes._slant_mirrors), and the discs are taken at their widest. The old
     code failed all four cases."""
     sc = mountains
     ch = ChannelModel.from_scenario(sc)

@@ -13,7 +13,7 @@ residual, zero inside, growing linearly with the violation over a softness of
 mismatch within a pass for slots heard, whose pass offset carries the maneuver). The estimator
 refits every candidate where they bind, so a mirror that needs the person out of reach of a slot
 heard, or within reach of a silence, moves or loses its posterior mass; the binding rows also add
-(deflated) information to the Laplace covariance (``estimate.BOUNDS_IN_COVARIANCE``, measured there).
+(deflated) information to the Laplace covariance (``modes.BOUNDS_IN_COVARIANCE``, measured there).
 
 Opt-in (``estimate_emitter(..., silence=)``): the simulator's hearing is a hard range gate, which
 this exploits fully; a real phone's detection edge is softer (the softness should then grow).

@@ -22,7 +22,7 @@ With a frames prior the censored rows become every listening vehicle's hearing c
   + 2 (ln F(0) - ln F(A))                               exposure: F(A) = E_lam[lam^N exp(-lam A)],
                                                         A = the time a burst would have been heard
 (``evidence.exposure_loglik``; one residual, its square that, and in the Laplace covariance its
-curvature by differences, which may widen it: ``estimate.EXPOSURE_FLOOR``).
+curvature by differences, which may widen it: ``modes.EXPOSURE_FLOOR``).
 
 The truncation lowers the cost where hearing is unlikely, so it cannot be a residual of its own:
 per slot it joins the Gaussian term into one convex function of z_i written as a signed root

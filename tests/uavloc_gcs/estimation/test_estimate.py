@@ -301,7 +301,7 @@ def test_a_second_mode_inside_the_estimates_own_circle_is_covered_not_ambiguous(
 
 
 def test_capped_constraint_information_shrinks_a_deviation_at_most_by_the_factor():
-    from uavloc_gcs.estimation.estimate import _capped
+    from uavloc_gcs.estimation.modes import _capped
 
     info = np.diag([4.0, 1.0])  # standard deviations 0.5 and 1
     extra = np.diag([400.0, 0.0])  # hundreds of binding rows along x

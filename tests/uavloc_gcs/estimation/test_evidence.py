@@ -76,13 +76,13 @@ def test_a_phone_heard_at_the_edge_of_range_keeps_both_sides(sc, monkeypatch):
     can push it off to one side, and that side's mirror must then be tried too, or the wrong side
     is reported alone (the mission, with its silences, located this person 222 m off inside a 10 m
     circle). Twenty micrometre perturbations of the track, a fixed seed."""
-    from uavloc_gcs.estimation import estimate
+    from uavloc_gcs.estimation import modes
 
     n = len(EDGE_RSSI_DBM)
     channel = ChannelModel.from_scenario(sc)
     one_sided = {}
     for on in (True, False):
-        monkeypatch.setattr(estimate, "MIRROR_AFTER_BOUNDS", on)
+        monkeypatch.setattr(modes, "MIRROR_AFTER_BOUNDS", on)
         one_sided[on] = 0
         for k in range(20):
             y = 426.5 + np.random.default_rng(k).normal(0.0, 1e-6, n)

@@ -301,7 +301,7 @@ def test_mirroring_one_pass_keeps_the_others_where_they_were_with_a_turn():
     shift is part of where the person was at the other passes, and stays there."""
     from dataclasses import replace
 
-    from uavloc_gcs.estimation.estimate import _mirror_one_pass
+    from uavloc_gcs.estimation.modes import _mirror_one_pass
 
     problem = replace(_tail_problem(None), turn_at_s=100.0, turn_sigma_m_s=1.5)
     theta = np.random.default_rng(2).normal(0.0, 3.0, problem.size)
