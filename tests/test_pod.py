@@ -139,7 +139,7 @@ def test_core_constants_equal_the_world():
     from uavloc_gcs.search import phones
 
     assert phones.PROBE_CHANNEL_SHARES == emission.CHANNEL_WEIGHTS
-    assert pod.MIN_QUIET_S == emission.MIN_QUIET_S
+    assert phones.MIN_QUIET_S == emission.MIN_QUIET_S
     assert phones.FRAMES_LOG_SIGMA == emission.FRAMES_LOG_SIGMA
 
 

@@ -16,7 +16,7 @@ within reach of the cell (where ``search.pod`` says one burst is heard with more
 effective window of ``search.pod``). When the vehicle leaves, the window is folded into the
 cell's distribution of emissions heard, truncated at two: P(0), P(1), P(>=2), with the window's
 probabilities from :func:`window_probs` (continuous emission: any window of a slot; probe bursts:
-the population's steady-state renewal model ``search.pod.BurstTiming``) and windows of separate
+the population's steady-state renewal model ``search.burst_timing.BurstTiming``) and windows of separate
 passes taken as independent. ``pod(1)`` is then 1 - P(0), ``pod(2)`` is P(>=2). This is the live
 figure (cheap per position); the final claims use ``search.pod.pod_from_tracks`` over the same
 flown tracks (:meth:`Coverage.tracks`), which keeps the dependence between passes that a phone's
@@ -59,13 +59,14 @@ def people_density_per_km2(sc) -> float | None:
 class _Windows:
     """What one window (an effective in-range time) does to a phone's count of emissions heard,
     per phone class: continuous emission (one class) counts a window of a slot or more once, as
-    ``search.pod`` counts looks; probe bursts (``search.pod.BurstTiming``'s phone quantiles) hear
+    ``search.pod`` counts looks; probe bursts (``search.burst_timing.BurstTiming``'s phone quantiles) hear
     >= 1 or >= 2 bursts with the renewal model's steady-state probabilities outside long silences.
     A phone in a long silence when the search starts is taken as silent for the whole search (they
     last 30-90 min), so classes end weighted by their active share (:meth:`weights`)."""
 
     def __init__(self, sc):
-        from .pod import BurstTiming, _active_tables, elicited_stream  # noqa: PLC0415
+        from .burst_timing import BurstTiming, _active_tables  # noqa: PLC0415
+        from .pod import elicited_stream  # noqa: PLC0415
 
         self.bt = BurstTiming.from_scenario(sc)
         self.continuous = self.bt.continuous or elicited_stream(sc)

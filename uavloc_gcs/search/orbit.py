@@ -3,7 +3,7 @@
 A fly-by crosses a phone's hearing disk in seconds; a phone that probes every 20-270 s is then
 usually silent (issue 25). An *orbit look* is a non-hovering circle of radius ``radius_m`` around
 the person's predicted position, flown for ``dwell_s`` seconds: long enough that the phone sends
-``k`` bursts with probability ``p`` (search.pod.BurstTiming) and, divided by the mean probability
+``k`` bursts with probability ``p`` (search.burst_timing.BurstTiming) and, divided by the mean probability
 that a burst sent while the vehicle is on the circle is heard (search.pod.p_burst_heard), that
 they are heard. What each autopilot flies was measured on SITL (docs/science/looks.md,
 ``python -m tests.sitl.orbit_measure``):
@@ -229,9 +229,9 @@ def join_wait_s(sc) -> float:
 
 def dwell_s(sc, p_heard: float, k: int = ORBIT_BURSTS, p: float = ORBIT_P) -> float:
     """Seconds on the circle to hear ``k`` bursts with probability ``p``: the window in which the
-    phone sends k bursts with probability p (pod.BurstTiming.window_for), stretched by the share
+    phone sends k bursts with probability p (burst_timing.BurstTiming.window_for), stretched by the share
     of bursts the circle hears (a thinning of the burst process), at most MAX_DWELL_S."""
-    from .pod import BurstTiming
+    from .burst_timing import BurstTiming
 
     key = (repr(sc.emission), sc.channel.slot_s, k, p)
     if key not in _DWELL_CACHE:

@@ -27,6 +27,9 @@ FRAMES_LOG_SIGMA = 0.41
 N_QUANTILES = 16  # phone quantiles u (midpoints) of the gap law
 ACTIVE_DT_S = 0.5  # grid of the active (no long silence) renewal process
 ACTIVE_CAP_S = 3600.0  # its tables reach this window; every active phone has sent k <= 4 bursts by then
+SILENCE_DRAWS = 48  # steady-state long-silence timelines per phone quantile
+WINDOW_CAP_S = 6 * 3600.0  # window_for gives up beyond this (long silences last up to 90 min)
+MIN_QUIET_S = 1.0  # shortest quiet time after a burst (sim_link/world/emission.py MIN_QUIET_S)
 
 
 def channel_share(sc: Scenario) -> float:

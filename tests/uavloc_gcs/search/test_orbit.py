@@ -12,7 +12,7 @@ from uavloc_gcs.examples import scenario_path
 from uavloc_gcs.mission import DO_CHANGE_SPEED, NAV_RETURN_TO_LAUNCH, NAV_WAYPOINT, to_wire
 from uavloc_gcs.scenario import load_scenario
 from uavloc_gcs.search import orbit
-from uavloc_gcs.search.pod import BurstTiming
+from uavloc_gcs.search.burst_timing import BurstTiming
 
 
 @pytest.fixture(scope="module")
