@@ -311,7 +311,7 @@ class SearchPolicy(Judging):
     def done(self, t_s: float) -> bool:
         """True when every emitter heard is located or given up and no look is outstanding, and no
         pass over cells below the POD target is wanted (search/coverage.py, with ``coverage``)."""
-        from .coverage import passes_wanted
+        from .passes import passes_wanted
 
         return not self.pending_ids() and not passes_wanted(self)
 
@@ -319,7 +319,7 @@ class SearchPolicy(Judging):
         """True if the current plan no longer fits what is known."""
         pending = set(self.pending_ids())
         if self._plan is None:
-            from .coverage import passes_wanted
+            from .passes import passes_wanted
 
             return bool(pending) or passes_wanted(self)
         planned = {e for task in self._plan.tasks for e in task.target_ids}
@@ -431,7 +431,7 @@ class SearchPolicy(Judging):
                     self._flown[e] = ta
         self._plan = orb.attach_orbits(self, self._to_search_plan(t_s, vehicles, result, runtime))
         if getattr(self, "coverage", None) is not None:  # cells below the POD target get another pass
-            from .coverage import add_passes
+            from .passes import add_passes
 
             self._plan = add_passes(self, t_s, vehicles, self._plan)
         self._awaiting = {e: ta for task in self._plan.tasks for e, ta in zip(task.target_ids, task.access_times_s)}

@@ -116,6 +116,7 @@ def test_replans_while_passes_are_flown_do_not_use_up_the_rounds():
 
     from uavloc_gcs.planning.problem import VehicleState
     from uavloc_gcs.search import coverage as cm
+    from uavloc_gcs.search import passes
     from uavloc_gcs.search.policy import SearchPlan, VehicleTask
 
     sc = small_scenario()
@@ -123,18 +124,18 @@ def test_replans_while_passes_are_flown_do_not_use_up_the_rounds():
     policy = SimpleNamespace(coverage=cov, scenario=sc, speed_m_s=15.0)
     vehicles = [VehicleState("1", (200.0, 120.0), (0.0, 0.0), 1e6)]
     plan = SearchPlan((VehicleTask("1", np.array([[0.0, 0.0]]), (), t),), 0.0, 0.0)
-    first = cm.add_passes(policy, t, vehicles, plan)
+    first = passes.add_passes(policy, t, vehicles, plan)
     assert cov.pass_rounds == 1 and len(first.tasks[0].waypoints_xy_m) > 2  # lanes, then home
     end = cov._round_end_s
     assert end > t
     # replans before the passes' ETA (the POD rises as they are flown) stay in round 1
     for k in range(1, 6):
         _lane(cov, 1, 160.0 + 10 * k, 0.0, 50.0, t0=t + 5 * k)
-        cm.add_passes(policy, t + 5 * k, vehicles, plan)
+        passes.add_passes(policy, t + 5 * k, vehicles, plan)
     assert cov.pass_rounds == 1
     assert cov._round_end_s == end  # nor do they push the round's end (a search would never end)
-    assert cm.passes_wanted(policy)
-    cm.add_passes(policy, end + 1.0, vehicles, plan)  # the round is over: a new one
+    assert passes.passes_wanted(policy)
+    passes.add_passes(policy, end + 1.0, vehicles, plan)  # the round is over: a new one
     assert cov.pass_rounds == 2
     # the reason the passes ended is said as it was
     assert final_summary(cov).passes_end == ""
