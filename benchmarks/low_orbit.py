@@ -41,7 +41,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def main(args: argparse.Namespace) -> int:
     from sim_link.world import World
-    from uavloc_gcs.estimation.burst_grid import A2GBursts, BurstGridEstimator, bursts_from_slots, missed_beacons
+    from uavloc_gcs.estimation.burst_grid import BurstGridEstimator, bursts_from_slots, missed_beacons
+    from uavloc_gcs.estimation.burst_models import A2GBursts
     from uavloc_gcs.examples import scenario_path
     from uavloc_gcs.observations import SlotBatch
     from uavloc_gcs.scenario import load_scenario

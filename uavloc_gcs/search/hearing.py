@@ -235,7 +235,8 @@ class Hearing:
             self._grid = {}
         spec = self._grid.get(radio)
         if spec is None:
-            from ..estimation.burst_grid import A2GBursts, GridSpec, LogDistanceBursts
+            from ..estimation.burst_grid import GridSpec
+            from ..estimation.burst_models import A2GBursts, LogDistanceBursts
 
             sc = self.scenario
             if radio == BLE:  # one frame per unit, every one on the channel the scanner hears it on

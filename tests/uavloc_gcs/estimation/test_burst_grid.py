@@ -13,12 +13,11 @@ import numpy as np
 import pytest
 
 from sim_link.world import World
-from uavloc_gcs.estimation.burst_grid import (A2GBursts, Burst, BurstGridEstimator, GridSpec, LogDistanceBursts,
-                                              bursts_from_slots)
+from uavloc_gcs.estimation.burst_grid import Burst, BurstGridEstimator, GridSpec, bursts_from_slots
+from uavloc_gcs.estimation.burst_models import A2GBursts, LogDistanceBursts
 from uavloc_gcs.observations import SlotBatch
 from uavloc_gcs.scenario import load_scenario
-from uavloc_gcs.search.phones import channel_share
-from uavloc_gcs.search.phones import frames_prior
+from uavloc_gcs.search.phones import channel_share, frames_prior
 from uavloc_gcs.search.policy import SearchPolicy
 
 ROOT = Path(__file__).resolve().parents[3]
