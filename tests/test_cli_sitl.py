@@ -12,7 +12,7 @@ import pytest
 
 from uavloc_gcs.cli import main
 from uavloc_gcs.scenario import load_scenario, loads_scenario
-from uavloc_gcs.service import sitl
+from uavloc_gcs.service import sitl, sitl_fleet
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIO = str(ROOT / "examples" / "sitl_arducopter.toml")
@@ -71,7 +71,7 @@ def test_the_mission_file_is_the_scenario_with_fleet_and_link_set(tmp_path):
     src = ROOT / "examples" / "field.toml"
     vs = [_Fake(1, "px4", "udpin:127.0.0.1:40001", "udpin:127.0.0.1:40011"),
           _Fake(2, "px4", "udpin:127.0.0.1:40002", "udpin:127.0.0.1:40012")]
-    text = sitl.mission_text(src.read_text(), vs, autopilot="px4", source=str(src), base_dir=src.parent)
+    text = sitl_fleet.mission_text(src.read_text(), vs, autopilot="px4", source=str(src), base_dir=src.parent)
     (tmp_path / "m.toml").write_text(text)
     sc = load_scenario(tmp_path / "m.toml")
     orig = load_scenario(src)
@@ -81,6 +81,6 @@ def test_the_mission_file_is_the_scenario_with_fleet_and_link_set(tmp_path):
     # everything else as the scenario says: the same world, area and launch point
     assert tomllib.loads(text)["emission"] == tomllib.loads(src.read_text())["emission"]
     assert sc.launch_latlon_deg == orig.launch_latlon_deg and sc.simulation == orig.simulation
-    block = sitl.link_block(vs)
+    block = sitl_fleet.link_block(vs)
     assert loads_scenario(src.read_text().replace("[fleet]\nvehicles = 4", "[fleet]\nvehicles = 2") + "\n" + block
                           ).link.connections == sc.link.connections

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from uavloc_gcs.scenario import loads_scenario
-from uavloc_gcs.service.sitl import SitlVehicle, link_block
+from uavloc_gcs.service.sitl_fleet import SitlVehicle, link_block
 
 from . import harness
 

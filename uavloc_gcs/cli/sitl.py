@@ -89,7 +89,7 @@ def run(args) -> int:
 
     from ..atomicfile import atomic_write_text
     from ..scenario import load_scenario
-    from ..service import sitl
+    from ..service import sitl, sitl_fleet
 
     scenario = load_scenario(args.scenario)
     n, kind, speedup, timeout = _check_args(args, scenario)
@@ -108,13 +108,13 @@ def run(args) -> int:
     try:
         print(f"uavloc sitl: starting {n} {kind} SITL vehicle(s) from {build}, speed-up {speedup:g}, home "
               f"{lat:.6f}, {lon:.6f} (the scenario's launch point) ...", flush=True)
-        vehicles = sitl.launch_fleet(kind, build, n, home=home, speedup=speedup, base_port=args.base_port,
+        vehicles = sitl_fleet.launch_fleet(kind, build, n, home=home, speedup=speedup, base_port=args.base_port,
                                      timeout_s=timeout, on_ready=lambda v: print(
                                          f"  vehicle {v.sysid}: {kind} instance {v.sitl.instance} ready after "
                                          f"{v.sitl.ready_after_s:.1f} s", flush=True))
-        block = sitl.link_block(vehicles)
+        block = sitl_fleet.link_block(vehicles)
         if args.out is not None:
-            text = sitl.mission_text(Path(args.scenario).read_text(encoding="utf-8"), vehicles, autopilot=kind,
+            text = sitl_fleet.mission_text(Path(args.scenario).read_text(encoding="utf-8"), vehicles, autopilot=kind,
                                      source=str(args.scenario), base_dir=Path(args.scenario).parent)
             atomic_write_text(args.out, text)
             print(f"mission file: {args.out}  (run: uavloc daemon --config {args.out})", flush=True)
