@@ -45,6 +45,7 @@ import numpy as np
 from .energy import route_cost
 from .errors import ConfigError, InfeasibleError
 from .mission import MissionPlan, flight_mission
+from .scan_rows import Rows, coverage_counts, layout_rows, refine, repair, rotation, sample_area
 
 log = logging.getLogger(__name__)
 
@@ -52,7 +53,6 @@ __all__ = ["VehicleScan", "ScanPlan", "plan_scan", "scan_missions", "fence_xy_m"
            "coverage_counts"]
 
 MIN_LANES_PER_RANGE = 10.0  # the narrowest lane spacing accepted is R / this
-_EDGE_INSET_M = 0.5  # double coverage: outer lanes this far inside the edge (clipping stays robust)
 
 
 @dataclass(frozen=True)
@@ -118,178 +118,10 @@ def lane_spacing_for(scenario) -> tuple[float, str]:
 
 
 # ---------------------------------------------------------------------------------------------
-# Geometry in the rotated frame: rows of intervals
-
-
-@dataclass(frozen=True)
-class _Rows:
-    offsets: np.ndarray  # (n,) across-coordinate of each row
-    intervals: tuple  # n lists of [a0, a1] along-intervals, sorted
-    spacing_m: float
-
-
-def _rot(theta: float) -> np.ndarray:
-    """Matrix mapping xy -> (along, across) for lanes pointing at math angle ``theta``."""
-    c, s = math.cos(theta), math.sin(theta)
-    return np.array([[c, s], [-s, c]])
-
-
-def _layout_rows(poly_r, spacing: float, mode: str) -> _Rows:
-    from shapely.geometry import LineString
-
-    a_min, c_min, a_max, c_max = poly_r.bounds
-    width = c_max - c_min
-    if mode == "double":
-        inset = min(_EDGE_INSET_M, width / 10.0)
-        n = max(2, math.ceil((width - 2 * inset) / max(spacing - inset, 1e-9) - 1e-9) + 1)
-        step = (width - 2 * inset) / (n - 1)
-        offsets = c_min + inset + step * np.arange(n)
-    else:
-        n = max(1, math.ceil(width / spacing - 1e-9))
-        step = width / n
-        offsets = c_min + step * (np.arange(n) + 0.5)
-    rows, offs = [], []
-    for c in offsets:
-        cut = poly_r.intersection(LineString([(a_min - 1.0, c), (a_max + 1.0, c)]))
-        parts = [g for g in getattr(cut, "geoms", [cut]) if g.geom_type == "LineString" and g.length > 1e-3]
-        ivs = sorted([min(g.coords[0][0], g.coords[-1][0]), max(g.coords[0][0], g.coords[-1][0])] for g in parts)
-        if ivs:
-            rows.append(ivs)
-            offs.append(float(c))
-    return _Rows(np.array(offs), tuple(rows), float(step))
-
-
-def _sample_area(poly_r, step: float) -> np.ndarray:
-    """Grid points inside the polygon plus points along its boundary, (K, 2) rotated frame."""
-    import shapely
-
-    a0, c0, a1, c1 = poly_r.bounds
-    ga = np.arange(a0, a1 + step, step)
-    gc = np.arange(c0, c1 + step, step)
-    grid = np.array(np.meshgrid(ga, gc)).reshape(2, -1).T
-    inside = grid[shapely.contains_xy(poly_r, grid[:, 0], grid[:, 1])]
-    ring = poly_r.exterior
-    k = max(4, int(ring.length / step))
-    edge = np.array([ring.interpolate(t, normalized=True).coords[0] for t in np.linspace(0, 1, k, endpoint=False)])
-    verts = np.asarray(ring.coords)
-    return np.vstack([inside, edge, verts])
-
-
-def coverage_counts(points_xy_m: np.ndarray, lanes_xy_m, range_m: float) -> np.ndarray:
-    """How many lane segments pass within ``range_m`` of each point. (K,) ints."""
-    p = np.asarray(points_xy_m, dtype=float).reshape(-1, 2)
-    counts = np.zeros(len(p), dtype=int)
-    for seg in lanes_xy_m:
-        a, b = np.asarray(seg[0], float), np.asarray(seg[1], float)
-        d = b - a
-        L2 = float(d @ d)
-        t = np.zeros(len(p)) if L2 == 0 else np.clip(((p - a) @ d) / L2, 0.0, 1.0)
-        dist = np.linalg.norm(p - (a + t[:, None] * d), axis=1)
-        counts += dist <= range_m + 1e-6
-    return counts
-
-
-def _repair(rows: _Rows, samples: np.ndarray, r: float, need: int, margin: float) -> _Rows:
-    """Lengthen lane ends until every sample is within ``r`` of ``need`` distinct rows.
-
-    A lane is lengthened so that the sample ends up within ``r - margin`` of it, which also covers
-    the points around the sample.
-    """
-    ivs = [[list(iv) for iv in row] for row in rows.intervals]
-    for _ in range(3):
-        changed = False
-        for pa, pc in samples[_row_counts(rows.offsets, ivs, samples, r) < need]:
-            dc = np.abs(rows.offsets - pc)
-            near = [k for k in np.argsort(dc, kind="stable") if dc[k] <= r]
-            covering = 0
-            for k in near:
-                reach = math.sqrt(max(r * r - dc[k] ** 2, 0.0))
-                if any(a0 - reach <= pa <= a1 + reach for a0, a1 in ivs[k]):
-                    covering += 1
-            if covering >= need:
-                continue
-            for k in near:
-                reach = math.sqrt(max(r * r - dc[k] ** 2, 0.0))
-                if any(a0 - reach <= pa <= a1 + reach for a0, a1 in ivs[k]):
-                    continue
-                iv = min(ivs[k], key=lambda v: min(abs(v[0] - pa), abs(v[1] - pa)))
-                # Extend to within (r - margin) of the sample so the points between samples
-                # (up to ``margin`` away) are covered too.
-                ext = math.sqrt(max((r - margin) ** 2 - dc[k] ** 2, 0.0))
-                if pa < iv[0]:
-                    iv[0] = pa + ext
-                else:
-                    iv[1] = pa - ext
-                changed = True
-                covering += 1
-                if covering >= need:
-                    break
-        if not changed:
-            break
-    return _Rows(rows.offsets, tuple(ivs), rows.spacing_m)
-
-
-def _uncovered(poly_r, rows: _Rows, r: float, need: int):
-    """The part of the area heard from fewer than ``need`` rows, computed with polygons.
-
-    Buffers are inscribed polygons of the true disks, so this errs on the side of "uncovered".
-    """
-    from shapely.geometry import LineString, Point
-    from shapely.ops import unary_union
-
-    def reach(row, c):
-        return unary_union([(LineString([(a0, c), (a1, c)]) if a1 - a0 > 1e-9 else Point(a0, c)).buffer(r, 32)
-                            for a0, a1 in row])
-
-    regions = [reach(row, c) for row, c in zip(rows.intervals, rows.offsets)]
-    if need == 1:
-        covered = unary_union(regions)
-    else:
-        pairs = [regions[k].intersection(regions[m]) for k in range(len(regions))
-                 for m in range(k + 1, len(regions)) if abs(rows.offsets[k] - rows.offsets[m]) < 2 * r]
-        covered = unary_union(pairs) if pairs else None
-    return poly_r if covered is None else poly_r.difference(covered)
-
-
-def _refine(rows: _Rows, poly_r, r: float, need: int, step: float) -> _Rows:
-    """Close what sampling missed: lengthen lanes toward the points of the exactly computed
-    uncovered region (its vertices and boundary) until nothing measurable is left."""
-    for _ in range(6):
-        gap = _uncovered(poly_r, rows, r - 0.05, need)
-        if gap.is_empty or gap.area < 1e-4:
-            break
-        pts = []
-        for g in getattr(gap, "geoms", [gap]):
-            if g.geom_type != "Polygon":
-                continue
-            ring = g.exterior
-            k = max(4, int(ring.length / step))
-            pts += [ring.interpolate(t, normalized=True).coords[0] for t in np.linspace(0, 1, k, endpoint=False)]
-            pts += list(ring.coords) + [g.representative_point().coords[0]]
-        if not pts:
-            break
-        rows = _repair(rows, np.array(pts), r - 0.1, need, margin=0.2)
-    return rows
-
-
-def _row_counts(offsets: np.ndarray, ivs: list, samples: np.ndarray, r: float) -> np.ndarray:
-    """Number of distinct rows within ``r`` of each sample (rotated frame)."""
-    counts = np.zeros(len(samples), dtype=int)
-    for c, row in zip(offsets, ivs):
-        dc = np.abs(samples[:, 1] - c)
-        reach = np.sqrt(np.maximum(r * r - dc * dc, 0.0))
-        hit = np.zeros(len(samples), dtype=bool)
-        for a0, a1 in row:
-            hit |= (samples[:, 0] >= a0 - reach) & (samples[:, 0] <= a1 + reach)
-        counts += hit & (dc <= r)
-    return counts
-
-
-# ---------------------------------------------------------------------------------------------
 # Splitting rows among vehicles
 
 
-def _group_costs(rows: _Rows, rot_inv: np.ndarray):
+def _group_costs(rows: Rows, rot_inv: np.ndarray):
     """Route length [m] of every contiguous row group (i..j) and its best entry choice.
 
     Returns (cost (n, n), choice (n, n)); choice in 0..3 = (start at i or j) x (enter left/right).
@@ -354,7 +186,7 @@ def _partition(cost: np.ndarray, vehicles: int) -> list[tuple[int, int]]:
     return groups[::-1]
 
 
-def _group_waypoints(rows: _Rows, i: int, j: int, choice: int) -> tuple[np.ndarray, list]:
+def _group_waypoints(rows: Rows, i: int, j: int, choice: int) -> tuple[np.ndarray, list]:
     """Waypoints and flown lane segments (rotated frame) of rows i..j for an entry ``choice``."""
     start_low, enter_left = choice < 2, choice % 2 == 0
     order = range(i, j + 1) if start_low else range(j, i - 1, -1)
@@ -396,7 +228,7 @@ class _Piece:
     row_ranges: dict  # row index -> (along_lo, along_hi), +-inf where it reaches the row's end
 
 
-def _row_group_pieces(rows: _Rows, cost, choice, vehicles: int) -> list[_Piece]:
+def _row_group_pieces(rows: Rows, cost, choice, vehicles: int) -> list[_Piece]:
     """Contiguous whole-row groups, the exact min-max split (:func:`_partition`)."""
     out = []
     for i, j in _partition(cost, vehicles):
@@ -405,7 +237,7 @@ def _row_group_pieces(rows: _Rows, cost, choice, vehicles: int) -> list[_Piece]:
     return out
 
 
-def _serpentine_pieces(rows: _Rows, rot: np.ndarray, choice: int, vehicles: int) -> list[_Piece]:
+def _serpentine_pieces(rows: Rows, rot: np.ndarray, choice: int, vehicles: int) -> list[_Piece]:
     """Cut one serpentine over all rows into consecutive pieces anywhere along it (mid-row too).
 
     A piece from arclength s0 to s1 costs (s1 - s0) + |p(s0)| + |p(s1)| (launch at the origin);
@@ -531,12 +363,12 @@ def plan_scan(scenario) -> ScanPlan:
     best = None
     per_angle = {}
     for theta in angles:
-        rot = _rot(theta)
+        rot = rotation(theta)
         poly_r = Polygon(np.asarray(poly.exterior.coords) @ rot.T)
-        rows = _layout_rows(poly_r, spacing, mode)
+        rows = layout_rows(poly_r, spacing, mode)
         step = max(r / 20.0, math.sqrt(poly.area / 20000.0))
-        rows = _repair(rows, _sample_area(poly_r, step), r, need, margin=step)
-        rows = _refine(rows, poly_r, r, need, step)
+        rows = repair(rows, sample_area(poly_r, step), r, need, margin=step)
+        rows = refine(rows, poly_r, r, need, step)
         cost, choice = _group_costs(rows, rot.T)
         options = [_row_group_pieces(rows, cost, choice, m)]
         if m > 1:
@@ -589,7 +421,7 @@ def _best_over_terrain(scenario, candidates: list, need: int):
     return next(c for c, sh in zip(candidates, shares) if sh >= top - HEARING_SHARE_TIE)
 
 
-def _vehicle_scan(scenario, idx: int, pc: _Piece, rows: _Rows, rot: np.ndarray, poly_r) -> VehicleScan:
+def _vehicle_scan(scenario, idx: int, pc: _Piece, rows: Rows, rot: np.ndarray, poly_r) -> VehicleScan:
     from shapely.geometry import box
     from shapely.ops import unary_union
 
