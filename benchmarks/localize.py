@@ -77,7 +77,7 @@ from uavloc_gcs.estimation import (
     silence_from_track,
 )
 from uavloc_gcs.estimation.evidence import Silence
-from uavloc_gcs.estimation.fit import prepare
+from uavloc_gcs.estimation.prepared import prepare
 from uavloc_gcs.observations import SlotBatch
 from uavloc_gcs.scenario import load_scenario
 

@@ -45,7 +45,7 @@ from uavloc_gcs.estimation.estimate import TX_PRIOR_SIGMA_DB
 from uavloc_gcs.estimation import ChannelModel, estimate_emitter, position_rmse_bound_m, prior_information
 from uavloc_gcs.estimation.crb import frames_information
 from uavloc_gcs.estimation.evidence import FramesPrior, burst_rate_prior, censored_silence
-from uavloc_gcs.estimation.fit import censored_rows, prepare
+from uavloc_gcs.estimation.prepared import censored_rows, prepare
 from uavloc_gcs.observations import SlotBatch
 
 from .posterior import burst_posterior_mean, estimate_candidates, mmse_floor

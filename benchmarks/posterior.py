@@ -26,7 +26,8 @@ import math
 
 import numpy as np
 
-from uavloc_gcs.estimation.fit import Prepared, leg_lines, mirror_point
+from uavloc_gcs.estimation.prepared import Prepared
+from uavloc_gcs.estimation.starts import leg_lines, mirror_point
 
 CHUNK = 2000
 
@@ -185,9 +186,9 @@ def burst_posterior_mean(data: Prepared, t_ref: float, candidates: list[tuple[np
                          samples: int = 20_000, rounds: int = 3) -> tuple[np.ndarray, float]:
     """Posterior mean of the position at ``t_ref`` under the threshold (``max_speed_m_s`` 0: a
     static person, the state is the position alone) and the effective sample size of the last round.
-    ``censored``: the estimator's :class:`uavloc_gcs.estimation.fit.CensoredRows` (or None); the
+    ``censored``: the estimator's :class:`uavloc_gcs.estimation.prepared.CensoredRows` (or None); the
     rows' ``tau_s`` must be relative to ``data.t_c`` as built, so they are shifted to ``t_ref`` here."""
-    from uavloc_gcs.estimation.fit import principal_line
+    from uavloc_gcs.estimation.starts import principal_line
 
     dim = 4 if max_speed_m_s > 0 else 2
     if censored is not None:

@@ -13,7 +13,7 @@ from benchmarks.posterior import estimate_candidates, log_posterior, rssi_poster
 from sim_link.world import World
 from uavloc_gcs.estimation import ChannelModel, data_information, estimate_emitter, position_rmse_bound_m
 from uavloc_gcs.estimation import prior_information
-from uavloc_gcs.estimation.fit import prepare
+from uavloc_gcs.estimation.prepared import prepare
 from uavloc_gcs.examples import scenario_path
 from uavloc_gcs.observations import SlotBatch
 from uavloc_gcs.scenario import load_scenario

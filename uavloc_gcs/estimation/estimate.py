@@ -33,16 +33,12 @@ from ..observations import SlotBatch
 from .annulus import annulus_bound_m, reach_bound_m
 from .evidence import Censored, Silence, build_bounds
 from .field_radius import sampled_posterior
-from .fit import (
-    Problem,
-    censored_rows,
-    inflation_factor,
-    prepare,
-    start_points,
-)
+from .fit import Problem
 from .maneuver import MANEUVER_TIME_S, find_passes, intensity_m2_s3, state_noise
 from .model import ChannelModel, mixture_radius, radius_of_probability
-from .modes import PROBE_MERGE_M, _distinct_modes, _refit_bounded, _power_contradicted, _laplace
+from .modes import PROBE_MERGE_M, _distinct_modes, _laplace, _power_contradicted, _refit_bounded
+from .prepared import censored_rows, prepare
+from .starts import inflation_factor, start_points
 
 log = logging.getLogger(__name__)
 

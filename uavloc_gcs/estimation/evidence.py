@@ -73,7 +73,7 @@ class Bounds:
     sign: np.ndarray
     sigma_m: np.ndarray
     pass_index: np.ndarray  # (K,) the maneuver pass of a heard row (its offset applies); -1: none
-    # Over terrain (see .terrain_fit, fit.Prepared.ground): the rows' heights above the person h_m
+    # Over terrain (see .terrain_fit, prepared.Prepared.ground): the rows' heights above the person h_m
     # (K,) as taken, the range, the fit's reference time and ground(t_s, xy) -> (rise, gradient):
     # each row then bounds the slant range to the person on the ground wherever the fit moves them
     # (in slant metres: a ground reach sqrt(range^2 - h^2) changes without bound as h nears the
@@ -131,7 +131,7 @@ def build_bounds(t_c: float, t_anchor: float, heard_t_s, heard_xyz_m, heard_pass
     """The constraints worth fitting: heard slots spread over the data (``MAX_HEARD``) and the
     silent slots that could bind near any of ``near_xy_m`` (candidate positions at t_c). Softness:
     ``TOLERANCE_FLOOR_M`` plus the maneuver deviation since the anchor (and for the static model
-    the walk v_max |tau|). ``ground``: over terrain, ``fit.Prepared.ground`` (each row then bounds
+    the walk v_max |tau|). ``ground``: over terrain, ``prepared.Prepared.ground`` (each row then bounds
     the slant range to the person on the ground where the fit puts them)."""
     if not math.isfinite(comm_range_m):
         return None

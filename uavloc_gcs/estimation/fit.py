@@ -1,4 +1,4 @@
-"""The numerical core: MAP fit of one emitter's slots, start points, and the noise inflation.
+"""The numerical core: the MAP fit of one emitter's slots (its data ready in :mod:`.prepared`, its starts in :mod:`.starts`).
 
 Objective (negative log posterior x 2) over theta = (x, y[, vx, vy][, beta]) at time t_c:
 
@@ -45,10 +45,9 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.optimize import leastsq
 
-from .evidence import Bounds, Censored, Exposure, burst_count_loglik
+from .evidence import Bounds, burst_count_loglik
 from .maneuver import Passes, offset_jacobian
 from .model import (
-    ChannelModel,
     censored_curvature,
     log_probability_residual,
     log_range_jacobian,
@@ -57,147 +56,11 @@ from .model import (
     truncated_mle,
     truncated_slot_residual,
 )
+from .prepared import CensoredRows, Prepared
 
 SPEED_BOUND_SOFTNESS_M_S = 0.05
 VELOCITY_PRIOR_FRACTION = 0.6  # sigma_v / v_max per axis (see the module docstring)
 POSITION_PRIOR_SIGMA_M = 1.0e4
-GRID_SLOTS = 80
-MERGE_S = 0.1  # consecutive slots of one vehicle merged into one observation (see prepare)
-GRID_SIDE = 17
-START_SEPARATION_M = 10.0
-
-
-@dataclass(frozen=True)
-class Prepared:
-    """One emitter's slots in estimator form, time-sorted."""
-
-    t_s: np.ndarray
-    tau_s: np.ndarray  # t - t_c
-    t_c: float  # information-weighted mean time (the fit's reference)
-    a_xy: np.ndarray  # vehicle ground position (N, 2)
-    h_m: np.ndarray  # vehicle height above the person (N,)
-    vehicle: np.ndarray
-    y: np.ndarray  # observed ln range at nominal power
-    w: np.ndarray  # precision n / s^2
-    n_samples: np.ndarray
-    center: np.ndarray  # weighted mean vehicle ground position
-    # Over terrain (see .terrain_fit): ground(t_s, xy) -> (rise (N,), gradient (N, 2)), how much
-    # higher the ground is at the person's position xy (N, 2) at each row's time than where h_m was
-    # taken, and its gradient there; the height above the person is h_m - rise. None: the
-    # person's height does not depend on where they are.
-    ground: object = None
-
-
-def prepare(slots, channel: ChannelModel, *, merge_s: float = MERGE_S, height_floor: bool = True) -> Prepared:
-    """The slots as log-range observations, time-sorted.
-
-    Consecutive slots of one vehicle within ``merge_s`` are merged into one observation (sample-
-    weighted mean of ln r, position and time; summed precision). Over 0.1 s a vehicle moves ~2.5 m,
-    so ln d changes by ~1e-4 of its curvature term while a slot's noise is ~0.15: the likelihood is
-    unchanged to that order and the fit is ~4x cheaper.
-
-    Heights below 0 (a vehicle under the person) are taken as 0 unless ``height_floor`` is False:
-    over terrain the fit moves the person on the ground (``Prepared.ground``) and needs the
-    heights as they are.
-    """
-    y_all = channel.log_range(slots.rssi_dbm)
-    n_all = np.maximum(slots.n_samples, 1).astype(float)
-    order = np.lexsort((slots.t_s, slots.vehicle))
-    t, veh, n, y, a = slots.t_s[order], slots.vehicle[order], n_all[order], y_all[order], slots.xyz_m[order]
-    if merge_s > 0 and len(t) > 1:
-        new = np.concatenate([[True], (veh[1:] != veh[:-1]) | (np.diff(t) > merge_s)])
-        # within a run of one vehicle, start a new group every merge_s seconds
-        run = np.cumsum(new)
-        run_start = t[np.flatnonzero(new)][run - 1]
-        group = np.cumsum(np.concatenate([[True], (run[1:] != run[:-1]) |
-                                          (np.floor((t[1:] - run_start[1:]) / merge_s) !=
-                                           np.floor((t[:-1] - run_start[:-1]) / merge_s))]))
-        starts = np.flatnonzero(np.concatenate([[True], group[1:] != group[:-1]]))
-        tot = np.add.reduceat(n, starts)
-        t = np.add.reduceat(n * t, starts) / tot
-        y = np.add.reduceat(n * y, starts) / tot
-        a = np.add.reduceat(n[:, None] * a, starts, axis=0) / tot[:, None]
-        veh, n = veh[starts], tot
-        by_time = np.argsort(t, kind="stable")
-        t, y, a, veh, n = t[by_time], y[by_time], a[by_time], veh[by_time], n[by_time]
-    w = n / channel.log_range_sigma**2
-    t_c = float(np.sum(w * t) / np.sum(w))
-    return Prepared(t, t - t_c, t_c, a[:, :2].copy(), np.maximum(a[:, 2], 0.0) if height_floor else a[:, 2].copy(),
-                    veh, y, w, n,
-                    np.average(a[:, :2], axis=0, weights=w))
-
-
-@dataclass(frozen=True)
-class CensoredRows:
-    """Censored observations (:class:`.evidence.Censored`) in the fit's time frame, each with the
-    maneuver pass of the nearest observation heard in its burst (-1: none)."""
-
-    t_s: np.ndarray
-    tau_s: np.ndarray
-    a_xy: np.ndarray
-    h_m: np.ndarray
-    frames: np.ndarray
-    pass_index: np.ndarray
-    # the hearing counts' model (Censored.prior set): counts (K,), burst index 0..B-1, ln p(frames)
-    heard: np.ndarray | None = None
-    burst: np.ndarray | None = None
-    log_p: np.ndarray | None = None
-    exposure: "ExposureRows | None" = None  # the bursts nobody heard (evidence.Exposure)
-
-    def __len__(self) -> int:
-        return len(self.t_s)
-
-    @property
-    def n_bursts(self) -> int:
-        return int(self.burst.max()) + 1 if self.burst is not None and len(self.burst) else 0
-
-    @property
-    def residual_rows(self) -> int:
-        """One residual per burst with the counts' model, else one per silence; one for the exposure."""
-        return (self.n_bursts if self.log_p is not None else len(self.t_s)) + (self.exposure is not None)
-
-
-@dataclass(frozen=True)
-class ExposureRows:
-    """:class:`.evidence.Exposure` in the fit's time frame (rows as in :class:`CensoredRows`)."""
-
-    t_s: np.ndarray
-    tau_s: np.ndarray
-    a_xy: np.ndarray
-    h_m: np.ndarray
-    pass_index: np.ndarray
-    source: Exposure
-
-
-def censored_rows(censored: Censored | None, data: Prepared, passes: Passes | None,
-                  same_burst_s: float = 5.0) -> CensoredRows | None:
-    """``censored`` in the fit's frame (None when empty)."""
-    if censored is None or len(censored) == 0:
-        return None
-    t = np.asarray(censored.t_s, float)
-    xyz = np.asarray(censored.xyz_m, float).reshape(-1, 3)
-    index = np.full(len(t), -1, dtype=int)
-    if passes is not None and len(data.t_s):
-        k = np.argmin(np.abs(t[:, None] - data.t_s[None, :]), axis=1)
-        near = np.abs(data.t_s[k] - t) <= same_burst_s
-        index[near] = passes.index[k[near]]
-    counts = {}
-    if censored.prior is not None:
-        counts = dict(heard=np.asarray(censored.heard, float),
-                      burst=np.unique(np.asarray(censored.burst, int), return_inverse=True)[1].reshape(-1),
-                      log_p=censored.prior.log_p)
-        ex = censored.exposure
-        if ex is not None and len(ex):
-            te = np.asarray(ex.t_s, float)
-            xe = np.asarray(ex.xyz_m, float).reshape(-1, 3)
-            ie = np.full(len(te), -1, dtype=int)
-            if passes is not None and len(data.t_s):
-                k = np.argmin(np.abs(te[:, None] - data.t_s[None, :]), axis=1)
-                near = np.abs(data.t_s[k] - te) <= same_burst_s
-                ie[near] = passes.index[k[near]]
-            counts["exposure"] = ExposureRows(te, te - data.t_c, xe[:, :2].copy(), np.maximum(xe[:, 2], 0.0), ie, ex)
-    return CensoredRows(t, t - data.t_c, xyz[:, :2].copy(), np.maximum(xyz[:, 2], 0.0),
-                        np.maximum(np.asarray(censored.frames, float), 0.0), index, **counts)
 
 
 @dataclass(frozen=True)
@@ -622,127 +485,3 @@ class Problem:
                         full_output=True)
         r = self.residuals(x)
         return x, float(r @ r)
-
-
-def principal_line(data: Prepared) -> tuple[np.ndarray, np.ndarray, float]:
-    """Weighted centre, unit direction and straightness (minor/major spread ratio) of the slots."""
-    dev = data.a_xy - data.center
-    cov = (dev * data.w[:, None]).T @ dev / np.sum(data.w)
-    ev, vec = np.linalg.eigh(cov)
-    ratio = math.sqrt(max(ev[0], 0.0) / ev[1]) if ev[1] > 0 else 1.0
-    return data.center, vec[:, 1], ratio
-
-
-def mirror_point(p: np.ndarray, center: np.ndarray, direction: np.ndarray) -> np.ndarray:
-    """Reflection of p across the line through center along direction."""
-    normal = np.array([-direction[1], direction[0]])
-    return p - 2.0 * np.dot(p - center, normal) * normal
-
-
-def leg_lines(data: Prepared, *, min_slots: int = 20, max_legs: int = 3) -> list[tuple[np.ndarray, np.ndarray, float]]:
-    """Straight legs in the slots: (centre, unit direction, mean time) of up to ``max_legs`` of the
-    longest runs of one vehicle without a gap (> 1 s) or a heading change beyond 30 degrees."""
-    order = np.lexsort((data.t_s, data.vehicle))
-    a, t, veh = data.a_xy[order], data.t_s[order], data.vehicle[order]
-    if len(t) < 2:
-        return []
-    step = np.diff(a, axis=0)
-    heading = np.unwrap(np.arctan2(step[:, 1], step[:, 0]))
-    brk = (np.diff(t) > 1.0) | (veh[1:] != veh[:-1]) | (np.hypot(step[:, 0], step[:, 1]) < 1e-9)
-    seg = np.concatenate([[0], np.cumsum(brk)])
-    # within a segment, a new leg whenever the heading leaves its 30-degree bin
-    # centred on the first heading: float noise around a straight leg must not flip between bins
-    bins = np.floor((heading - heading[0]) / np.radians(30.0) + 0.5)
-    leg = seg * 1000 + np.concatenate([[bins[0]], bins]).astype(int)
-    change = np.concatenate([[True], leg[1:] != leg[:-1]])
-    ids = np.cumsum(change)
-    counts = np.bincount(ids)
-    out = []
-    for k in np.argsort(-counts)[:max_legs]:
-        if counts[k] < min_slots:
-            break
-        m = ids == k
-        pts = a[m]
-        d = pts[-1] - pts[0]
-        norm = float(np.hypot(*d))
-        if norm < 1.0:
-            continue
-        out.append((pts.mean(axis=0), d / norm, float(t[m].mean())))
-    return out
-
-
-def start_points(problem: Problem) -> list[np.ndarray]:
-    """Static grid search on a subsample, then: the best cell, its mirror across the slots'
-    principal line, and the best cell on the other side of that line."""
-    d = problem.data
-    sub = np.linspace(0, len(d.t_s) - 1, min(GRID_SLOTS, len(d.t_s))).astype(int)
-    rng_h = np.sqrt(np.maximum(np.exp(2.0 * d.y[sub]) - d.h_m[sub] ** 2, 0.0))
-    reach = float(np.clip(np.percentile(rng_h, 75), 10.0, 2000.0))
-    lo = d.a_xy[sub].min(axis=0) - reach
-    hi = d.a_xy[sub].max(axis=0) + reach
-    gx, gy = np.meshgrid(np.linspace(lo[0], hi[0], GRID_SIDE), np.linspace(lo[1], hi[1], GRID_SIDE))
-    cells = np.column_stack([gx.ravel(), gy.ravel()])
-    diff = cells[:, None, :] - d.a_xy[sub][None]
-    lnd = 0.5 * np.log(np.einsum("ijk,ijk->ij", diff, diff) + d.h_m[sub] ** 2)
-    res = d.y[sub] - lnd
-    w = d.w[sub]
-    if problem.tx:
-        res = res - (res @ w / w.sum())[:, None]
-    cost = (res * res) @ w
-    center, direction, _ = principal_line(d)
-    normal = np.array([-direction[1], direction[0]])
-    side = (cells - center) @ normal
-    best = cells[int(np.argmin(cost))]
-    starts = [best, mirror_point(best, center, direction)]
-    other = side * np.sign(np.dot(best - center, normal) or 1.0) < 0
-    if other.any():
-        starts.append(cells[other][int(np.argmin(cost[other]))])
-    out = []
-    for p in starts:
-        theta = np.zeros(problem.size)
-        theta[:2] = p
-        if problem.tx:
-            lnd_p = 0.5 * np.log(np.sum((p - d.a_xy) ** 2, axis=1) + d.h_m**2)
-            theta[problem.beta_index] = float(np.average(lnd_p - d.y, weights=d.w))
-        if not any(np.linalg.norm(theta[:2] - q[:2]) < START_SEPARATION_M for q in out):
-            out.append(theta)
-    return out
-
-
-def inflation_factor(problem: Problem, theta: np.ndarray) -> float:
-    """How much less information the data hold than the i.i.d. model says (>= 1).
-
-    (1 + rho) / (1 - rho) for the lag-1 autocorrelation rho of the residuals of consecutive slots
-    of one vehicle (spatially correlated shadowing, or a person who turned), times the residual
-    variance ratio when it is clearly above 1. Both are applied only when significant, so the
-    i.i.d. case keeps its full information.
-    """
-    d = problem.data
-    r = problem.standardized_residuals(theta)
-    n = len(r)
-    factor = 1.0
-    dof = n - problem.size
-    if dof >= 5:
-        ratio = float(r @ r) / dof
-        if ratio > 1.0 + 3.0 * math.sqrt(2.0 / dof):
-            factor *= ratio
-    if n >= 8:
-        dt = np.diff(d.t_s)
-        positive = dt[dt > 0]
-        step = float(np.median(positive)) if positive.size else 0.0
-        pair = (d.vehicle[1:] == d.vehicle[:-1]) & (dt <= 3.0 * step) & (dt > 0)
-        # several vehicles interleave in time: pair each slot with the next one of its own vehicle
-        if pair.sum() < n // 2:
-            order = np.lexsort((d.t_s, d.vehicle))
-            rv, tv, vv = r[order], d.t_s[order], d.vehicle[order]
-            dtv = np.diff(tv)
-            pair = (vv[1:] == vv[:-1]) & (dtv > 0) & (dtv <= 3.0 * max(step, 1e-9))
-            r = rv
-        m = int(pair.sum())
-        if m >= 8:
-            a, b = r[:-1][pair], r[1:][pair]
-            rho = float(np.dot(a, b) / math.sqrt(np.dot(a, a) * np.dot(b, b) + 1e-300))
-            if rho > 2.0 / math.sqrt(m):
-                rho = min(rho, 0.995)
-                factor *= (1.0 + rho) / (1.0 - rho)
-    return factor

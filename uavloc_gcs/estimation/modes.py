@@ -17,7 +17,8 @@ from dataclasses import replace
 import numpy as np
 
 from ..errors import EstimationError
-from .fit import Problem, leg_lines, mirror_point, principal_line
+from .fit import Problem
+from .starts import leg_lines, mirror_point, principal_line
 
 PROBE_NFEV = 6
 POWER_TEST_CHI2 = 10.83  # chi^2_1 quantile at 0.999

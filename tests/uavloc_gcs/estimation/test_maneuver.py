@@ -211,7 +211,8 @@ def test_a_near_twin_is_covered_by_the_mixture_not_by_its_whole_circle(sc, chann
 
 
 def _tail_problem(dof):
-    from uavloc_gcs.estimation.fit import Prepared, Problem
+    from uavloc_gcs.estimation.fit import Problem
+    from uavloc_gcs.estimation.prepared import Prepared
 
     rng = np.random.default_rng(0)
     t = np.concatenate([np.linspace(0.0, 20.0, 30), np.linspace(200.0, 215.0, 30)])

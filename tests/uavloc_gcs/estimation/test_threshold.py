@@ -11,7 +11,8 @@ from uavloc_gcs.errors import EstimationError
 from uavloc_gcs.estimation import ChannelModel, estimate_emitter
 from uavloc_gcs.estimation.crb import censored_information, data_information, frames_information
 from uavloc_gcs.estimation.evidence import Censored, FramesPrior, burst_windows, censored_silence
-from uavloc_gcs.estimation.fit import Problem, censored_rows, prepare
+from uavloc_gcs.estimation.fit import Problem
+from uavloc_gcs.estimation.prepared import censored_rows, prepare
 from uavloc_gcs.estimation.maneuver import find_passes
 from uavloc_gcs.estimation.model import (
     log_probability_residual,
