@@ -1,4 +1,6 @@
-"""The numerical core: the MAP fit of one emitter's slots (its data ready in :mod:`.prepared`, its starts in :mod:`.starts`).
+"""The numerical core: the MAP fit of one emitter's slots.
+
+Its data made ready are :mod:`.prepared`'s, where it starts :mod:`.starts`'.
 
 Objective (negative log posterior x 2) over theta = (x, y[, vx, vy][, beta]) at time t_c:
 
