@@ -3,6 +3,7 @@ circles, mirror candidates of ambiguous estimates (dashed), and the truth when s
 
 from __future__ import annotations
 
+import math
 from typing import Mapping
 
 import numpy as np
@@ -126,8 +127,13 @@ def result_figure(people, *, area_xy_m: np.ndarray, tracks_xy_m: Mapping[int, np
             if p.emitter_id in truth_xy_m:
                 tx, ty = truth_xy_m[p.emitter_id][:2]
                 ax.plot([p.east_m, tx], [p.north_m, ty], color="#111111", linewidth=0.7, zorder=4)
-    _fit_view(ax, [area, np.zeros((1, 2))] + [np.asarray(t, dtype=float).reshape(-1, 2) for t in tracks_xy_m.values()]
-              + ([truth] if truth is not None else []) + [np.array([[p.east_m, p.north_m]]) for p in est])
+    lo, hi = _fit_view(ax, [area, np.zeros((1, 2))]
+                       + [np.asarray(t, dtype=float).reshape(-1, 2) for t in tracks_xy_m.values()]
+                       + ([truth] if truth is not None else [])
+                       + [np.array([[p.east_m, p.north_m]]) for p in est if _near(p, area, span)])
+    far = [p for p in est if not _near(p, area, span)]
+    est = [p for p in est if _near(p, area, span)]
+    _mark_far(ax, far, lo, hi)
     maps.add_scale_bar(ax)
     maps.add_north_arrow(ax)
     maps.add_legend(ax)
@@ -145,16 +151,48 @@ def result_figure(people, *, area_xy_m: np.ndarray, tracks_xy_m: Mapping[int, np
     return fig
 
 
-def _fit_view(ax, pieces) -> None:
-    """Show the area, the tracks, the launch point and every person's centre, with a margin; a 95 %
-    circle wider than that (a person heard once or twice can have one of kilometres) runs off the
-    map instead of shrinking the search area to a dot (its radius is in the tables)."""
+def _fit_view(ax, pieces) -> tuple[np.ndarray, np.ndarray]:
+    """Show the area, the tracks, the launch point and every person's centre near the area, with a
+    margin; return the view's corners. A 95 % circle wider than that (a person heard once or twice
+    can have one of kilometres) runs off the map instead of shrinking the search area to a dot (its
+    radius is in the tables)."""
     pts = np.vstack([p for p in pieces if len(p)])
     pts = pts[np.isfinite(pts).all(axis=1)]
     lo, hi = pts.min(axis=0), pts.max(axis=0)
     pad = 0.08 * max(float((hi - lo).max()), 50.0)
-    ax.set_xlim(lo[0] - pad, hi[0] + pad)
-    ax.set_ylim(lo[1] - pad, hi[1] + pad)
+    lo, hi = lo - pad, hi + pad
+    ax.set_xlim(lo[0], hi[0])
+    ax.set_ylim(lo[1], hi[1])
+    return lo, hi
+
+
+FAR_FRACTION = 0.5  # a centre farther outside the area than this share of its span is drawn as an arrow
+
+
+def _near(p, area: np.ndarray, span: np.ndarray) -> bool:
+    """Whether ``p``'s centre is within FAR_FRACTION of the area's span of the area's bounding box."""
+    grow = FAR_FRACTION * float(max(span))
+    lo, hi = area.min(axis=0) - grow, area.max(axis=0) + grow
+    return bool(lo[0] <= p.east_m <= hi[0] and lo[1] <= p.north_m <= hi[1])
+
+
+def _mark_far(ax, far, lo: np.ndarray, hi: np.ndarray) -> None:
+    """People whose centre lies far outside the area (a person heard once can be placed kilometres
+    off): an arrow at the edge of the map pointing at them, with their name and distance from the
+    launch point, instead of a map that shrinks the area to a dot to show them."""
+    centre, half = (lo + hi) / 2.0, (hi - lo) / 2.0
+    for p in far:
+        d = np.array([p.east_m, p.north_m]) - centre
+        # where the ray from the map's centre leaves a box 6 % inside the edge
+        scale = min(0.94 * half[0] / abs(d[0]) if d[0] else math.inf,
+                    0.94 * half[1] / abs(d[1]) if d[1] else math.inf)
+        tip = centre + d * scale
+        tail = tip - d / np.linalg.norm(d) * 0.08 * float(max(hi - lo))
+        color = STATE_COLORS.get(p.state, "#222222")
+        km = math.hypot(p.east_m, p.north_m) / 1000.0
+        ax.annotate(f"{p.label or f'#{p.emitter_id}'}: {km:.1f} km from launch", xy=tip, xytext=tail,
+                    fontsize=8, color=color, ha="center", va="center", zorder=8,
+                    arrowprops=dict(arrowstyle="-|>", color=color, linewidth=1.3))
 
 
 SMALL_CIRCLE_FRACTION = 1 / 60  # 95 % circles under this share of the map's span get a ring

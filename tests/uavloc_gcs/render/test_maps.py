@@ -100,3 +100,24 @@ def test_a_person_without_a_position_is_labelled_at_the_truth_with_its_state():
     # without the truth (a real search) a person without a position has no place on the map
     ax = result_figure(people, area_xy_m=area, tracks_xy_m={}).axes[0]
     assert not any(t.get_text().startswith("P02") for t in ax.texts)
+
+
+def test_a_person_placed_far_outside_the_area_is_an_arrow_at_the_edge_not_a_squashed_map():
+    """The field demo's result.png: one person placed 3.7 km away shrank the 1.1 km area to a corner
+    (issue 40 item 3). The map's extent is the area's; that person is an arrow at its edge with the
+    name and the distance."""
+    from types import SimpleNamespace as P
+
+    from uavloc_gcs.render.estimates import result_figure
+
+    area = np.array([[0, 0], [1120, 0], [1120, 640], [0, 640]], float)
+    people = [P(emitter_id=1, label="P01", state="given up", east_m=600, north_m=300, radius95_m=90.0),
+              P(emitter_id=3, label="P03", state="given up", east_m=3700.0, north_m=-200.0, radius95_m=900.0)]
+    ax = result_figure(people, area_xy_m=area, tracks_xy_m={}).axes[0]
+    (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()
+    assert x1 - x0 < 1.5 * 1120 and x1 < 1500 and y0 > -300  # the area fills the map
+    arrows = [t for t in ax.texts if t.get_text().startswith("P03:")]
+    assert [t.get_text() for t in arrows] == ["P03: 3.7 km from launch"]
+    tip = arrows[0].xy
+    assert x0 < tip[0] < x1 and y0 < tip[1] < y1 and tip[0] > 0.8 * x1  # inside, at the east edge
+    assert "P01" in [t.get_text() for t in ax.texts]  # the people near the area as before
