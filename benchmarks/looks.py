@@ -117,17 +117,24 @@ VARIANTS = ("default", *SWITCHES, *COMBINED)
 _SHIPPED: dict = {}  # the switches' shipped values, read once per worker before any change
 
 
+def switch_modules() -> dict:
+    """The modules SWITCHES names, by the names it uses (the switches are their module globals)."""
+    from sim_link.experiments import missionsim
+    from uavloc_gcs.estimation import access, estimate, modes
+    from uavloc_gcs.search import judging, policy, targets
+
+    return {"policy": policy, "judging": judging, "targets": targets, "access": access, "missionsim": missionsim,
+            "estimate": estimate, "modes": modes}
+
+
 def _fly(job):
     """One mission under one variant (in a worker process: the switches are module globals, so
     each job first puts back the shipped values, then sets its own switch)."""
     variant, scenario_file, people, seed, run = job
-    from sim_link.experiments import missionsim
     from sim_link.experiments.paper import REFERENCE, ExperimentConfig, Task, run_task, world_seed
-    from uavloc_gcs.estimation import access, estimate, modes
     from uavloc_gcs.scenario import load_scenario
-    from uavloc_gcs.search import judging, policy, targets
 
-    modules = {"policy": policy, "judging": judging, "targets": targets, "access": access, "missionsim": missionsim, "estimate": estimate, "modes": modes}
+    modules = switch_modules()
     if not _SHIPPED:
         _SHIPPED.update({(m, name): getattr(modules[m], name) for m, name, _ in SWITCHES.values()})
     for (m, name), value in _SHIPPED.items():

@@ -57,12 +57,9 @@ def test_startup_does_not_load_the_simulator_or_scipy():
 
 def test_every_bench_looks_variant_names_switches_that_exist():
     """A variant whose switch names no module attribute would silently run the default."""
-    from benchmarks.looks import COMBINED, SWITCHES, VARIANTS
-    from sim_link.experiments import missionsim
-    from uavloc_gcs.estimation import access, estimate
-    from uavloc_gcs.search import policy, targets
+    from benchmarks.looks import COMBINED, SWITCHES, VARIANTS, switch_modules
 
-    modules = {"policy": policy, "targets": targets, "access": access, "missionsim": missionsim, "estimate": estimate}
+    modules = switch_modules()
     for name, (module, attr, value) in SWITCHES.items():
         assert hasattr(modules[module], attr), name
         assert getattr(modules[module], attr) != value, f"{name} is the shipped value"
