@@ -130,11 +130,17 @@ def censored_rows(censored: Censored | None, data: Prepared, passes: Passes | No
         return None
     t = np.asarray(censored.t_s, float)
     xyz = np.asarray(censored.xyz_m, float).reshape(-1, 3)
-    index = np.full(len(t), -1, dtype=int)
-    if passes is not None and len(data.t_s):
-        k = np.argmin(np.abs(t[:, None] - data.t_s[None, :]), axis=1)
-        near = np.abs(data.t_s[k] - t) <= same_burst_s
-        index[near] = passes.index[k[near]]
+
+    def pass_index(times: np.ndarray) -> np.ndarray:
+        """The pass of the heard slot nearest each time (within ``same_burst_s``), -1 for none."""
+        out = np.full(len(times), -1, dtype=int)
+        if passes is not None and len(data.t_s):
+            k = np.argmin(np.abs(times[:, None] - data.t_s[None, :]), axis=1)
+            near = np.abs(data.t_s[k] - times) <= same_burst_s
+            out[near] = passes.index[k[near]]
+        return out
+
+    index = pass_index(t)
     counts = {}
     if censored.prior is not None:
         counts = dict(heard=np.asarray(censored.heard, float),
@@ -144,11 +150,7 @@ def censored_rows(censored: Censored | None, data: Prepared, passes: Passes | No
         if ex is not None and len(ex):
             te = np.asarray(ex.t_s, float)
             xe = np.asarray(ex.xyz_m, float).reshape(-1, 3)
-            ie = np.full(len(te), -1, dtype=int)
-            if passes is not None and len(data.t_s):
-                k = np.argmin(np.abs(te[:, None] - data.t_s[None, :]), axis=1)
-                near = np.abs(data.t_s[k] - te) <= same_burst_s
-                ie[near] = passes.index[k[near]]
+            ie = pass_index(te)
             counts["exposure"] = ExposureRows(te, te - data.t_c, xe[:, :2].copy(), np.maximum(xe[:, 2], 0.0), ie, ex)
     return CensoredRows(t, t - data.t_c, xyz[:, :2].copy(), np.maximum(xyz[:, 2], 0.0),
                         np.maximum(np.asarray(censored.frames, float), 0.0), index, **counts)
