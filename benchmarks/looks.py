@@ -5,7 +5,7 @@ replanning, return) on paired worlds with each variant of the rules that place a
 
 - ``default``: as shipped;
 - ``no-inside-cut``: a repeated look from a vehicle already inside the look radius keeps the whole
-  radius (``search.policy.INSIDE_LOOK_FRACTION = None``), so it may be planned at the vehicle's own
+  radius (``search.aiming.INSIDE_LOOK_FRACTION = None``), so it may be planned at the vehicle's own
   position -- seen on PX4 SITL as three looks of zero length and a person given up;
 - ``no-shrink``: every look keeps the whole look radius, even after looks that heard a person
   without locating them (``search.targets.LOOK_SHRINK = 1``; by default each such look halves
@@ -14,7 +14,7 @@ replanning, return) on paired worlds with each variant of the rules that place a
   calling it ambiguous (mirror under 5 %), not when the mirror holds under 1 %
   (``search.judging.AMBIGUITY_SETTLED_MASS = None``);
 - ``radial``: a repeated look is planned about the estimate itself, so a vehicle near home flies
-  out to the near edge of its disk and back along one line (``search.policy.SIDEWAYS_LOOK_FRACTION
+  out to the near edge of its disk and back along one line (``search.aiming.SIDEWAYS_LOOK_FRACTION
   = None``; by default it goes beside the person, across that line);
 - ``cap4``: a person is given up after 4 looks (``search.judging.MAX_LOOKS = 4``; by default only
   two looks that heard nothing, or no energy for a look, give a person up);
@@ -90,10 +90,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 # variant -> (module, switch, its value in that variant); "default" changes nothing
 SWITCHES = {
-    "no-inside-cut": ("policy", "INSIDE_LOOK_FRACTION", None),
+    "no-inside-cut": ("aiming", "INSIDE_LOOK_FRACTION", None),
     "no-shrink": ("targets", "LOOK_SHRINK", 1.0),
     "no-settle": ("judging", "AMBIGUITY_SETTLED_MASS", None),
-    "radial": ("policy", "SIDEWAYS_LOOK_FRACTION", None),
+    "radial": ("aiming", "SIDEWAYS_LOOK_FRACTION", None),
     "cap4": ("judging", "MAX_LOOKS", 4),
     "edge-reach": ("access", "REACH_WHOLE_CIRCLE", False),
     "heard-tracks": ("missionsim", "LISTENING", "heard"),
@@ -121,9 +121,9 @@ def switch_modules() -> dict:
     """The modules SWITCHES names, by the names it uses (the switches are their module globals)."""
     from sim_link.experiments import missionsim
     from uavloc_gcs.estimation import access, estimate, modes
-    from uavloc_gcs.search import judging, policy, targets
+    from uavloc_gcs.search import aiming, judging, policy, targets
 
-    return {"policy": policy, "judging": judging, "targets": targets, "access": access, "missionsim": missionsim,
+    return {"policy": policy, "aiming": aiming, "judging": judging, "targets": targets, "access": access, "missionsim": missionsim,
             "estimate": estimate, "modes": modes}
 
 

@@ -7,7 +7,7 @@ a team was cleared to fly in. Without one, the search area grown by ``area.defau
 fence the daemon's looks and passes stay inside (:func:`flight_fence`; issue 42: with no fence, looks
 left the field world's area by up to 111 m), and ``uavloc plan``, its preview and the daemon's log
 say so (:func:`describe`). The policy itself keeps its look points within the area grown by the
-hearing-range margin (``search.policy.LOOK_AREA_MARGIN``), the scan inside the area.
+hearing-range margin (``search.aiming.LOOK_AREA_MARGIN``), the scan inside the area.
 
 What "inside" means here:
 

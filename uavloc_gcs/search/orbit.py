@@ -445,7 +445,7 @@ def orbit_targets(policy, t_s: float, targets: list) -> list:
             spread = r95 / 2.45 if math.isfinite(r95) else float(sc.horizontal_range_m)  # 95 % of a 2-D normal
             # (a BLE identity's look is planned for its beacons: uavloc_gcs.radios.ble_view)
             orb = plan_orbit(policy.scenario_for(eid), t.xy_m, spread)
-            # the whole circle within the area and its stated margin (policy._inside_reach): a
+            # the whole circle within the area and its stated margin (aiming's _inside_reach): a
             # person predicted outside is orbited from the edge, not chased (the field demo flew
             # an orbit centred 250 m south of the area)
             c = policy._inside_reach(np.asarray(orb.centre_xy_m, float), inset_m=orb.radius_m)[0]

@@ -105,7 +105,7 @@ def boundary_distance_m(area_xy_m: np.ndarray, xy_m: np.ndarray) -> float:
 # sparse-scan scenario (benchmarks/scenarios/sitl_sparse_scan.toml, 3 static people, 40 worlds)
 # 120/120 located against 115/120 with 1.0, 152.8 s against 159.8 s; on the paper scenario (20
 # walkers, 20 worlds) 395/400 against 394/400, +1.1 +- 1.4 s. With the sideways looks added later
-# (search.policy.SIDEWAYS_LOOK_FRACTION) the two differ little: 120/120 both, 799/800 both (40 worlds).
+# (search.aiming.SIDEWAYS_LOOK_FRACTION) the two differ little: 120/120 both, 799/800 both (40 worlds).
 LOOK_SHRINK = 0.5
 
 

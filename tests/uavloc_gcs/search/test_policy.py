@@ -9,8 +9,7 @@ from uavloc_gcs.planning import VehicleState
 from uavloc_gcs.scan import plan_scan
 from uavloc_gcs.scenario import load_scenario
 from uavloc_gcs.search import SearchPolicy
-from uavloc_gcs.search import hearing, judging
-from uavloc_gcs.search import policy as pol
+from uavloc_gcs.search import aiming, hearing, judging
 from uavloc_gcs.search import targets as tg
 
 EXAMPLES = __import__("pathlib").Path(__file__).resolve().parents[3] / "examples"
@@ -422,7 +421,7 @@ def test_a_repeated_look_from_inside_the_look_radius_flies_towards_the_person(sm
     home was still inside the look radius, so each new look was planned at the vehicle's own
     position (three looks of zero length, then given up). A repeated look from inside the radius
     now has its radius cut to half the vehicle's distance; a first look keeps its radius."""
-    from uavloc_gcs.search import policy as pol
+    from uavloc_gcs.search import aiming as pol
 
     sc, policy, t_end, eid, p, centre = _a_person_needing_a_look(small)
 
@@ -467,7 +466,7 @@ def test_a_repeated_look_goes_beside_the_person_across_the_line_it_came_along(sm
         plain = tg.look_radius_m(r0, None, n)
         off = xy - centre
         assert abs(off[0]) < 1e-6 and abs(off[1]) == pytest.approx(plain)  # across the east-west line
-        assert r == pytest.approx(pol.SIDEWAYS_LOOK_FRACTION * plain)
+        assert r == pytest.approx(aiming.SIDEWAYS_LOOK_FRACTION * plain)
     assert np.sign(looks[0][0][1] - centre[1]) == -np.sign(looks[1][0][1] - centre[1])  # alternating
 
 

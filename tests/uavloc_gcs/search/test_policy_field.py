@@ -108,7 +108,7 @@ def test_with_elicitation_looks_are_not_capped():
 
 
 def test_look_points_stay_inside_the_area_and_its_stated_margin():
-    from uavloc_gcs.search.policy import LOOK_AREA_MARGIN
+    from uavloc_gcs.search.aiming import LOOK_AREA_MARGIN
 
     sc = load_scenario(scenario_path("field"))
     policy = SearchPolicy(sc, seed=0)
@@ -166,7 +166,7 @@ def test_an_orbit_around_a_person_predicted_outside_stays_inside_the_stated_marg
     from shapely.geometry import Point, Polygon
 
     from uavloc_gcs.planning import VehicleState
-    from uavloc_gcs.search.policy import LOOK_AREA_MARGIN
+    from uavloc_gcs.search.aiming import LOOK_AREA_MARGIN
 
     sc = load_scenario(scenario_path("field"))
     policy = SearchPolicy(sc, seed=0, time_limit_s=5.0, max_iter=5)
