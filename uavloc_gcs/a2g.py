@@ -47,6 +47,7 @@ GH_NODES = 48  # Gauss-Hermite nodes over the shared shadowing (within 5e-4 of q
 GH_NODES_LIKELIHOOD = 24
 _PROPOSAL_WIDEN = 1.5  # the importance proposal's spread over the Gaussian-fading posterior's
 _MIN_P = 1e-300  # floor of probabilities before a logarithm
+HEARING_COARSE_STEPS = 10  # hearing_distance_m: the crossing is bracketed on every 10th point first
 
 # Wi2SAR ("Take Me Home, Wi-Fi Drone", Hou, Yu, Wu, MobiCom '26, arXiv 2604.09115): the aerial victim
 # discovery range at 2.4 GHz without its lens, Fig. 10(c), as published in the artifact
@@ -333,19 +334,34 @@ class A2GChannel:
         as for :meth:`burst_heard_probability`) sent by a phone ``height_m`` below the vehicle is heard
         with less than probability ``p`` (the outermost crossing; 0 if never above ``p``)."""
         h = np.arange(0.0, max_m + step_m, step_m)
-        if frames is None:
-            prob = self.frame_heard_probability(h, height_m, tx_offset_db)
-        else:
-            prob = self.burst_heard_probability(h, height_m, frames, channel_share=channel_share,
+
+        def prob(at):
+            if frames is None:
+                return self.frame_heard_probability(at, height_m, tx_offset_db)
+            return self.burst_heard_probability(at, height_m, frames, channel_share=channel_share,
                                                 tx_offset_db=tx_offset_db)
-        above = np.nonzero(prob >= p)[0]
+
+        # The crossing is bracketed on every HEARING_COARSE_STEPS-th point, then found on the fine
+        # points of that bracket alone (the probability falls smoothly with distance past its
+        # peak): a tenth of the evaluations. Without a coarse point above p, every point is tried.
+        coarse = np.append(np.arange(0, len(h), HEARING_COARSE_STEPS), len(h) - 1)
+        above = np.nonzero(prob(h[coarse]) >= p)[0]
+        if above.size:
+            lo = int(coarse[above[-1]])
+            idx = np.arange(lo, min(lo + HEARING_COARSE_STEPS, len(h) - 1) + 1)
+        else:
+            idx = np.arange(len(h))
+        pr = prob(h[idx])
+        above = np.nonzero(pr >= p)[0]
         if above.size == 0:
             return 0.0
         i = int(above[-1])
-        if i + 1 >= len(h):
+        at = int(idx[i])
+        if at + 1 >= len(h):
             return float(h[-1])
-        f = (prob[i] - p) / max(prob[i] - prob[i + 1], 1e-300)
-        return float(h[i] + f * step_m)
+        after = pr[i + 1] if i + 1 < len(pr) else float(prob(h[at + 1:at + 2])[0])
+        f = (pr[i] - p) / max(pr[i] - after, 1e-300)
+        return float(h[at] + f * step_m)
 
     # -- the likelihood of one burst ------------------------------------------------------------
     def _log_integrand_nodes(self, rssi, counts, d3, s, tx, n_missed: int | None, channel_share: float):

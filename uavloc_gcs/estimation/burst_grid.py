@@ -233,14 +233,19 @@ class BurstTable:
 
     step_m: float
     loglik: np.ndarray  # (N_tx, N_d)
+    slope: np.ndarray = field(init=False, repr=False, compare=False)  # (N_tx, N_d - 1): next - this
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "slope", np.diff(self.loglik, axis=1))
 
     def at(self, horizontal_m: np.ndarray) -> np.ndarray:
-        """(N_tx, ...) by linear interpolation (constant beyond the table's end)."""
+        """(N_tx, ...) by linear interpolation (constant beyond the table's end). The search's
+        hottest line: one gather of each row and of its slopes (np.take along the distance is
+        twice as fast as fancy indexing there), the same float32 values as a + f (b - a)."""
         x = np.clip(np.asarray(horizontal_m, float) / self.step_m, 0.0, self.loglik.shape[1] - 1.000001)
         i = x.astype(np.int64)
-        f = x - i
-        a, b = self.loglik[:, i], self.loglik[:, i + 1]
-        return a + f.astype(np.float32) * (b - a)
+        f = (x - i).astype(np.float32)
+        return np.take(self.loglik, i, axis=1) + f * np.take(self.slope, i, axis=1)
 
 
 def tx_nodes(sigma_db: float) -> tuple[np.ndarray, np.ndarray]:

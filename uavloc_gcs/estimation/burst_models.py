@@ -177,7 +177,7 @@ class A2GBursts:
         return float(self.channel.shadow_db[LOS]) ** 2, float(self.channel.fast_db[LOS]) ** 2
 
 
-@functools.lru_cache(maxsize=64)
+@functools.lru_cache(maxsize=4096)  # (phone model, whole metres of height): a search flies every height while climbing
 def _a2g_reach_m(model: A2GBursts, height_m: float) -> float:
     """Where a burst of a phone 2 sigma louder than nominal is heard with probability 1e-3 (the
     urban channel's line of sight at low elevation keeps a thin tail out to kilometres)."""
