@@ -44,6 +44,11 @@ PLAN_SPEEDS_M_S = (10.0, 12.0, 15.0, 18.0)  # candidate speeds (plus the scenari
 MAX_PASSES = 24  # per pack
 SEARCH_CELLS = 160  # the coarse grid of the option search has about this many cells
 ADVICE_MAX_PACKS = 12  # when the scenario's packs fall short: how many would do, up to this many
+# After the choice on the coarse grid, the fewest passes (down to TRIM_SPAN fewer) at which the fine
+# grid still meets the target (the coarse grid errs both ways; it only ever added passes before).
+# False: the coarse choice stands.
+TRIM_ON_FINE_GRID = True
+TRIM_SPAN = 6
 
 
 @dataclass(frozen=True)
@@ -422,6 +427,8 @@ def plan_for_pod(sc, target: float, *, best_effort: bool = False, speeds=None, s
             break
         chosen = dataclasses.replace(chosen, passes=chosen.passes + 1, time_s=nxt.time_s, energy_j=nxt.energy_j,
                                      packs=nxt.packs)
+    if fine and met and TRIM_ON_FINE_GRID:
+        chosen, run, grid = _trimmed(sc, fleet, one, chosen, final_grid, target, run, grid)
     chosen = dataclasses.replace(chosen, pod1=grid.overall(1), pod2=grid.overall(2))
     planned = sc.replace(fleet={"speed_m_s": chosen.speed_m_s})
     result = PodPlan(target, planned, run.plan, grid, chosen, options, met, radius, sorties=run.sorties)
@@ -432,6 +439,23 @@ def plan_for_pod(sc, target: float, *, best_effort: bool = False, speeds=None, s
     if not met and not best_effort:
         raise InfeasibleError(result.shortfall_sentence())
     return result
+
+
+def _trimmed(sc, fleet: _Fleet, one, chosen: PodOption, final_grid, target: float, run, grid):
+    """The fewest passes, down to TRIM_SPAN fewer, at which the fine grid still meets ``target``:
+    the coarse grid can also be pessimistic (the field world, 3 packs: the coarse choice of 33
+    passes met 0.97 / 0.96 on the fine grid where 0.95 was asked; 31 met it 3.6 minutes sooner).
+    Every count of the span is tried: the POD is not monotone in the passes (how they fall into
+    sorties matters: 31 passes met the target where 32 did not). (chosen, run, grid) of the count
+    kept."""
+    best = chosen.passes
+    for n in range(chosen.passes - 1, max(chosen.passes - TRIM_SPAN, 1) - 1, -1):
+        r = fleet.passes(one, n)
+        g = pod.pod_from_tracks(sc, r.tracks(chosen.speed_m_s, sc.fleet.altitude_m), final_grid)
+        if g.overall(1) >= target and g.overall(2) >= target:
+            best, run, grid = n, r, g
+    chosen = dataclasses.replace(chosen, passes=best, time_s=run.time_s, energy_j=run.energy_j, packs=run.packs)
+    return chosen, run, grid
 
 
 def _advice(sc, target: float, reached: float, **kw) -> "PodPlan | None":
