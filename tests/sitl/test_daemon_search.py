@@ -57,7 +57,7 @@ def _check(run, scenario, vehicles):
 
 
 SPARSE_SCAN = "[scan]\nlane_spacing_m = 220.0\ncoverage = \"single\""  # two lanes: people are left for looks
-LOOKS_REQUIRED_M = 10.0  # the accuracy asked for in the look test: the scan alone must not meet it
+LOOKS_REQUIRED_M = 7.0  # the accuracy asked for in the look test: the scan alone must not meet it
 
 
 @pytest.mark.parametrize("kind", ["ardupilot", "px4"])
@@ -73,7 +73,11 @@ def test_a_search_with_looks_replans_without_churn(sitl, tmp_path, kind):
     located all three within 15 m (radii 5.9-10.6 m, no look), so the test asks for 10 m: in the
     simulator, on the same geometry, 120 of 120 people located with looks, 0.958 inside
     (``uavloc bench looks --scenario benchmarks/scenarios/sitl_sparse_scan.toml --people 3
-    --runs 40`` with ``required_accuracy_m = 10``)."""
+    --runs 40`` with ``required_accuracy_m = 10``). On 2026-11-29 (CI of stop 47) the ArduCopter
+    scan alone met 10 m (radii 5.9, 7.4, 10.0 m; no look, the test failed), so it asks for 7 m:
+    in the simulator 30 of 30 located with looks, all inside, 169 s to complete (the same
+    command, ``--runs 10``, ``required_accuracy_m = 7``; at 6 m one world's looks did not end
+    in 13 min)."""
     v = dr.start_px4(sitl) if kind == "px4" else dr.start_arducopter(sitl)
     sc = dr.load(dr.scenario_text(f"{kind}-looks", kind, [v], scan=SPARSE_SCAN, required_m=LOOKS_REQUIRED_M,
                                   world="paper"), tmp_path / "mission.toml")
