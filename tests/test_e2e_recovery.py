@@ -10,6 +10,7 @@ import time
 import pytest
 
 from tests.e2e_helpers import SMALL, small_scenario, world_ids
+from uavloc_gcs.scenario import loads_scenario
 from tests.test_e2e_daemon import check_everyone_found, run_e2e
 from uavloc_gcs.cli._fleet import start_fleet_process
 from uavloc_gcs.service.store import StoreReader
@@ -116,6 +117,81 @@ def test_daemon_killed_and_restarted_resumes_the_same_search(tmp_path):
     assert {int(r["emitter_id"]) for r in rows} == world_ids(sc)
     assert "All 3 people heard were located" in second.stdout
     assert (out / "result.png").exists() and (out / "people.csv").exists()
+
+
+# One vehicle flies the scan of an area twice as wide as SMALL's in two sorties (half of each pack
+# kept for the climb, the descent and the reserve: the cut counts level flight only): the first
+# sortie leaves the far half unheard; 3 m asked, which the scan alone does not give, so the search
+# cannot end before the second.
+SORTIES = SMALL.replace("vehicles = 2", "vehicles = 1").replace("width_m = 400.0", "width_m = 800.0").replace(
+    "required_accuracy_m = 15.0", "required_accuracy_m = 3.0").replace(
+    "energy_budget_j = 200000.0",
+    "energy_budget_j = 60000.0\nenergy_reserve_fraction = 0.5\nbatteries = 2\nbattery_swap_s = 30.0")
+
+
+def _wait_for_event(store, text: str, proc, after: int = 0, timeout_s: float = 90.0) -> list[str]:
+    """The store's events from the ``after``-th on, once one of them contains ``text`` (the daemon
+    ``proc`` must not end first)."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        time.sleep(0.2)
+        assert proc.poll() is None, f"the daemon ended (exit {proc.returncode}) before '{text}'"
+        if not store.exists():
+            continue
+        try:
+            with StoreReader(store) as rd:
+                events = [f"{e.kind}: {e.text}" for e in rd.events()][after:]
+        except sqlite3.OperationalError:  # created but not initialised yet
+            continue
+        if any(text in e for e in events):
+            return events
+    raise AssertionError(f"no event '{text}' within {timeout_s:g} s")
+
+
+def test_daemon_killed_during_a_swap_resumes_the_sorties(tmp_path):
+    """Issue 38 items 2 and 3: the daemon process is killed (SIGKILL: nothing written at its end)
+    while the vehicle waits on the ground for its second pack; a new daemon on the same --out takes
+    the search up (sortie 1 flown, one pack left), does not launch the used pack, and flies sortie
+    2 once the team has swapped it."""
+    text = SORTIES.format(autopilot="px4", seed=3, speedup=25.0, extra="")
+    sc = loads_scenario(text, source="sorties.toml")
+    fleet = start_fleet_process(sc, speedup=sc.simulation.speedup, seed=1, base_port=0)
+    first = second = None
+    try:
+        cfg = tmp_path / "mission.toml"
+        cfg.write_text(SORTIES.format(autopilot="px4", seed=3, speedup=25.0,
+                                      extra=f'[link]\nconnections = ["{fleet.endpoints[0][1]}"]\n'))
+        out = tmp_path / "run"
+        store = out / "search.sqlite"
+        with open(tmp_path / "first.log", "w") as log1:
+            first = subprocess.Popen(_daemon_cmd(cfg, out), stdout=log1, stderr=subprocess.STDOUT)
+        _wait_for_event(store, "waits for a fresh pack", first)
+        os.kill(first.pid, signal.SIGKILL)
+        first.wait()
+        with StoreReader(store) as rd:
+            n = len(rd.events())  # the first daemon's: what follows is the second's
+        with open(tmp_path / "second.log", "w") as log2:
+            second = subprocess.Popen(_daemon_cmd(cfg, out), stdout=log2, stderr=subprocess.STDOUT)
+        events = _wait_for_event(store, "after sortie 1 of its scan: it waits for a fresh pack", second, n)
+        assert any("sorties resumed: vehicle 1 on sortie 1 (1 pack(s) left)" in e for e in events), events
+        # asked for its battery, the used pack is judged and not launched
+        events = _wait_for_event(store, "not a fresh pack", second, n)
+        assert not any("started sortie 2" in e for e in events), events
+        fleet.swap_pack(1)
+        _wait_for_event(store, "started sortie 2 of its scan", second, n)
+        # exit 1: nobody can be located within the 3 m asked (the statement says why)
+        assert second.wait(timeout=180) == 1, (tmp_path / "second.log").read_text()[-3000:]
+    finally:
+        for p in (first, second):
+            if p is not None and p.poll() is None:
+                p.kill()
+                p.wait()
+        fleet.stop()
+    said = (tmp_path / "second.log").read_text()
+    assert "Sorties flown (packs left): vehicle 1 2 (0 left)." in said, said[-3000:]
+    with StoreReader(store) as rd:
+        scans = [e.text for e in rd.events("upload") if "scan" in e.text]
+    assert len(scans) == 2, f"sortie 1 uploaded once (before the kill), sortie 2 once (after): {scans}"
 
 
 def test_operator_starts_the_vehicles_by_hand(tmp_path):

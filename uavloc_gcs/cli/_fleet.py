@@ -38,6 +38,10 @@ class FleetProcess:
     def reboot(self, vehicle: int, keep_mission: bool | None = None) -> None:
         self._commands.put(("reboot", vehicle, keep_mission))
 
+    def swap_pack(self, vehicle: int) -> None:
+        """The team gives ``vehicle`` a fresh pack (on the ground, disarmed; a reboot)."""
+        self._commands.put(("swap_pack", vehicle))
+
     def stop(self, timeout_s: float = 5.0) -> None:
         self._stop.set()
         self._proc.join(timeout_s)
