@@ -273,7 +273,13 @@ def check_reachable(problem: RoutingProblem) -> None:
                 f"target {t.id} at ({t.xy_m[0]:.1f}, {t.xy_m[1]:.1f}) m, radius {t.radius_m:.1f} m "
                 f"is out of reach: {detail}",
                 target_id=t.id,
-                why=f"a look at ({t.xy_m[0]:.0f}, {t.xy_m[1]:.0f}) m, radius then {t.radius_m:.0f} m: {detail}")
+                why=f"a look at ({t.xy_m[0]:.0f}, {t.xy_m[1]:.0f}) m{_within(t.radius_m)}: {detail}")
+
+
+def _within(radius_m: float) -> str:
+    """How close a look must pass, for a sentence ("" for a look flown at the point itself; it said
+    "radius then 0 m")."""
+    return f", passing within {radius_m:.0f} m of it" if radius_m >= 0.5 else ""
 
 
 def _home_visit_length_m(problem: RoutingProblem) -> np.ndarray:

@@ -117,7 +117,7 @@ def test_unreachable_target_names_it_and_the_numbers():
         solve(p)
     # the reason in the target's own terms, for a person's row (which says who): no id in it
     assert err.value.target_id == "far" and "far" not in err.value.why
-    assert err.value.why.startswith("a look at (2000, 0) m, radius then 10 m: the best vehicle uav1 needs 3980.0 m")
+    assert err.value.why.startswith("a look at (2000, 0) m, passing within 10 m of it: the best vehicle uav1 needs 3980.0 m")
 
 
 def test_a_person_given_up_for_energy_is_told_why_without_an_internal_id():
