@@ -185,6 +185,7 @@ def _fly(job):
             "within_m": [float(p.error_m) for p in located], "time_s": res.completion_time_s, "oracle_s": res.oracle_completion_time_s,
             "energy_kj": float(np.mean(res.energy_j)) / 1e3, "pod": res.pod_overall, "why": why,
             "ble15": ble15, "required_m": float(sc.people.required_accuracy_m),
+            "failsafe": int(getattr(res, "failsafe_returns", 0)),
             "foreign": [float(p.foreign_share) for p in located if math.isfinite(p.foreign_share)]}
 
 
@@ -286,6 +287,10 @@ def main(args: argparse.Namespace) -> int:
         why = Counter(k for r in rows if r["label"] == plan for k in r["why"])
         if why:
             print(f"heard, not located, {plan}: " + "; ".join(f"{n} {k}" for k, n in why.most_common(4)))
+    cut = {plan: sum(r.get("failsafe", 0) for r in rows if r["label"] == plan) for plan in dict.fromkeys(r["label"] for r in rows)}
+    if any(cut.values()):  # the simulator's battery failsafe (missionsim.Vehicle.failsafe): the plan overran a pack
+        print("flights cut by the battery failsafe at the reserve (plans that overran a pack): "
+              + ", ".join(f"{plan} {n}" for plan, n in cut.items() if n))
     most = max(args.packs)
     u = [r for r in rows if r["label"] == label("uavloc", most, shares[-1])]
     lm = [r for r in rows if r["label"] == label("lawnmower", most, shares[-1])]

@@ -73,6 +73,7 @@ class MissionResult:
     pod_overall: float = math.nan  # achieved POD over the area from the flown tracks (search/coverage.py)
     pass_rounds: int = 0  # replans that added passes over cells below the POD target
     max_error_m: np.ndarray = field(repr=False, default_factory=lambda: np.zeros(0))
+    failsafe_returns: int = 0  # flights cut short by the battery failsafe at the reserve (all vehicles)
 
     @property
     def located_fraction(self) -> float:
@@ -172,6 +173,8 @@ class Vehicle:
         self.spare_packs = int(getattr(sc.fleet, "batteries", 1)) - 1
         self.swap_until_s: float | None = None
         self.sorties_flown = 0
+        self.failsafe_home = False  # going home on the battery failsafe: plans are not taken until it lands
+        self.failsafe_returns = 0
 
     @property
     def total_energy_j(self) -> float:
@@ -203,8 +206,8 @@ class Vehicle:
         return self.swap_until_s is not None
 
     def fly(self, path_xy_m: np.ndarray, t_s: float, seg_speeds_m_s=None, heights_m=None) -> None:
-        if self.in_swap:  # not before its fresh pack is in (a plan made during the swap waits for it)
-            return
+        if self.in_swap or self.failsafe_home:  # not before its fresh pack is in (a plan made during the
+            return  # swap waits for it), nor while its battery failsafe takes it home
         self.account(t_s)
         if self.home_t_s is not None and len(path_xy_m) > 1:
             self.sorties_flown += 1
@@ -243,6 +246,29 @@ class Vehicle:
         if self.home_t_s is None and np.allclose(f.path[-1], 0.0) and f.end_t_s <= t_s:
             self.account(f.end_t_s)
             self.home_t_s = f.end_t_s
+            self.failsafe_home = False
+
+    def failsafe(self, t_s: float) -> bool:
+        """The battery failsafe: a vehicle in the air that has used its pack's usable energy (down to
+        the reserve, ``fleet.energy_reserve_fraction``) flies straight home from where it is and takes
+        no plan until it has landed. The planner keeps the reserve, but take-offs, climbs and the
+        hover at a plan's end are charged here and not planned: without it a vehicle flew on into
+        its reserve and past its packs (790 kJ on three 250 kJ packs). PX4 returns at its critical
+        level by default (``COM_LOW_BAT_ACT`` 3, docs/guide/sitl.md "Battery"); on ArduPilot it is
+        ``BATT_FS_LOW_ACT`` 2 (RTL), which a team sets for a search. True when it triggers now."""
+        if self.home_t_s is not None or self.failsafe_home or self.in_swap:
+            return False
+        self.account(t_s)
+        if self.energy_j < self.sc.usable_energy_j:
+            return False
+        planned = self.flight
+        self.fly(np.vstack([self.flight.position(t_s).reshape(1, 2), np.zeros((1, 2))]), t_s)
+        self.failsafe_home = True
+        if np.allclose(planned.path[-1], 0.0) and planned.end_t_s <= self.flight.end_t_s + 1.0:
+            self.flight = planned  # on its way home already, as soon as straight home: not a failsafe return
+            return False
+        self.failsafe_returns += 1
+        return True
 
     def state(self, t_s: float):
         """The planner's view (planning.VehicleState): position now, home, usable energy left."""
@@ -475,6 +501,7 @@ def simulate_mission(
     def scanning(t_s: float) -> bool:
         for i, v in enumerate(vehicles):
             v.land_if_home(t_s)
+            v.failsafe(t_s)
             if v.swap_if_due(t_s) and queued.get(i):
                 v.fly(queued[i].pop(0), t_s)  # the next sortie of its scan, on the fresh pack
         return any(queued.values()) or any(v.flight.end_t_s > t_s for v in vehicles)
@@ -484,6 +511,8 @@ def simulate_mission(
     if not queued:  # one pack each: the scan as one flight per vehicle
         t_scan = max((v.flight.end_t_s for v in vehicles), default=0.0)
         while t < t_scan:  # the scan: listen, re-estimate now and then for the error curve
+            for v in vehicles:
+                v.failsafe(t)
             t_next = min(t + scan_update_s, t_scan)
             policy.ingest(hear(world, vehicles, t, t_next, policy))
             policy.update(t_next)
@@ -512,6 +541,7 @@ def simulate_mission(
         fresh = False
         for v in vehicles:
             v.land_if_home(t)
+            v.failsafe(t)
             fresh |= adaptive and not policy.done(t) and v.swap_if_due(t)
         all_home = all(v.home_t_s is not None for v in vehicles)
         swapping = any(v.in_swap for v in vehicles)
@@ -554,4 +584,5 @@ def simulate_mission(
         persons=person_results(world, statuses, t_end, policy.heard_slots), oracle_completion_time_s=t_oracle,
         error_times_s=np.asarray(err_t), max_error_m=np.asarray(err_v),
         pod_overall=policy.coverage.overall() if getattr(policy, "coverage", None) is not None else math.nan,
-        pass_rounds=policy.coverage.pass_rounds if getattr(policy, "coverage", None) is not None else 0)
+        pass_rounds=policy.coverage.pass_rounds if getattr(policy, "coverage", None) is not None else 0,
+        failsafe_returns=sum(v.failsafe_returns for v in vehicles))

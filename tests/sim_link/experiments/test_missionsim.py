@@ -218,6 +218,33 @@ def test_a_scan_longer_than_a_pack_is_flown_in_sorties_within_the_packs(small):
     assert res.completion_time_s >= res.scan_time_s
 
 
+def test_the_battery_failsafe_takes_a_vehicle_home_at_its_reserve_and_holds_it_there(small):
+    """A vehicle that hovers at the end of its plan (nothing else given) until its usable energy is
+    spent turns home from where it is at the reserve; a plan given on the way is not flown, and it
+    lands having flown home on its reserve, within its pack."""
+    v = Vehicle(1, small)
+    v.fly(np.array([[0.0, 0.0], [300.0, 0.0]]), 0.0)  # 15 s out, then hovers there
+    hover_w = small.power_model.hover_energy_j(1.0)
+    t_reserve = small.usable_energy_j / hover_w  # (about: the leg out costs less than its hover)
+    assert not v.failsafe(0.5 * t_reserve)  # half a pack: nothing happens
+    t = 0.5 * t_reserve
+    while not v.failsafe(t):
+        t += 1.0
+        assert t < 2 * t_reserve, "the failsafe never triggered"
+    assert v.energy_j == pytest.approx(small.usable_energy_j, abs=hover_w)  # at the reserve (1 s steps)
+    assert v.flight.path[0] == pytest.approx([300.0, 0.0]) and v.flight.path[-1] == pytest.approx([0.0, 0.0])
+    v.fly(np.array([[300.0, 0.0], [300.0, 200.0]]), t + 1.0)  # a plan on the way home is not taken
+    assert v.flight.path[-1] == pytest.approx([0.0, 0.0])
+    v.land_if_home(math.inf)
+    assert v.home_t_s is not None and not v.failsafe_home and v.failsafe_returns == 1
+    assert small.usable_energy_j < v.energy_j < small.fleet.energy_budget_j  # the way home came from the reserve
+    # on its way home already when the reserve is reached: it flies on, nothing is counted
+    w = Vehicle(1, small)
+    w.fly(np.array([[0.0, 0.0], [300.0, 0.0], [0.0, 0.0]]), 0.0)
+    w.energy_j = small.usable_energy_j
+    assert not w.failsafe(20.0) and w.failsafe_returns == 0 and w.flight.path.shape == (3, 2)
+
+
 def test_a_reported_person_is_the_phone_that_sent_most_of_their_bursts():
     """A person linked from two phones' bursts is judged as the phone that sent most of them, and
     the share the other phone sent is reported (issue 41 item 4): a fix among B's bursts credited
