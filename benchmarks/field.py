@@ -185,7 +185,7 @@ def _fly(job):
             "within_m": [float(p.error_m) for p in located], "time_s": res.completion_time_s, "oracle_s": res.oracle_completion_time_s,
             "energy_kj": float(np.mean(res.energy_j)) / 1e3, "pod": res.pod_overall, "why": why,
             "ble15": ble15, "required_m": float(sc.people.required_accuracy_m),
-            "failsafe": int(getattr(res, "failsafe_returns", 0)),
+            "failsafe": res.failsafe_returns,
             "foreign": [float(p.foreign_share) for p in located if math.isfinite(p.foreign_share)]}
 
 
