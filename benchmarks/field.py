@@ -77,6 +77,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="orbit looks fly at M metres (search.look_height_m; default: the scenario's)")
     parser.add_argument("--trapped", action="store_true",
                         help="people who cannot move (simulation.motion = static, people.max_speed_m_s = 0)")
+    parser.add_argument("--time-limit", type=number(float, min=1.0, max=1440.0), default=None, metavar="MIN",
+                        help="the search's time limit in minutes (search.time_limit_s): the scan is planned within "
+                             "it and at it every vehicle flies home from where it is (default: the scenario's, "
+                             "else the simulator's 60 min)")
 
 
 def _numbers(text: str, cast, lo: float, hi: float, what: str, rule: str) -> tuple:
@@ -128,7 +132,9 @@ def overrides(args: argparse.Namespace) -> dict:
     if emission:
         out["emission"] = emission
     if getattr(args, "look_height", None) is not None:
-        out["search"] = {"look_height_m": float(args.look_height)}
+        out.setdefault("search", {})["look_height_m"] = float(args.look_height)
+    if getattr(args, "time_limit", None) is not None:
+        out.setdefault("search", {})["time_limit_s"] = 60.0 * float(args.time_limit)
     if getattr(args, "trapped", False):
         out["people"] = {"max_speed_m_s": 0.0}
         out["simulation"] = {"motion": "static"}
@@ -185,7 +191,7 @@ def _fly(job):
             "within_m": [float(p.error_m) for p in located], "time_s": res.completion_time_s, "oracle_s": res.oracle_completion_time_s,
             "energy_kj": float(np.mean(res.energy_j)) / 1e3, "pod": res.pod_overall, "why": why,
             "ble15": ble15, "required_m": float(sc.people.required_accuracy_m),
-            "failsafe": res.failsafe_returns,
+            "failsafe": res.failsafe_returns, "limited": bool(res.time_limited),
             "foreign": [float(p.foreign_share) for p in located if math.isfinite(p.foreign_share)]}
 
 
@@ -248,6 +254,12 @@ def foreign_lines(rows: list[dict]) -> list[str]:
     return out
 
 
+def missionsim_cap_s() -> float:
+    from sim_link.experiments.missionsim import DEFAULT_MAX_TIME_S
+
+    return float(DEFAULT_MAX_TIME_S)
+
+
 def main(args: argparse.Namespace) -> int:
     from uavloc_gcs.examples import scenario_path
     from uavloc_gcs.scenario import load_scenario
@@ -291,6 +303,12 @@ def main(args: argparse.Namespace) -> int:
     if any(cut.values()):  # the simulator's battery failsafe (missionsim.Vehicle.failsafe): the plan overran a pack
         print("flights cut by the battery failsafe at the reserve (plans that overran a pack): "
               + ", ".join(f"{plan} {n}" for plan, n in cut.items() if n))
+    ended = {plan: sum(r.get("limited", False) for r in rows if r["label"] == plan) for plan in dict.fromkeys(r["label"] for r in rows)}
+    if any(ended.values()):  # missionsim: at the limit every vehicle flies home from where it is
+        given = load_scenario(scenario_file).replace(**changes).search.time_limit_s
+        limit = given if given is not None else missionsim_cap_s()
+        print(f"searches ended by the time limit ({limit / 60:g} min; then every vehicle home from where it was, "
+              "nothing more heard): " + ", ".join(f"{plan} {n} of {args.runs}" for plan, n in ended.items() if n))
     most = max(args.packs)
     u = [r for r in rows if r["label"] == label("uavloc", most, shares[-1])]
     lm = [r for r in rows if r["label"] == label("lawnmower", most, shares[-1])]

@@ -74,6 +74,9 @@ class MissionResult:
     pass_rounds: int = 0  # replans that added passes over cells below the POD target
     max_error_m: np.ndarray = field(repr=False, default_factory=lambda: np.zeros(0))
     failsafe_returns: int = 0  # flights cut short by the battery failsafe at the reserve (all vehicles)
+    # the search reached its time limit ([search] time_limit_s, else simulate_mission's max_time_s)
+    # and every vehicle in the air was sent straight home from where it was, as the daemon does
+    time_limited: bool = False
 
     @property
     def located_fraction(self) -> float:
@@ -270,6 +273,12 @@ class Vehicle:
         self.failsafe_returns += 1
         return True
 
+    def recall(self, t_s: float) -> None:
+        """The search's time is up: straight home from where it is (the daemon's end of a search);
+        a vehicle on the ground, or already on its battery failsafe's way home, stays as it is."""
+        if self.home_t_s is None and not self.failsafe_home:
+            self.fly(np.vstack([self.flight.position(t_s).reshape(1, 2), np.zeros((1, 2))]), t_s)
+
     def state(self, t_s: float):
         """The planner's view (planning.VehicleState): position now, home, usable energy left."""
         from uavloc_gcs.planning import VehicleState
@@ -462,7 +471,9 @@ def simulate_mission(
 ) -> MissionResult:
     """Fly one mission with one of :data:`METHODS` and report completion time, run times, errors.
     ``adaptive=False``: the scan alone (a conventional search): every vehicle flies home after its
-    scan, and the people are what the estimator makes of the scan's data."""
+    scan, and the people are what the estimator makes of the scan's data. The search ends at
+    ``[search] time_limit_s`` (at most ``max_time_s``): then every vehicle in the air flies straight
+    home from where it is and nothing more is heard (:attr:`MissionResult.time_limited`)."""
     if method not in METHODS:
         raise ValueError(f"unknown method {method!r}; expected one of {', '.join(METHODS)}")
     model_motion, optimizer = METHODS[method]
@@ -532,6 +543,9 @@ def simulate_mission(
         t_scan = t
 
     replans = 0
+    given_limit = getattr(scenario.search, "time_limit_s", None)
+    limit_s = float(max_time_s) if given_limit is None else min(float(max_time_s), float(given_limit))
+    limited = False
     changed = policy.update(t)
     t_oracle = oracle_completion_time_s(policy, world, vehicles, t) if oracle else math.nan
     if not adaptive:
@@ -549,7 +563,10 @@ def simulate_mission(
             break
         force = fresh or (all(v.home_t_s is not None or v.flight.end_t_s <= t for v in vehicles)
                           and not policy.done(t) and not swapping)
-        if t >= max_time_s:
+        if t >= limit_s:  # the search's time is up: everyone home from where they are, as the daemon does
+            limited = True
+            for v in vehicles:
+                v.recall(t)
             break
         if adaptive and (force or policy.needs_replan(t, changed) or (policy.done(t) and policy.current_plan is None)):
             plan = policy.replan(t, [v.state(t) for v in vehicles])
@@ -585,4 +602,4 @@ def simulate_mission(
         error_times_s=np.asarray(err_t), max_error_m=np.asarray(err_v),
         pod_overall=policy.coverage.overall() if getattr(policy, "coverage", None) is not None else math.nan,
         pass_rounds=policy.coverage.pass_rounds if getattr(policy, "coverage", None) is not None else 0,
-        failsafe_returns=sum(v.failsafe_returns for v in vehicles))
+        failsafe_returns=sum(v.failsafe_returns for v in vehicles), time_limited=limited)

@@ -51,6 +51,19 @@ def test_an_access_point_and_trapped_people_are_options_of_the_worlds():
     assert (em.elicitation_rate_hz, em.mimicry_share, em.elicitation_join) == (2.0, 0.5, "in-reach")
 
 
+def test_the_time_limit_and_the_look_height_are_options_of_the_search():
+    import argparse
+
+    p = argparse.ArgumentParser()
+    field.add_arguments(p)
+    sc = load_scenario(scenario_path("field")).replace(
+        **field.overrides(p.parse_args(["--time-limit", "45", "--look-height", "30"])))
+    assert sc.search.time_limit_s == 2700.0 and sc.search.look_height_m == 30.0
+    assert sc.search.pod_target == load_scenario(scenario_path("field")).search.pod_target  # the rest kept
+    with pytest.raises(SystemExit):
+        p.parse_args(["--time-limit", "0"])
+
+
 def test_packs_and_plans_options_are_checked_in_one_sentence():
     import argparse
 

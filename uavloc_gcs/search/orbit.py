@@ -386,8 +386,10 @@ def expand_path(points_xy_m, orbits, start_xy_m) -> tuple[np.ndarray, np.ndarray
 # that way in the field demo at 2 Hz); False: fly-bys as before. The paper's continuous world never
 # gets orbits.
 ORBIT_LOOKS = True
-# Orbit looks without hearing the phone on the last one before the person is given up as "in a
-# long silence or gone" (the first may just fall between two bursts). A person heard on their last
+# Orbit looks in a row without hearing the phone before the person is given up as "in a long
+# silence or gone" (the first may just fall between two bursts; an orbit waits for two bursts with
+# probability ORBIT_P, so one silent orbit after heard ones is no evidence: the field search gave up
+# a person heard on five orbits at their first silent one). A person heard on their last
 # orbit is looked at again (issue 26: give up only when the evidence says gone or the energy is
 # spent), up to the scenario's optional cap, [search] max_orbit_looks.
 SILENT_ORBIT_LOOKS = 2
@@ -517,19 +519,21 @@ def judge_orbit(policy, eid: int, p, heard: bool) -> str | None:
         return None
     n = policy.__dict__.setdefault("_orbit_looks", {})
     n[int(eid)] = k = n.get(int(eid), 0) + 1
+    quiet = policy.__dict__.setdefault("_silent_orbits", {})  # silent orbits in a row, per person
+    quiet[int(eid)] = silent = 0 if heard else quiet.get(int(eid), 0) + 1
     cap = policy.scenario.search.max_orbit_looks
     capped = cap is not None and k >= cap
     if heard and not capped:  # the phone is there: look again while a vehicle has the energy
         return ""
-    if not heard and k < SILENT_ORBIT_LOOKS and not capped:
+    if not heard and silent < SILENT_ORBIT_LOOKS and not capped:
         return ""
     r95 = policy._radius95(p) if p.estimate is not None else math.nan
     if heard:  # the phone is there: what ends the looks is the cap, and the sentence says so
         return (f"not located after {k} orbit looks of {orb.flown_s:.0f} s (heard on the last one; 95 % "
                 f"radius {r95:.0f} m): the orbits did not narrow it to the accuracy asked for, and the "
                 f"scenario flies at most {cap} for one person ([search] max_orbit_looks)")
-    if k < SILENT_ORBIT_LOOKS:  # the cap came first: one silent orbit is no evidence of anything
+    if silent < SILENT_ORBIT_LOOKS:  # the cap came first: one silent orbit is no evidence of anything
         return (f"not located after {k} orbit look(s) of {orb.flown_s:.0f} s (not heard on the last one; 95 % "
                 f"radius {r95:.0f} m): the scenario flies at most {cap} for one person ([search] max_orbit_looks)")
-    return (f"not located after {k} orbit looks of {orb.flown_s:.0f} s (not heard on the last one; 95 % "
-            f"radius {r95:.0f} m); its phone may be in a long silence or gone")
+    return (f"not located after {k} orbit looks (not heard on the last {silent}, of {orb.flown_s:.0f} s "
+            f"the last; 95 % radius {r95:.0f} m); its phone may be in a long silence or gone")

@@ -245,6 +245,34 @@ def test_the_battery_failsafe_takes_a_vehicle_home_at_its_reserve_and_holds_it_t
     assert not w.failsafe(20.0) and w.failsafe_returns == 0 and w.flight.path.shape == (3, 2)
 
 
+def test_at_the_searchs_time_limit_every_vehicle_flies_home_from_where_it_is(small):
+    """[search] time_limit_s ends the search as the daemon does: every vehicle in the air flies
+    straight home from where it is and nothing more is heard. Before, the simulator stopped listening
+    at its cap and let the vehicles fly their plans on, charging them: a three-pack field search
+    "took" 91 minutes and 405 kJ on one 250 kJ pack."""
+    v = Vehicle(1, small)
+    v.fly(np.array([[0.0, 0.0], [400.0, 0.0], [400.0, 400.0], [0.0, 400.0], [0.0, 0.0]]), 0.0)
+    planned_end = v.flight.end_t_s
+    t = 200.0 / small.fleet.speed_m_s  # half-way out on the first leg
+    v.recall(t)
+    assert v.flight.path[0] == pytest.approx([200.0, 0.0]) and v.flight.path[-1] == pytest.approx([0.0, 0.0])
+    assert v.flight.end_t_s == pytest.approx(2 * t) and 2 * t < planned_end
+    v.land_if_home(math.inf)
+    assert v.home_t_s == pytest.approx(2 * t) and v.failsafe_returns == 0
+    v.recall(3 * t)  # on the ground: stays there
+    assert v.home_t_s == pytest.approx(2 * t)
+
+    world = lambda: World(small, seed=11, people=3, motion="static")  # noqa: E731
+    free = simulate_mission(small, world(), seed=1, time_limit_s=5.0, max_iter=15)
+    assert not free.time_limited
+    limit = 0.5 * free.scan_time_s
+    cut = simulate_mission(small.replace(search={"time_limit_s": limit}), world(), seed=1, time_limit_s=5.0,
+                           max_iter=15)
+    assert cut.time_limited and cut.replans == 0  # no look planned after the limit
+    far = math.hypot(small.area.width_m, small.area.height_m)  # the longest way home
+    assert cut.completion_time_s <= cut.scan_time_s + 1.0 + far / small.fleet.speed_m_s + 1.0
+
+
 def test_a_reported_person_is_the_phone_that_sent_most_of_their_bursts():
     """A person linked from two phones' bursts is judged as the phone that sent most of them, and
     the share the other phone sent is reported (issue 41 item 4): a fix among B's bursts credited

@@ -220,6 +220,29 @@ def test_a_person_heard_on_their_orbit_is_looked_at_again_unless_capped(heard, c
     assert by_cap == ("max_orbit_looks" in why)
 
 
+def test_silent_orbits_must_come_in_a_row_before_a_person_is_given_up():
+    """An orbit waits for two bursts with probability ORBIT_P, so a phone that is there is missed on
+    some orbits. The field search (3 packs, looks at 60 m) gave up a person heard on five orbits at
+    their sixth, silent one, as "in a long silence or gone", with energy left. Only
+    SILENT_ORBIT_LOOKS silent orbits in a row give a person up."""
+    import types
+
+    from uavloc_gcs.search import orbit
+
+    sc = load_scenario(scenario_path("field"))
+    policy = SearchPolicy(sc, seed=0, time_limit_s=5.0, max_iter=5)
+    person = types.SimpleNamespace(estimate=None)
+    look = orbit.plan_orbit(sc, (300.0, 200.0), 60.0)
+    whys = []
+    pattern = [True, False] * 4 + [False] * (orbit.SILENT_ORBIT_LOOKS - 1)
+    for heard in pattern:
+        policy.__dict__.setdefault("_orbits", {})[7] = look
+        whys.append(orbit.judge_orbit(policy, 7, person, heard))
+    assert whys[:-1] == [""] * (len(pattern) - 1), whys
+    assert "gone" in whys[-1] and f"not heard on the last {orbit.SILENT_ORBIT_LOOKS}" in whys[-1]
+    assert f"after {len(pattern)} orbit looks" in whys[-1]
+
+
 def test_max_orbit_looks_is_checked_and_named():
     from uavloc_gcs.errors import ConfigError
 
