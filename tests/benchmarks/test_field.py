@@ -64,6 +64,14 @@ def test_the_time_limit_and_the_look_height_are_options_of_the_search():
         p.parse_args(["--time-limit", "0"])
 
 
+def test_the_circles_of_people_heard_and_not_located_are_counted_against_the_truth():
+    rows = [dict(_row("uavloc", 0, 0, 100.0), label="uavloc", circles=[True, False, True]),
+            dict(_row("uavloc", 1, 0, 100.0), label="uavloc", circles=[True]),
+            dict(_row("paper", 0, 0, 100.0), label="paper", circles=[])]
+    assert field.circle_lines(rows) == [
+        "heard, not located, uavloc: 3 of 4 inside the 95 % circle reported (issue 41's goal: 95 %)"]
+
+
 def test_packs_and_plans_options_are_checked_in_one_sentence():
     import argparse
 

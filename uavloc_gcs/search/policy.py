@@ -316,8 +316,10 @@ class SearchPolicy(Aiming):
         from ..planning import RoutingProblem, solve
 
         self._replans += 1
+        # drop superseded estimates, and those of people whose bursts are now linked to someone else
+        # (hearing.py removes them: a three-pack field search crashed here with a KeyError)
         self._access_cache = {k: v for k, v in self._access_cache.items()
-                              if v[0] is self._people[k[0]].estimate}  # drop superseded estimates
+                              if k[0] in self._people and v[0] is self._people[k[0]].estimate}
         self._target_t_pass = {}
         rng = np.random.default_rng([self.seed, self._replans])
         runtime = 0.0

@@ -243,6 +243,24 @@ def test_silent_orbits_must_come_in_a_row_before_a_person_is_given_up():
     assert f"after {len(pattern)} orbit looks" in whys[-1]
 
 
+def test_a_replan_after_a_persons_bursts_were_linked_to_someone_else_does_not_fail():
+    """A three-pack field search (seed 1, outlier share 0.2) failed in replan with a KeyError: the
+    access cache still held the estimate of a person whose bursts the identity module had since
+    linked to someone else (hearing.py drops that person)."""
+    from uavloc_gcs.planning import VehicleState
+
+    sc = load_scenario(scenario_path("field"))
+    policy = SearchPolicy(sc, seed=0, time_limit_s=5.0, max_iter=5)
+    person, a = np.array([560.0, 250.0]), LOCAL | 8
+    policy.ingest(_burst(sc, 10.0, (500.0, 20.0), person, a, 0x88))
+    policy.update(20.0)
+    (eid,) = policy.pending_ids()
+    policy._access_cache[(12345, 20.0)] = (object(), 50.0)  # a person no longer there
+    plan = policy.replan(20.0, [VehicleState("1", (0.0, 0.0), (0.0, 0.0), sc.usable_energy_j)])
+    assert (12345, 20.0) not in policy._access_cache
+    assert any(eid in task.target_ids for task in plan.tasks)
+
+
 def test_max_orbit_looks_is_checked_and_named():
     from uavloc_gcs.errors import ConfigError
 
