@@ -196,6 +196,8 @@ def _fly(job):
             "energy_kj": float(np.mean(res.energy_j)) / 1e3, "pod": res.pod_overall, "why": why,
             "ble15": ble15, "required_m": float(sc.people.required_accuracy_m),
             "failsafe": res.failsafe_returns, "limited": bool(res.time_limited), "circles": circles,
+            "radii": [(float(p.claimed_radius_m), bool(p.error_m <= p.claimed_radius_m)) for p in heard
+                      if math.isfinite(p.error_m) and math.isfinite(p.claimed_radius_m)],
             "foreign": [float(p.foreign_share) for p in located if math.isfinite(p.foreign_share)]}
 
 
@@ -270,6 +272,24 @@ def circle_lines(rows: list[dict]) -> list[str]:
     return out
 
 
+CIRCLES_M = (15.0, 30.0, 50.0, 100.0)  # the circles a team on the ground could search, at the end
+
+
+def narrowed_lines(rows: list[dict]) -> list[str]:
+    """Per plan, the people present whose 95 % circle at the end was at most 15 / 30 / 50 / 100 m
+    and held the truth: the figure nearest to "located" where 15 m is out of reach."""
+    out = []
+    for plan in dict.fromkeys(r["label"] for r in rows):
+        mine = [r for r in rows if r["label"] == plan and "radii" in r]
+        if not mine:
+            continue
+        present = sum(r["present"] for r in mine)
+        n = [sum(rad <= c and ok for r in mine for rad, ok in r["radii"]) for c in CIRCLES_M]
+        out.append(f"people within a 95 % circle that holds them at the end, {plan}: "
+                   + " / ".join(f"{k} of {present} within {c:g} m" for k, c in zip(n, CIRCLES_M)))
+    return out
+
+
 def missionsim_cap_s() -> float:
     from sim_link.experiments.missionsim import DEFAULT_MAX_TIME_S
 
@@ -311,7 +331,7 @@ def main(args: argparse.Namespace) -> int:
                   f"{rows[0].get('required_m', 15):g} m of the truth by 15 min (issue 39's goal: 95 %)")
     for line in foreign_lines(rows):
         print(line)
-    for line in circle_lines(rows):
+    for line in circle_lines(rows) + narrowed_lines(rows):
         print(line)
     for plan in dict.fromkeys(r["label"] for r in rows):
         why = Counter(k for r in rows if r["label"] == plan for k in r["why"])

@@ -72,6 +72,13 @@ def test_the_circles_of_people_heard_and_not_located_are_counted_against_the_tru
         "heard, not located, uavloc: 3 of 4 inside the 95 % circle reported (issue 41's goal: 95 %)"]
 
 
+def test_the_people_narrowed_to_a_circle_a_team_can_search_are_counted_when_it_holds_them():
+    rows = [dict(_row("uavloc", 0, 1, 100.0), label="uavloc", radii=[(12.0, True), (40.0, True), (40.0, False),
+                                                                      (90.0, True), (300.0, True)])]
+    (line,) = field.narrowed_lines(rows)
+    assert line.endswith("1 of 10 within 15 m / 1 of 10 within 30 m / 2 of 10 within 50 m / 3 of 10 within 100 m")
+
+
 def test_packs_and_plans_options_are_checked_in_one_sentence():
     import argparse
 
