@@ -517,10 +517,13 @@ def simulate_mission(
                 v.fly(queued[i].pop(0), t_s)  # the next sortie of its scan, on the fresh pack
         return any(queued.values()) or any(v.flight.end_t_s > t_s for v in vehicles)
 
+    # the search's time limit, the scan's too: at it every vehicle in the air flies home (below)
+    given_limit = getattr(scenario.search, "time_limit_s", None)
+    limit_s = float(max_time_s) if given_limit is None else min(float(max_time_s), float(given_limit))
     err_t, err_v = [], []
     t = 0.0
     if not queued:  # one pack each: the scan as one flight per vehicle
-        t_scan = max((v.flight.end_t_s for v in vehicles), default=0.0)
+        t_scan = min(max((v.flight.end_t_s for v in vehicles), default=0.0), limit_s)
         while t < t_scan:  # the scan: listen, re-estimate now and then for the error curve
             for v in vehicles:
                 v.failsafe(t)
@@ -531,10 +534,10 @@ def simulate_mission(
             err_t.append(t)
             err_v.append(max_error_m(world, policy.people(t)))
     else:  # sorties: each lands, is swapped and flies the next part of its scan
-        while scanning(t):
+        while t < limit_s and scanning(t):
             nxt = [v.swap_until_s for v in vehicles if v.swap_until_s is not None and v.swap_until_s > t]
             nxt += [v.flight.end_t_s for v in vehicles if v.flight.end_t_s > t]
-            t_next = min([t + scan_update_s, *nxt])
+            t_next = min([t + scan_update_s, limit_s, *nxt])
             policy.ingest(hear(world, vehicles, t, t_next, policy))
             policy.update(t_next)
             t = t_next
@@ -543,8 +546,6 @@ def simulate_mission(
         t_scan = t
 
     replans = 0
-    given_limit = getattr(scenario.search, "time_limit_s", None)
-    limit_s = float(max_time_s) if given_limit is None else min(float(max_time_s), float(given_limit))
     limited = False
     changed = policy.update(t)
     t_oracle = oracle_completion_time_s(policy, world, vehicles, t) if oracle else math.nan
@@ -564,7 +565,9 @@ def simulate_mission(
         force = fresh or (all(v.home_t_s is not None or v.flight.end_t_s <= t for v in vehicles)
                           and not policy.done(t) and not swapping)
         if t >= limit_s:  # the search's time is up: everyone home from where they are, as the daemon does
-            limited = True
+            # (cut short: a scan sortie or a look not flown, not a vehicle merely on its way home)
+            limited = (any(queued.values()) or (adaptive and not policy.done(t))
+                       or any(v.home_t_s is None and not np.allclose(v.flight.path[-1], 0.0) for v in vehicles))
             for v in vehicles:
                 v.recall(t)
             break

@@ -269,8 +269,15 @@ def test_at_the_searchs_time_limit_every_vehicle_flies_home_from_where_it_is(sma
     cut = simulate_mission(small.replace(search={"time_limit_s": limit}), world(), seed=1, time_limit_s=5.0,
                            max_iter=15)
     assert cut.time_limited and cut.replans == 0  # no look planned after the limit
+    assert cut.scan_time_s == pytest.approx(limit)  # the scan too was cut at the limit
     far = math.hypot(small.area.width_m, small.area.height_m)  # the longest way home
-    assert cut.completion_time_s <= cut.scan_time_s + 1.0 + far / small.fleet.speed_m_s + 1.0
+    assert cut.completion_time_s <= limit + far / small.fleet.speed_m_s + 2.0
+    assert all(e < f for e, f in zip(cut.energy_j, free.energy_j))
+    # a scan alone (no looks) whose vehicles are only flying home at the limit is not cut short
+    alone = simulate_mission(small, world(), seed=1, time_limit_s=5.0, max_iter=15, adaptive=False)
+    home = simulate_mission(small.replace(search={"time_limit_s": alone.scan_time_s + 1.0}), world(), seed=1,
+                            time_limit_s=5.0, max_iter=15, adaptive=False)
+    assert not home.time_limited and home.completion_time_s == pytest.approx(alone.completion_time_s)
 
 
 def test_a_reported_person_is_the_phone_that_sent_most_of_their_bursts():
