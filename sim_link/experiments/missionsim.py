@@ -523,7 +523,9 @@ def simulate_mission(
     err_t, err_v = [], []
     t = 0.0
     if not queued:  # one pack each: the scan as one flight per vehicle
-        t_scan = min(max((v.flight.end_t_s for v in vehicles), default=0.0), limit_s)
+        t_scan = max((v.flight.end_t_s for v in vehicles), default=0.0)
+        scan_cut = t_scan > limit_s  # the scan itself outlasts the search's time
+        t_scan = min(t_scan, limit_s)
         while t < t_scan:  # the scan: listen, re-estimate now and then for the error curve
             for v in vehicles:
                 v.failsafe(t)
@@ -534,7 +536,7 @@ def simulate_mission(
             err_t.append(t)
             err_v.append(max_error_m(world, policy.people(t)))
     else:  # sorties: each lands, is swapped and flies the next part of its scan
-        while t < limit_s and scanning(t):
+        while not (scan_cut := t >= limit_s) and scanning(t):
             nxt = [v.swap_until_s for v in vehicles if v.swap_until_s is not None and v.swap_until_s > t]
             nxt += [v.flight.end_t_s for v in vehicles if v.flight.end_t_s > t]
             t_next = min([t + scan_update_s, limit_s, *nxt])
@@ -546,7 +548,7 @@ def simulate_mission(
         t_scan = t
 
     replans = 0
-    limited = False
+    limited = scan_cut
     changed = policy.update(t)
     t_oracle = oracle_completion_time_s(policy, world, vehicles, t) if oracle else math.nan
     if not adaptive:
@@ -566,10 +568,11 @@ def simulate_mission(
                           and not policy.done(t) and not swapping)
         if t >= limit_s:  # the search's time is up: everyone home from where they are, as the daemon does
             # (cut short: a scan sortie or a look not flown, not a vehicle merely on its way home)
-            limited = (any(queued.values()) or (adaptive and not policy.done(t))
-                       or any(v.home_t_s is None and not np.allclose(v.flight.path[-1], 0.0) for v in vehicles))
+            limited |= any(queued.values()) or (adaptive and not policy.done(t))
             for v in vehicles:
+                planned_end = v.flight.end_t_s if v.home_t_s is None else -math.inf
                 v.recall(t)
+                limited |= v.home_t_s is None and v.flight.end_t_s < planned_end - 1.0
             break
         if adaptive and (force or policy.needs_replan(t, changed) or (policy.done(t) and policy.current_plan is None)):
             plan = policy.replan(t, [v.state(t) for v in vehicles])

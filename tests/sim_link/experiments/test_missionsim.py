@@ -278,6 +278,9 @@ def test_at_the_searchs_time_limit_every_vehicle_flies_home_from_where_it_is(sma
     home = simulate_mission(small.replace(search={"time_limit_s": alone.scan_time_s + 1.0}), world(), seed=1,
                             time_limit_s=5.0, max_iter=15, adaptive=False)
     assert not home.time_limited and home.completion_time_s == pytest.approx(alone.completion_time_s)
+    mid = simulate_mission(small.replace(search={"time_limit_s": 0.5 * alone.scan_time_s}), world(), seed=1,
+                           time_limit_s=5.0, max_iter=15, adaptive=False)  # a lawnmower cut in its scan
+    assert mid.time_limited and mid.completion_time_s < alone.completion_time_s
 
 
 def test_a_reported_person_is_the_phone_that_sent_most_of_their_bursts():
