@@ -196,6 +196,7 @@ def _fly(job):
             "energy_kj": float(np.mean(res.energy_j)) / 1e3, "pod": res.pod_overall, "why": why,
             "ble15": ble15, "required_m": float(sc.people.required_accuracy_m),
             "failsafe": res.failsafe_returns, "limited": bool(res.time_limited), "circles": circles,
+            "claims": [tuple(c) for c in res.claims],
             "radii": [(float(p.claimed_radius_m), bool(p.error_m <= p.claimed_radius_m)) for p in heard
                       if math.isfinite(p.error_m) and math.isfinite(p.claimed_radius_m)],
             "foreign": [float(p.foreign_share) for p in located if math.isfinite(p.foreign_share)]}
@@ -272,6 +273,21 @@ def circle_lines(rows: list[dict]) -> list[str]:
     return out
 
 
+def claims_lines(rows: list[dict]) -> list[str]:
+    """Per plan, every circle reported at the end (a phone under several addresses may be reported
+    as several people; each is judged against the phone that sent most of its bursts)."""
+    out = []
+    for plan in dict.fromkeys(r["label"] for r in rows):
+        mine = [r for r in rows if r["label"] == plan and "claims" in r]
+        c = [x for r in mine for x in r["claims"]]
+        if not c:
+            continue
+        heard = sum(r["heard"] for r in mine)
+        out.append(f"every circle reported, {plan}: {len(c)} people reported for {heard} phones heard; "
+                   f"{sum(ok for _, _, ok in c)} of {len(c)} circles hold their phone")
+    return out
+
+
 CIRCLES_M = (15.0, 30.0, 50.0, 100.0)  # the circles a team on the ground could search, at the end
 
 
@@ -331,7 +347,7 @@ def main(args: argparse.Namespace) -> int:
                   f"{rows[0].get('required_m', 15):g} m of the truth by 15 min (issue 39's goal: 95 %)")
     for line in foreign_lines(rows):
         print(line)
-    for line in circle_lines(rows) + narrowed_lines(rows):
+    for line in circle_lines(rows) + claims_lines(rows) + narrowed_lines(rows):
         print(line)
     for plan in dict.fromkeys(r["label"] for r in rows):
         why = Counter(k for r in rows if r["label"] == plan for k in r["why"])

@@ -77,6 +77,8 @@ class MissionResult:
     # the search reached its time limit ([search] time_limit_s, else simulate_mission's max_time_s)
     # and every vehicle in the air was sent straight home from where it was, as the daemon does
     time_limited: bool = False
+    # every circle reported at the end, duplicates of one phone included (circle_claims)
+    claims: tuple = ()
 
     @property
     def located_fraction(self) -> float:
@@ -367,16 +369,9 @@ def hear(world: World, vehicles: list[Vehicle], t_from_s: float, t_to_s: float, 
     return SlotBatch.concat(out)
 
 
-def person_results(world: World, statuses: list, t_end_s: float, slots_of=None) -> tuple[PersonResult, ...]:
-    """Compare what the policy believes (PersonStatus list) with the truth, one row per true person.
-
-    In the field world the policy reports people under the first address heard of them, and the
-    linking may split one phone into several reported people or merge several phones into one.
-    With ``slots_of`` (emitter id -> the slots the policy holds as that person's,
-    ``SearchPolicy.heard_slots``) a reported person is the phone that sent most of their bursts and
-    ``foreign_share`` says how many of them another phone sent; without it, the phone of the first
-    address heard. A true person is judged by the one of theirs that is located (the first one if
-    several), else the first reported."""
+def _owners(world: World, statuses: list, slots_of=None) -> tuple[np.ndarray, list]:
+    """Per reported person, the phone behind them (the first address's, or with ``slots_of`` the one
+    that sent most of their bursts) and the share of their bursts another phone sent (NaN unknown)."""
     from uavloc_gcs.estimation.identity import burst_index
 
     owner = world.person_of([s.emitter_id for s in statuses]) if statuses else np.zeros(0, int)
@@ -393,6 +388,34 @@ def person_results(world: World, statuses: list, t_end_s: float, slots_of=None) 
             if not top[phones == owner[k]].any():  # a tie keeps the first address's phone
                 owner[k] = int(phones[np.argmax(counts)])
             foreign[k] = 1.0 - float(counts.max()) / float(counts.sum())
+    return owner, foreign
+
+
+def circle_claims(world: World, statuses: list, t_end_s: float, slots_of=None) -> tuple[tuple[bool, float, bool], ...]:
+    """Every circle the policy reports, duplicates of one phone included: (located, 95 % radius [m],
+    whether it holds the phone behind it) for each reported person with an estimate."""
+    owner, _ = _owners(world, statuses, slots_of)
+    out = []
+    for s, i in zip(statuses, owner):
+        if s.xy_m is None or i < 0:
+            continue
+        truth = world.positions(s.t_ref_s if s.t_ref_s is not None else t_end_s)[int(i)]
+        err = float(np.hypot(s.xy_m[0] - truth[0], s.xy_m[1] - truth[1]))
+        out.append((bool(s.located), float(s.radius95_m), bool(err <= float(s.radius95_m))))
+    return tuple(out)
+
+
+def person_results(world: World, statuses: list, t_end_s: float, slots_of=None) -> tuple[PersonResult, ...]:
+    """Compare what the policy believes (PersonStatus list) with the truth, one row per true person.
+
+    In the field world the policy reports people under the first address heard of them, and the
+    linking may split one phone into several reported people or merge several phones into one.
+    With ``slots_of`` (emitter id -> the slots the policy holds as that person's,
+    ``SearchPolicy.heard_slots``) a reported person is the phone that sent most of their bursts and
+    ``foreign_share`` says how many of them another phone sent; without it, the phone of the first
+    address heard. A true person is judged by the one of theirs that is located (the first one if
+    several), else the first reported."""
+    owner, foreign = _owners(world, statuses, slots_of)
     by_person: dict[int, tuple] = {}
     for k, (s, i) in enumerate(zip(statuses, owner)):
         best = by_person.get(int(i))
@@ -605,6 +628,7 @@ def simulate_mission(
         planner_runtime_s=policy.planner_runtime_s, estimator_runtime_s=policy.estimator_runtime_s,
         replans=replans, energy_j=tuple(v.total_energy_j for v in vehicles),
         persons=person_results(world, statuses, t_end, policy.heard_slots), oracle_completion_time_s=t_oracle,
+        claims=circle_claims(world, statuses, t_end, policy.heard_slots),
         error_times_s=np.asarray(err_t), max_error_m=np.asarray(err_v),
         pod_overall=policy.coverage.overall() if getattr(policy, "coverage", None) is not None else math.nan,
         pass_rounds=policy.coverage.pass_rounds if getattr(policy, "coverage", None) is not None else 0,

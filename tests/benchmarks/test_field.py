@@ -79,6 +79,14 @@ def test_the_people_narrowed_to_a_circle_a_team_can_search_are_counted_when_it_h
     assert line.endswith("1 of 10 within 15 m / 1 of 10 within 30 m / 2 of 10 within 50 m / 3 of 10 within 100 m")
 
 
+def test_every_circle_reported_is_counted_duplicates_included():
+    rows = [dict(_row("uavloc", 0, 0, 100.0), label="uavloc", claims=[(False, 80.0, True), (False, 90.0, False),
+                                                                       (True, 14.0, True)]),
+            dict(_row("uavloc", 1, 0, 100.0), label="uavloc", claims=[(False, 60.0, True)])]
+    assert field.claims_lines(rows) == [
+        "every circle reported, uavloc: 4 people reported for 16 phones heard; 3 of 4 circles hold their phone"]
+
+
 def test_packs_and_plans_options_are_checked_in_one_sentence():
     import argparse
 

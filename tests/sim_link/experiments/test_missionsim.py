@@ -314,3 +314,12 @@ def test_a_reported_person_is_the_phone_that_sent_most_of_their_bursts():
     assert not judged[0].heard and math.isnan(judged[0].foreign_share)
     assert judged[1].located and judged[1].error_m == pytest.approx(3.0)
     assert judged[1].foreign_share == pytest.approx(0.25)
+    # every circle reported is judged against its own phone, duplicates of one phone included
+    from dataclasses import replace
+
+    from sim_link.experiments.missionsim import circle_claims
+
+    twice = [status, replace(status, xy_m=(float(truth[1, 0]) + 30.0, float(truth[1, 1])), located=False,
+                             radius95_m=25.0)]
+    assert circle_claims(world, twice, 0.0, lambda eid: slots) == ((True, 10.0, True), (False, 25.0, False))
+    assert circle_claims(world, [replace(status, xy_m=None)], 0.0, lambda eid: slots) == ()
