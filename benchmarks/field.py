@@ -250,7 +250,8 @@ def table(rows: list[dict], runs: int) -> list[str]:
 
 def foreign_lines(rows: list[dict]) -> list[str]:
     """Per plan that located someone: the share of the located people's bursts another phone sent
-    (a reported person is judged as the phone that sent most of their bursts: missionsim.person_results)."""
+    (a reported person is judged as the phone that sent most of their bursts:
+    sim_link.experiments.truth.person_results)."""
     out = []
     for plan in dict.fromkeys(r["label"] for r in rows):
         shares = [f for r in rows if r["label"] == plan for f in r.get("foreign", [])]
@@ -283,8 +284,9 @@ def claims_lines(rows: list[dict]) -> list[str]:
         if not c:
             continue
         heard = sum(r["heard"] for r in mine)
-        out.append(f"every circle reported, {plan}: {len(c)} people reported for {heard} phones heard; "
-                   f"{sum(ok for _, _, ok in c)} of {len(c)} circles hold their phone")
+        out.append(f"every circle reported, {plan}: {len(c)} {'person' if len(c) == 1 else 'people'} reported for "
+                   f"{heard} phone{'' if heard == 1 else 's'} heard; {sum(ok for _, _, ok in c)} of {len(c)} "
+                   f"circle{'' if len(c) == 1 else 's'} hold their phone")
     return out
 
 
@@ -357,12 +359,13 @@ def main(args: argparse.Namespace) -> int:
     if any(cut.values()):  # the simulator's battery failsafe (missionsim.Vehicle.failsafe): the plan overran a pack
         print("flights cut by the battery failsafe at the reserve (plans that overran a pack): "
               + ", ".join(f"{plan} {n}" for plan, n in cut.items() if n))
-    ended = {plan: sum(r.get("limited", False) for r in rows if r["label"] == plan) for plan in dict.fromkeys(r["label"] for r in rows)}
+    ended = {plan: sum(r.get("limited", False) for r in rows if r["label"] == plan)
+             for plan in dict.fromkeys(r["label"] for r in rows)}
     if any(ended.values()):  # missionsim: at the limit every vehicle flies home from where it is
         given = load_scenario(scenario_file).replace(**changes).search.time_limit_s
         limit = given if given is not None else missionsim_cap_s()
-        print(f"searches ended by the time limit ({limit / 60:g} min; then every vehicle home from where it was, "
-              "nothing more heard): " + ", ".join(f"{plan} {n} of {args.runs}" for plan, n in ended.items() if n))
+        print(f"searches ended by the time limit ({limit / 60:g} min; then every vehicle home from where it "
+              "was, nothing more heard): " + ", ".join(f"{plan} {n} of {args.runs}" for plan, n in ended.items() if n))
     most = max(args.packs)
     u = [r for r in rows if r["label"] == label("uavloc", most, shares[-1])]
     lm = [r for r in rows if r["label"] == label("lawnmower", most, shares[-1])]

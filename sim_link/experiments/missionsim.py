@@ -28,6 +28,7 @@ from uavloc_gcs.scenario import Scenario
 from uavloc_gcs.search import SearchPolicy
 
 from ..world import World
+from .truth import PersonResult, circle_claims, max_error_m, person_results  # noqa: F401 (their home before)
 
 METHODS = {
     # name: (model_motion, optimizer)
@@ -37,22 +38,6 @@ METHODS = {
     "MLE-GA": (True, "ga"),
 }
 DEFAULT_MAX_TIME_S = 3600.0
-
-
-@dataclass(frozen=True)
-class PersonResult:
-    """One true person at the end of a mission. Errors in metres; NaN where not estimated."""
-
-    emitter_id: int
-    heard: bool
-    located: bool
-    fix_t_s: float  # NaN if never located
-    error_m: float  # believed position at its reference time vs truth at that time
-    claimed_radius_m: float  # the method's own error claim (95 % radius or annulus bound)
-    reason: str = ""  # the policy's statement about this person at the end ("" where it makes none)
-    # of the bursts the reported person judged as this one holds, the share another phone sent (NaN
-    # where unknown): a fix built from two phones' bursts is not a fix (issue 41 item 4)
-    foreign_share: float = math.nan
 
 
 @dataclass(frozen=True)
@@ -367,81 +352,6 @@ def hear(world: World, vehicles: list[Vehicle], t_from_s: float, t_to_s: float, 
             step = max(1, int(round(COVERAGE_STEP_S / sc.channel.slot_s)))
             cov.add_track(v.index, tt[::step], xyz[::step])
     return SlotBatch.concat(out)
-
-
-def _owners(world: World, statuses: list, slots_of=None) -> tuple[np.ndarray, list]:
-    """Per reported person, the phone behind them (the first address's, or with ``slots_of`` the one
-    that sent most of their bursts) and the share of their bursts another phone sent (NaN unknown)."""
-    from uavloc_gcs.estimation.identity import burst_index
-
-    owner = world.person_of([s.emitter_id for s in statuses]) if statuses else np.zeros(0, int)
-    foreign = [math.nan] * len(statuses)
-    if slots_of is not None:
-        for k, s in enumerate(statuses):
-            slots = slots_of(s.emitter_id)
-            if len(slots) == 0:
-                continue
-            burst = burst_index(slots)
-            _, first = np.unique(burst, return_index=True)  # one address per burst: one phone
-            phones, counts = np.unique(world.person_of(slots.address[first]), return_counts=True)
-            top = counts == counts.max()
-            if not top[phones == owner[k]].any():  # a tie keeps the first address's phone
-                owner[k] = int(phones[np.argmax(counts)])
-            foreign[k] = 1.0 - float(counts.max()) / float(counts.sum())
-    return owner, foreign
-
-
-def circle_claims(world: World, statuses: list, t_end_s: float, slots_of=None) -> tuple[tuple[bool, float, bool], ...]:
-    """Every circle the policy reports, duplicates of one phone included: (located, 95 % radius [m],
-    whether it holds the phone behind it) for each reported person with an estimate."""
-    owner, _ = _owners(world, statuses, slots_of)
-    out = []
-    for s, i in zip(statuses, owner):
-        if s.xy_m is None or i < 0:
-            continue
-        truth = world.positions(s.t_ref_s if s.t_ref_s is not None else t_end_s)[int(i)]
-        err = float(np.hypot(s.xy_m[0] - truth[0], s.xy_m[1] - truth[1]))
-        out.append((bool(s.located), float(s.radius95_m), bool(err <= float(s.radius95_m))))
-    return tuple(out)
-
-
-def person_results(world: World, statuses: list, t_end_s: float, slots_of=None) -> tuple[PersonResult, ...]:
-    """Compare what the policy believes (PersonStatus list) with the truth, one row per true person.
-
-    In the field world the policy reports people under the first address heard of them, and the
-    linking may split one phone into several reported people or merge several phones into one.
-    With ``slots_of`` (emitter id -> the slots the policy holds as that person's,
-    ``SearchPolicy.heard_slots``) a reported person is the phone that sent most of their bursts and
-    ``foreign_share`` says how many of them another phone sent; without it, the phone of the first
-    address heard. A true person is judged by the one of theirs that is located (the first one if
-    several), else the first reported."""
-    owner, foreign = _owners(world, statuses, slots_of)
-    by_person: dict[int, tuple] = {}
-    for k, (s, i) in enumerate(zip(statuses, owner)):
-        best = by_person.get(int(i))
-        if best is None or (s.located and not best[0].located):
-            by_person[int(i)] = (s, foreign[k])
-    out = []
-    for i, eid in enumerate(world.emitter_ids):
-        s, share = by_person.get(i, (None, math.nan))
-        if s is None or s.xy_m is None:
-            out.append(PersonResult(int(eid), s is not None, False, math.nan, math.nan, math.nan,
-                                    "" if s is None else s.reason, share))
-            continue
-        t_ref = s.t_ref_s if s.t_ref_s is not None else t_end_s
-        truth = world.positions(t_ref)[i]
-        err = float(np.hypot(s.xy_m[0] - truth[0], s.xy_m[1] - truth[1]))
-        claim = float(s.radius95_m)
-        out.append(PersonResult(int(eid), True, s.located, math.nan if s.fix_t_s is None else s.fix_t_s, err,
-                                claim, s.reason, share))
-    return tuple(out)
-
-
-def max_error_m(world: World, statuses: list) -> float:
-    """Largest believed-vs-true error over all true people (NaN while someone is unheard)."""
-    res = person_results(world, statuses, 0.0)
-    errs = [p.error_m for p in res]
-    return float(np.max(errs)) if errs and not any(math.isnan(e) for e in errs) else math.nan
 
 
 def _orbit_path(task, start_xy_m, cruise_m_s: float, survey_m: float = 0.0):

@@ -287,7 +287,7 @@ def test_a_reported_person_is_the_phone_that_sent_most_of_their_bursts():
     """A person linked from two phones' bursts is judged as the phone that sent most of them, and
     the share the other phone sent is reported (issue 41 item 4): a fix among B's bursts credited
     to A (the first address heard) would be scored as A's error."""
-    from sim_link.experiments.missionsim import person_results
+    from sim_link.experiments.truth import person_results
     from uavloc_gcs.observations import SlotBatch
     from uavloc_gcs.search.policy import PersonStatus
 
@@ -317,7 +317,7 @@ def test_a_reported_person_is_the_phone_that_sent_most_of_their_bursts():
     # every circle reported is judged against its own phone, duplicates of one phone included
     from dataclasses import replace
 
-    from sim_link.experiments.missionsim import circle_claims
+    from sim_link.experiments.truth import circle_claims
 
     twice = [status, replace(status, xy_m=(float(truth[1, 0]) + 30.0, float(truth[1, 1])), located=False,
                              radius95_m=25.0)]
