@@ -285,8 +285,8 @@ def claims_lines(rows: list[dict]) -> list[str]:
             continue
         heard = sum(r["heard"] for r in mine)
         out.append(f"every circle reported, {plan}: {len(c)} {'person' if len(c) == 1 else 'people'} reported for "
-                   f"{heard} phone{'' if heard == 1 else 's'} heard; {sum(ok for _, _, ok in c)} of {len(c)} "
-                   f"circle{'' if len(c) == 1 else 's'} hold their phone")
+                   f"{heard} phone{'' if heard == 1 else 's'} heard; circles that hold the phone behind them: "
+                   f"{sum(ok for _, _, ok in c)} of {len(c)}")
     return out
 
 

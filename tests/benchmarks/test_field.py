@@ -84,7 +84,8 @@ def test_every_circle_reported_is_counted_duplicates_included():
                                                                        (True, 14.0, True)]),
             dict(_row("uavloc", 1, 0, 100.0), label="uavloc", claims=[(False, 60.0, True)])]
     assert field.claims_lines(rows) == [
-        "every circle reported, uavloc: 4 people reported for 16 phones heard; 3 of 4 circles hold their phone"]
+        "every circle reported, uavloc: 4 people reported for 16 phones heard; circles that hold the phone behind "
+        "them: 3 of 4"]
 
 
 def test_packs_and_plans_options_are_checked_in_one_sentence():
