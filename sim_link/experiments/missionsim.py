@@ -28,7 +28,7 @@ from uavloc_gcs.scenario import Scenario
 from uavloc_gcs.search import SearchPolicy
 
 from ..world import World
-from .truth import PersonResult, circle_claims, max_error_m, person_results  # noqa: F401 (their home before)
+from .truth import PersonResult, circle_claims, judge, max_error_m, person_results  # noqa: F401 (their home before)
 
 METHODS = {
     # name: (model_motion, optimizer)
@@ -451,7 +451,7 @@ def simulate_mission(
         return any(queued.values()) or any(v.flight.end_t_s > t_s for v in vehicles)
 
     # the search's time limit, the scan's too: at it every vehicle in the air flies home (below)
-    given_limit = getattr(scenario.search, "time_limit_s", None)
+    given_limit = scenario.search.time_limit_s
     limit_s = float(max_time_s) if given_limit is None else min(float(max_time_s), float(given_limit))
     err_t, err_v = [], []
     t = 0.0
@@ -469,7 +469,7 @@ def simulate_mission(
             err_t.append(t)
             err_v.append(max_error_m(world, policy.people(t)))
     else:  # sorties: each lands, is swapped and flies the next part of its scan
-        while not (scan_cut := t >= limit_s) and scanning(t):
+        while t < limit_s and scanning(t):
             nxt = [v.swap_until_s for v in vehicles if v.swap_until_s is not None and v.swap_until_s > t]
             nxt += [v.flight.end_t_s for v in vehicles if v.flight.end_t_s > t]
             t_next = min([t + scan_update_s, limit_s, *nxt])
@@ -479,6 +479,7 @@ def simulate_mission(
             err_t.append(t)
             err_v.append(max_error_m(world, policy.people(t)))
         t_scan = t
+        scan_cut = t >= limit_s  # stopped by the limit, not by the scan's end
 
     replans = 0
     limited = scan_cut
@@ -533,12 +534,12 @@ def simulate_mission(
     for v in vehicles:
         v.account(t_end)
     statuses = policy.people(t_end)
+    persons, claims = judge(world, statuses, t_end, policy.heard_slots)
     return MissionResult(
         method=method, people=len(world), seed=seed, completion_time_s=float(t_end), scan_time_s=float(t_scan),
         planner_runtime_s=policy.planner_runtime_s, estimator_runtime_s=policy.estimator_runtime_s,
         replans=replans, energy_j=tuple(v.total_energy_j for v in vehicles),
-        persons=person_results(world, statuses, t_end, policy.heard_slots), oracle_completion_time_s=t_oracle,
-        claims=circle_claims(world, statuses, t_end, policy.heard_slots),
+        persons=persons, claims=claims, oracle_completion_time_s=t_oracle,
         error_times_s=np.asarray(err_t), max_error_m=np.asarray(err_v),
         pod_overall=policy.coverage.overall() if getattr(policy, "coverage", None) is not None else math.nan,
         pass_rounds=policy.coverage.pass_rounds if getattr(policy, "coverage", None) is not None else 0,

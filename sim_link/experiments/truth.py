@@ -50,18 +50,28 @@ def _owners(world: World, statuses: list, slots_of=None) -> tuple[np.ndarray, li
     return owner, foreign
 
 
+def _error_m(world: World, s, i: int, t_end_s: float) -> float:
+    """How far reported person ``s`` is from phone ``i`` at their reference time [m]."""
+    truth = world.positions(s.t_ref_s if s.t_ref_s is not None else t_end_s)[int(i)]
+    return float(np.hypot(s.xy_m[0] - truth[0], s.xy_m[1] - truth[1]))
+
+
+def judge(world: World, statuses: list, t_end_s: float, slots_of=None) -> tuple[tuple, tuple]:
+    """(:func:`person_results`, :func:`circle_claims`) with the phone behind each reported person
+    worked out once."""
+    owners = _owners(world, statuses, slots_of)
+    return _person_results(world, statuses, t_end_s, *owners), _circle_claims(world, statuses, t_end_s, owners[0])
+
+
 def circle_claims(world: World, statuses: list, t_end_s: float, slots_of=None) -> tuple[tuple[bool, float, bool], ...]:
     """Every circle the policy reports, duplicates of one phone included: (located, 95 % radius [m],
     whether it holds the phone behind it) for each reported person with an estimate."""
-    owner, _ = _owners(world, statuses, slots_of)
-    out = []
-    for s, i in zip(statuses, owner):
-        if s.xy_m is None or i < 0:
-            continue
-        truth = world.positions(s.t_ref_s if s.t_ref_s is not None else t_end_s)[int(i)]
-        err = float(np.hypot(s.xy_m[0] - truth[0], s.xy_m[1] - truth[1]))
-        out.append((bool(s.located), float(s.radius95_m), bool(err <= float(s.radius95_m))))
-    return tuple(out)
+    return _circle_claims(world, statuses, t_end_s, _owners(world, statuses, slots_of)[0])
+
+
+def _circle_claims(world: World, statuses: list, t_end_s: float, owner) -> tuple[tuple[bool, float, bool], ...]:
+    return tuple((bool(s.located), float(s.radius95_m), _error_m(world, s, i, t_end_s) <= float(s.radius95_m))
+                 for s, i in zip(statuses, owner) if s.xy_m is not None and i >= 0)
 
 
 def person_results(world: World, statuses: list, t_end_s: float, slots_of=None) -> tuple[PersonResult, ...]:
@@ -74,7 +84,10 @@ def person_results(world: World, statuses: list, t_end_s: float, slots_of=None) 
     ``foreign_share`` says how many of them another phone sent; without it, the phone of the first
     address heard. A true person is judged by the one of theirs that is located (the first one if
     several), else the first reported."""
-    owner, foreign = _owners(world, statuses, slots_of)
+    return _person_results(world, statuses, t_end_s, *_owners(world, statuses, slots_of))
+
+
+def _person_results(world: World, statuses: list, t_end_s: float, owner, foreign) -> tuple[PersonResult, ...]:
     by_person: dict[int, tuple] = {}
     for k, (s, i) in enumerate(zip(statuses, owner)):
         best = by_person.get(int(i))
@@ -87,12 +100,8 @@ def person_results(world: World, statuses: list, t_end_s: float, slots_of=None) 
             out.append(PersonResult(int(eid), s is not None, False, math.nan, math.nan, math.nan,
                                     "" if s is None else s.reason, share))
             continue
-        t_ref = s.t_ref_s if s.t_ref_s is not None else t_end_s
-        truth = world.positions(t_ref)[i]
-        err = float(np.hypot(s.xy_m[0] - truth[0], s.xy_m[1] - truth[1]))
-        claim = float(s.radius95_m)
-        out.append(PersonResult(int(eid), True, s.located, math.nan if s.fix_t_s is None else s.fix_t_s, err,
-                                claim, s.reason, share))
+        out.append(PersonResult(int(eid), True, s.located, math.nan if s.fix_t_s is None else s.fix_t_s,
+                                _error_m(world, s, i, t_end_s), float(s.radius95_m), s.reason, share))
     return tuple(out)
 
 

@@ -65,16 +65,18 @@ def test_the_time_limit_and_the_look_height_are_options_of_the_search():
 
 
 def test_the_circles_of_people_heard_and_not_located_are_counted_against_the_truth():
-    rows = [dict(_row("uavloc", 0, 0, 100.0), label="uavloc", circles=[True, False, True]),
-            dict(_row("uavloc", 1, 0, 100.0), label="uavloc", circles=[True]),
-            dict(_row("paper", 0, 0, 100.0), label="paper", circles=[])]
+    rows = [dict(_row("uavloc", 0, 0, 100.0), label="uavloc",
+                 judged=[(False, 80.0, True), (False, 90.0, False), (False, 60.0, True), (True, 12.0, False)]),
+            dict(_row("uavloc", 1, 0, 100.0), label="uavloc", judged=[(False, 70.0, True)]),
+            dict(_row("paper", 0, 0, 100.0), label="paper", judged=[(True, 10.0, True)])]
     assert field.circle_lines(rows) == [
         "heard, not located, uavloc: 3 of 4 inside the 95 % circle reported (issue 41's goal: 95 %)"]
 
 
 def test_the_people_narrowed_to_a_circle_a_team_can_search_are_counted_when_it_holds_them():
-    rows = [dict(_row("uavloc", 0, 1, 100.0), label="uavloc", radii=[(12.0, True), (40.0, True), (40.0, False),
-                                                                      (90.0, True), (300.0, True)])]
+    rows = [dict(_row("uavloc", 0, 1, 100.0), label="uavloc", judged=[(True, 12.0, True), (False, 40.0, True),
+                                                                       (False, 40.0, False), (False, 90.0, True),
+                                                                       (False, 300.0, True)])]
     (line,) = field.narrowed_lines(rows)
     assert line.endswith("1 of 10 within 15 m / 1 of 10 within 30 m / 2 of 10 within 50 m / 3 of 10 within 100 m")
 
